@@ -1,0 +1,45 @@
+// denoisebench: the command-line program (DESIGN.md, "Command line"). Exit status: 0 success,
+// 1 failure of the work, 2 bad usage or bad input.
+#include <cstdlib>
+#include <exception>
+
+#include <spdlog/spdlog.h>
+
+#include "apps/commands.h"
+#include "core/errors.h"
+#include "core/version.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"denoisebench " DNB_VERSION
+               ": renders Monte Carlo AOV frames, runs denoisers, scores them against references"};
+  app.set_version_flag("--version", std::string(DNB_VERSION " (" DNB_GIT_REVISION ")"));
+  app.require_subcommand(1, 1);
+  std::string log_level = "info";
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
+  dnb::app::Action action;
+  dnb::app::add_render(app, action);
+  dnb::app::add_reference(app, action);
+  dnb::app::add_denoise(app, action);
+  dnb::app::add_metrics(app, action);
+  dnb::app::add_run(app, action);
+  dnb::app::add_report(app, action);
+  dnb::app::add_list(app, action);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  }
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
+  try {
+    return action ? action() : 2;
+  } catch (const dnb::InputError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,103 @@
+// The AOV frame: every layer the shared tracer writes for one render (DESIGN.md, "AOV frame
+// file"), the sub-pixel data of edge pixels (paper 3.1), and the header metadata.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/image.h"
+
+namespace dnb {
+
+// Layer names. A layer of reflection level k is named "refl<k>." + base name, e.g.
+// "refl1.direct", "refl1.tint". The colour layer F is stored as the bare R,G,B channels.
+namespace layer {
+inline constexpr const char* kColor = "color";          // F
+inline constexpr const char* kDirect = "direct";        // D
+inline constexpr const char* kIndirect = "indirect";    // I
+inline constexpr const char* kAlbedo = "albedo";        // T
+inline constexpr const char* kReflection = "reflection";// R
+inline constexpr const char* kEmission = "emission";    // E
+inline constexpr const char* kNormal = "normal";        // world-space shading normal, X/Y/Z
+inline constexpr const char* kDepth = "depth";          // distance camera -> first hit, Z
+inline constexpr const char* kVariance = "variance";    // variance of the mean of F
+inline constexpr const char* kDirectVariance = "direct_variance";
+inline constexpr const char* kIndirectVariance = "indirect_variance";
+inline constexpr const char* kEdge = "edge";            // 1 for pixels of G, Y
+inline constexpr const char* kSamples = "samples";      // finite samples accumulated, Y
+inline constexpr const char* kTint = "tint";            // only at reflection levels
+// "refl<k>.<base>" for reflection level k >= 1; level 0 returns base itself.
+std::string at_level(int level, const std::string& base);
+}  // namespace layer
+
+// EXR channel names of a layer with the given channel count, in channel order:
+// color -> R,G,B; normal -> normal.X/Y/Z; depth -> depth.Z; edge/samples -> edge.Y;
+// any other 3-channel layer -> name.R/G/B; any other 1-channel layer -> name.Y.
+std::vector<std::string> channel_names(const std::string& layer, int channels);
+// The channel count a layer of this name has in a frame: 1 for depth, edge and samples, else 3.
+int default_channels(const std::string& layer);
+
+struct FrameMeta {
+  std::string scene;             // scene name or file
+  int spp = 0;                   // samples per pixel
+  std::uint64_t seed = 0;
+  std::string tracer_version;
+  std::string build_version;     // denoisebench version and git revision
+  double render_seconds = 0.0;
+  std::int64_t dropped_samples = 0;  // samples that produced NaN/Inf and were dropped
+  int reflection_levels = 0;
+  std::map<std::string, std::string> extra;  // anything else, kept through a round trip
+};
+
+// Sub-pixel data of one edge pixel: 4x4 strata, each the mean over that stratum's samples.
+struct EdgeSample {
+  float normal[3] = {0, 0, 0};
+  float depth = 0;
+  float albedo[3] = {0, 0, 0};
+  float direct[3] = {0, 0, 0};
+  float indirect[3] = {0, 0, 0};
+  bool operator==(const EdgeSample&) const = default;
+};
+
+struct EdgeSubpixels {
+  static constexpr int kPerSide = 4;
+  static constexpr int kPerPixel = kPerSide * kPerSide;
+  std::vector<std::int32_t> pixels;  // y * width + x, ascending
+  std::vector<EdgeSample> samples;   // kPerPixel per entry of `pixels`, sub-pixel row-major
+  std::size_t size() const { return pixels.size(); }
+  const EdgeSample* of(std::size_t i) const { return samples.data() + i * kPerPixel; }
+  bool operator==(const EdgeSubpixels&) const = default;
+};
+
+class AovFrame {
+ public:
+  AovFrame() = default;
+  AovFrame(int width, int height) : width_(width), height_(height) {}
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+  FrameMeta meta;
+  std::optional<EdgeSubpixels> edges;
+
+  bool has(const std::string& name) const { return layers_.count(name) != 0; }
+  // Throws InputError naming the layer's EXR channels when it is absent.
+  const Image& layer(const std::string& name) const;
+  Image& layer(const std::string& name);
+  // Adds (or replaces with) a zero layer of the frame's size.
+  Image& add(const std::string& name, int channels);
+  void set(const std::string& name, Image image);
+  const std::map<std::string, Image>& layers() const { return layers_; }
+  // Names of the EXR channels missing for the given layers (empty when all present).
+  std::vector<std::string> missing_channels(const std::vector<std::string>& names) const;
+
+ private:
+  int width_ = 0;
+  int height_ = 0;
+  std::map<std::string, Image> layers_;
+};
+
+}  // namespace dnb

@@ -1,0 +1,300 @@
+#include "core/exr_io.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <map>
+#include <memory>
+
+#include <OpenImageIO/deepdata.h>
+#include <OpenImageIO/imageio.h>
+#include <fmt/format.h>
+
+#include "core/atomic_file.h"
+#include "core/errors.h"
+
+namespace dnb {
+namespace fs = std::filesystem;
+using OIIO::TypeDesc;
+
+static const char* kAttrPrefix = "denoisebench:";
+static const char* kExtraPrefix = "denoisebench:extra:";
+
+std::string edges_path(const std::string& frame_path) {
+  fs::path p(frame_path);
+  return (p.parent_path() / (p.stem().string() + ".edges" + p.extension().string())).string();
+}
+
+namespace {
+
+void put_meta(OIIO::ImageSpec& spec, const FrameMeta& m, int width, int height,
+              std::size_t edge_pixels) {
+  spec.attribute(std::string(kAttrPrefix) + "scene", m.scene);
+  spec.attribute(std::string(kAttrPrefix) + "spp", m.spp);
+  spec.attribute(std::string(kAttrPrefix) + "size", fmt::format("{}x{}", width, height));
+  spec.attribute(std::string(kAttrPrefix) + "seed", std::to_string(m.seed));
+  spec.attribute(std::string(kAttrPrefix) + "tracer_version", m.tracer_version);
+  spec.attribute(std::string(kAttrPrefix) + "build_version", m.build_version);
+  spec.attribute(std::string(kAttrPrefix) + "render_seconds", fmt::format("{:.17g}", m.render_seconds));
+  spec.attribute(std::string(kAttrPrefix) + "dropped_samples", std::to_string(m.dropped_samples));
+  spec.attribute(std::string(kAttrPrefix) + "reflection_levels", m.reflection_levels);
+  spec.attribute(std::string(kAttrPrefix) + "edge_pixels", std::to_string(edge_pixels));
+  for (auto& [k, v] : m.extra) spec.attribute(std::string(kExtraPrefix) + k, v);
+}
+
+std::string attr_string(const OIIO::ImageSpec& spec, const std::string& name) {
+  return std::string(spec.get_string_attribute(std::string(kAttrPrefix) + name));
+}
+
+FrameMeta get_meta(const OIIO::ImageSpec& spec, std::size_t* edge_pixels) {
+  FrameMeta m;
+  m.scene = attr_string(spec, "scene");
+  m.spp = spec.get_int_attribute(std::string(kAttrPrefix) + "spp", 0);
+  try {
+    std::string s = attr_string(spec, "seed");
+    m.seed = s.empty() ? 0 : std::stoull(s);
+    s = attr_string(spec, "render_seconds");
+    m.render_seconds = s.empty() ? 0.0 : std::stod(s);
+    s = attr_string(spec, "dropped_samples");
+    m.dropped_samples = s.empty() ? 0 : std::stoll(s);
+    s = attr_string(spec, "edge_pixels");
+    *edge_pixels = s.empty() ? 0 : std::stoull(s);
+  } catch (const std::exception&) {
+    throw InputError("malformed denoisebench metadata (seed, render_seconds, dropped_samples or edge_pixels)");
+  }
+  m.tracer_version = attr_string(spec, "tracer_version");
+  m.build_version = attr_string(spec, "build_version");
+  m.reflection_levels = spec.get_int_attribute(std::string(kAttrPrefix) + "reflection_levels", 0);
+  const std::string extra = kExtraPrefix;
+  for (const auto& p : spec.extra_attribs) {
+    std::string n = p.name().string();
+    if (n.rfind(extra, 0) == 0) m.extra[n.substr(extra.size())] = p.get_string();
+  }
+  return m;
+}
+
+std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
+  if (!fs::exists(path)) throw InputError(fmt::format("'{}': no such file", path));
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw InputError(fmt::format("'{}': cannot open as an image: {}", path, OIIO::geterror()));
+  return in;
+}
+
+// Layer of an EXR channel name: "R" -> color, "direct.R" -> direct, "refl1.normal.X" -> refl1.normal.
+std::string layer_of(const std::string& channel) {
+  auto dot = channel.rfind('.');
+  return dot == std::string::npos ? std::string(layer::kColor) : channel.substr(0, dot);
+}
+
+void write_image_file(const std::string& path, OIIO::ImageSpec spec, const float* data) {
+  AtomicOutput out(path);
+  auto o = OIIO::ImageOutput::create(out.temp_path());
+  if (!o) throw WorkError(fmt::format("'{}': no image writer: {}", path, OIIO::geterror()));
+  spec.attribute("compression", "zip");
+  if (!o->open(out.temp_path(), spec) || !o->write_image(TypeDesc::FLOAT, data) || !o->close())
+    throw WorkError(fmt::format("'{}': write failed: {}", path, o->geterror()));
+  o.reset();
+  out.commit();
+}
+
+const char* kDeepChannels[] = {"normal.X", "normal.Y", "normal.Z", "Z",          "albedo.R",
+                               "albedo.G", "albedo.B", "direct.R", "direct.G",   "direct.B",
+                               "indirect.R", "indirect.G", "indirect.B"};
+constexpr int kDeepCount = 13;
+
+void pack(const EdgeSample& s, float* v) {
+  v[0] = s.normal[0]; v[1] = s.normal[1]; v[2] = s.normal[2]; v[3] = s.depth;
+  for (int c = 0; c < 3; ++c) { v[4 + c] = s.albedo[c]; v[7 + c] = s.direct[c]; v[10 + c] = s.indirect[c]; }
+}
+void unpack(const float* v, EdgeSample& s) {
+  s.normal[0] = v[0]; s.normal[1] = v[1]; s.normal[2] = v[2]; s.depth = v[3];
+  for (int c = 0; c < 3; ++c) { s.albedo[c] = v[4 + c]; s.direct[c] = v[7 + c]; s.indirect[c] = v[10 + c]; }
+}
+
+void write_edges(const EdgeSubpixels& e, int width, int height, const std::string& path) {
+  OIIO::ImageSpec spec(width, height, kDeepCount, TypeDesc::FLOAT);
+  spec.deep = true;
+  spec.channelnames.assign(std::begin(kDeepChannels), std::end(kDeepChannels));
+  spec.z_channel = 3;
+  spec.attribute("compression", "zips");
+  OIIO::DeepData dd;
+  dd.init(spec);
+  for (std::size_t i = 0; i < e.size(); ++i) dd.set_samples(e.pixels[i], EdgeSubpixels::kPerPixel);
+  float v[kDeepCount];
+  for (std::size_t i = 0; i < e.size(); ++i)
+    for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
+      pack(e.of(i)[s], v);
+      for (int c = 0; c < kDeepCount; ++c) dd.set_deep_value(e.pixels[i], c, s, v[c]);
+    }
+  AtomicOutput out(path);
+  auto o = OIIO::ImageOutput::create(out.temp_path());
+  if (!o || !o->open(out.temp_path(), spec) || !o->write_deep_image(dd) || !o->close())
+    throw WorkError(fmt::format("'{}': deep write failed: {}", path, o ? o->geterror() : OIIO::geterror()));
+  o.reset();
+  out.commit();
+}
+
+EdgeSubpixels read_edges(const std::string& path, int width, int height) {
+  auto in = open_input(path);
+  const auto& spec = in->spec();
+  if (!spec.deep || spec.width != width || spec.height != height)
+    throw InputError(fmt::format("'{}': expected a deep {}x{} image of edge sub-pixels", path, width, height));
+  int idx[kDeepCount];
+  for (int c = 0; c < kDeepCount; ++c) {
+    idx[c] = spec.channelindex(kDeepChannels[c]);
+    if (idx[c] < 0)
+      throw InputError(fmt::format("'{}': missing deep channel '{}'", path, kDeepChannels[c]));
+  }
+  OIIO::DeepData dd;
+  if (!in->read_native_deep_image(0, 0, dd))
+    throw InputError(fmt::format("'{}': cannot read deep data: {}", path, in->geterror()));
+  EdgeSubpixels e;
+  float v[kDeepCount];
+  for (std::int64_t p = 0; p < std::int64_t(width) * height; ++p) {
+    int n = dd.samples(p);
+    if (n == 0) continue;
+    if (n != EdgeSubpixels::kPerPixel)
+      throw InputError(fmt::format("'{}': pixel ({}, {}) has {} sub-pixel samples, expected {}", path,
+                                   p % width, p / width, n, EdgeSubpixels::kPerPixel));
+    e.pixels.push_back(std::int32_t(p));
+    for (int s = 0; s < n; ++s) {
+      for (int c = 0; c < kDeepCount; ++c) v[c] = dd.deep_value(p, idx[c], s);
+      EdgeSample es;
+      unpack(v, es);
+      e.samples.push_back(es);
+    }
+  }
+  return e;
+}
+
+}  // namespace
+
+void write_frame(const AovFrame& frame, const std::string& path) {
+  const int w = frame.width(), h = frame.height();
+  std::vector<std::string> names;
+  std::vector<const Image*> sources;
+  std::vector<int> source_channel;
+  for (const auto& [name, img] : frame.layers()) {
+    if (img.width() != w || img.height() != h)
+      throw WorkError(fmt::format("'{}': layer '{}' is {}x{}, frame is {}x{}", path, name, img.width(),
+                                  img.height(), w, h));
+    auto cn = channel_names(name, img.channels());
+    for (int c = 0; c < img.channels(); ++c) {
+      names.push_back(cn[c]);
+      sources.push_back(&img);
+      source_channel.push_back(c);
+    }
+  }
+  if (names.empty()) throw WorkError(fmt::format("'{}': frame has no layers to write", path));
+  const int nch = int(names.size());
+  std::vector<float> buf(std::size_t(w) * h * nch);
+  for (int c = 0; c < nch; ++c) {
+    const Image& img = *sources[c];
+    const int sc = source_channel[c], ic = img.channels();
+    const float* src = img.data();
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i) buf[i * nch + c] = src[i * ic + sc];
+  }
+  OIIO::ImageSpec spec(w, h, nch, TypeDesc::FLOAT);
+  spec.channelnames = names;
+  put_meta(spec, frame.meta, w, h, frame.edges ? frame.edges->size() : 0);
+  // The edge file first: a frame on disk that names an edge file always has it complete.
+  if (frame.edges) write_edges(*frame.edges, w, h, edges_path(path));
+  write_image_file(path, spec, buf.data());
+}
+
+AovFrame read_frame(const std::string& path, const std::vector<std::string>& required) {
+  auto in = open_input(path);
+  const OIIO::ImageSpec spec = in->spec();
+  if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat AOV frame", path));
+  try {
+    Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
+  } catch (const InputError& e) {
+    throw InputError(e.what());
+  }
+  const int w = spec.width, h = spec.height, nch = spec.nchannels;
+  std::vector<float> buf(std::size_t(w) * h * nch);
+  if (!in->read_image(0, 0, 0, nch, TypeDesc::FLOAT, buf.data()))
+    throw InputError(fmt::format("'{}': cannot read pixels: {}", path, in->geterror()));
+  in->close();
+
+  AovFrame frame(w, h);
+  std::size_t edge_pixels = 0;
+  try {
+    frame.meta = get_meta(spec, &edge_pixels);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("'{}': {}", path, e.what()));
+  }
+  std::map<std::string, std::vector<std::string>> groups;
+  for (const auto& ch : spec.channelnames) groups[layer_of(ch)].push_back(ch);
+  for (const auto& [name, chans] : groups) {
+    const int n = int(chans.size());
+    auto expected = channel_names(name, n);
+    std::vector<int> idx;
+    for (const auto& e : expected) idx.push_back(spec.channelindex(e));
+    if (std::find(idx.begin(), idx.end(), -1) != idx.end()) {
+      // Not a layer we know (e.g. an alpha channel): skip it, unless it was asked for.
+      continue;
+    }
+    Image img(w, h, n);
+    float* dst = img.data();
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
+      for (int c = 0; c < n; ++c) dst[i * n + c] = buf[i * nch + idx[c]];
+    frame.set(name, std::move(img));
+  }
+  for (const auto& r : required) {
+    if (!frame.has(r)) {
+      auto want = channel_names(r, default_channels(r));
+      std::vector<std::string> missing;
+      for (auto& c : want)
+        if (spec.channelindex(c) < 0) missing.push_back(c);
+      if (missing.empty()) missing = want;
+      throw InputError(fmt::format("'{}': missing channel{} {} (layer '{}' is required)", path,
+                                   missing.size() > 1 ? "s" : "", fmt::join(missing, ", "), r));
+    }
+  }
+  if (edge_pixels > 0) {
+    const std::string ep = edges_path(path);
+    if (!fs::exists(ep))
+      throw InputError(fmt::format("'{}': header lists {} edge pixels but the edge file '{}' is missing",
+                                   path, edge_pixels, ep));
+    frame.edges = read_edges(ep, w, h);
+    if (frame.edges->size() != edge_pixels)
+      throw InputError(fmt::format("'{}': holds {} edge pixels, '{}' lists {}", ep, frame.edges->size(),
+                                   path, edge_pixels));
+  }
+  return frame;
+}
+
+void write_rgb(const Image& rgb, const std::string& path,
+               const std::vector<std::pair<std::string, std::string>>& attributes) {
+  if (rgb.channels() != 3)
+    throw WorkError(fmt::format("'{}': expected a 3-channel image, got {}", path, rgb.channels()));
+  OIIO::ImageSpec spec(rgb.width(), rgb.height(), 3, TypeDesc::FLOAT);
+  spec.channelnames = {"R", "G", "B"};
+  for (auto& [k, v] : attributes) spec.attribute(std::string(kAttrPrefix) + k, v);
+  write_image_file(path, spec, rgb.data());
+}
+
+Image read_rgb(const std::string& path) {
+  auto in = open_input(path);
+  const OIIO::ImageSpec spec = in->spec();
+  if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat RGB image", path));
+  Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
+  int idx[3];
+  const char* want[3] = {"R", "G", "B"};
+  for (int c = 0; c < 3; ++c) {
+    idx[c] = spec.channelindex(want[c]);
+    if (idx[c] < 0)
+      throw InputError(fmt::format("'{}': missing channel '{}' (expected R, G, B; the file has {})", path,
+                                   want[c], fmt::join(spec.channelnames, ", ")));
+  }
+  const int nch = spec.nchannels;
+  std::vector<float> buf(std::size_t(spec.width) * spec.height * nch);
+  if (!in->read_image(0, 0, 0, nch, TypeDesc::FLOAT, buf.data()))
+    throw InputError(fmt::format("'{}': cannot read pixels: {}", path, in->geterror()));
+  Image out(spec.width, spec.height, 3);
+  for (std::size_t i = 0; i < out.pixel_count(); ++i)
+    for (int c = 0; c < 3; ++c) out.data()[i * 3 + c] = buf[i * nch + idx[c]];
+  return out;
+}
+
+}  // namespace dnb

@@ -1,0 +1,36 @@
+// Reading and writing AOV frames and plain RGB images as OpenEXR through OpenImageIO.
+// Channels are always looked up by name (OpenEXR stores them sorted, OIIO reorders them).
+// Every write goes to a temporary name and is renamed when complete.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/aov_frame.h"
+#include "core/image.h"
+
+namespace dnb {
+
+// The sub-pixel data of a frame's edge pixels lives beside it in a deep OpenEXR file
+// ("frame.exr" -> "frame.edges.exr"): 16 samples for each pixel of G, none elsewhere.
+// Deep channels: normal.X/Y/Z, Z (sub-pixel depth), albedo.R/G/B, direct.R/G/B,
+// indirect.R/G/B; sample s of a pixel is sub-pixel (s % 4, s / 4) of its 4x4 strata.
+std::string edges_path(const std::string& frame_path);
+
+// Writes every layer, the metadata and (if present) the edge file.
+void write_frame(const AovFrame& frame, const std::string& path);
+
+// Reads a frame. `required` lists layer names that must be present; a missing one is an
+// InputError naming the file and the missing channels. The edge file is read when the
+// frame's header says it has one; a header that names one which is missing is an error.
+AovFrame read_frame(const std::string& path, const std::vector<std::string>& required = {});
+
+// Writes a 3-channel image as R,G,B (plus optional string attributes).
+void write_rgb(const Image& rgb, const std::string& path,
+               const std::vector<std::pair<std::string, std::string>>& attributes = {});
+
+// Reads the R,G,B channels of any EXR (by name); InputError naming the file and the
+// channel when one is missing.
+Image read_rgb(const std::string& path);
+
+}  // namespace dnb

@@ -1,0 +1,75 @@
+// Strict TOML configs: unknown keys and wrong types are errors naming file, line and key.
+#include <gtest/gtest.h>
+
+#include "core/config.h"
+#include "core/errors.h"
+
+namespace dnb {
+namespace {
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Config, ReadsTypedValuesWithDefaults) {
+  auto cfg = ConfigFile::parse("spp = 64\nsigma = 2\nname = \"x\"\n[render]\nsize = [1, 2, 3]\n", "t.toml");
+  auto root = cfg.root();
+  EXPECT_EQ(root.get("spp", 256), 64);
+  EXPECT_DOUBLE_EQ(root.get("sigma", 1.0), 2.0);
+  EXPECT_EQ(root.get("name", "y"), "x");
+  EXPECT_EQ(root.get("absent", 7), 7);
+  auto r = root.table("render");
+  ASSERT_TRUE(r);
+  auto v = r->get("size", std::array<double, 3>{0, 0, 0});
+  EXPECT_EQ(v[2], 3.0);
+  EXPECT_NO_THROW(r->finish());
+  EXPECT_NO_THROW(root.finish());
+}
+
+TEST(Config, UnknownKeyNamesFileLineKeyAndValidKeys) {
+  auto cfg = ConfigFile::parse("spp = 64\nspd = 3\n", "exp.toml");
+  auto root = cfg.root();
+  root.get("spp", 256);
+  root.get("seed", 1);
+  std::string msg = error_of([&] { root.finish(); });
+  EXPECT_NE(msg.find("exp.toml:2"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("'spd'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("seed"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("spp"), std::string::npos) << msg;
+}
+
+TEST(Config, UnknownKeyInSubTableNamesItsPath) {
+  auto cfg = ConfigFile::parse("[camera]\neye = [0, 1, 2]\nfovv = 40\n", "scene.toml");
+  auto root = cfg.root();
+  auto cam = root.table("camera");
+  cam->get("eye", std::array<double, 3>{0, 0, 0});
+  cam->get("fov", 39.0);
+  std::string msg = error_of([&] { cam->finish(); });
+  EXPECT_NE(msg.find("camera.fovv"), std::string::npos) << msg;
+}
+
+TEST(Config, WrongTypeIsAnError) {
+  auto cfg = ConfigFile::parse("spp = \"many\"\n", "c.toml");
+  auto root = cfg.root();
+  std::string msg = error_of([&] { root.get("spp", 1); });
+  EXPECT_NE(msg.find("c.toml:1"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("integer"), std::string::npos) << msg;
+}
+
+TEST(Config, SyntaxErrorNamesLine) {
+  std::string msg = error_of([] { ConfigFile::parse("a = 1\nb = = 2\n", "bad.toml"); });
+  EXPECT_NE(msg.find("bad.toml:2"), std::string::npos) << msg;
+}
+
+TEST(Config, MissingFileIsAnInputError) {
+  std::string msg = error_of([] { ConfigFile::load("/nonexistent/x.toml"); });
+  EXPECT_NE(msg.find("/nonexistent/x.toml"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace dnb

@@ -1,0 +1,203 @@
+// The AOV frame's EXR round trip and the refusals of bad files (issue 2).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include <OpenImageIO/imageio.h>
+
+#include "core/atomic_file.h"
+#include "core/errors.h"
+#include "core/exr_io.h"
+#include "test_util.h"
+
+namespace dnb {
+namespace {
+namespace fs = std::filesystem;
+
+// Fills every layer with distinct values (including negative zero and denormal-free extremes)
+// so that a channel swapped or lost in the round trip changes the result.
+AovFrame make_full_frame(int w, int h) {
+  AovFrame f(w, h);
+  const char* rgb[] = {"color", "direct", "indirect", "albedo", "reflection", "emission", "variance",
+                       "direct_variance", "indirect_variance", "refl1.direct", "refl1.indirect",
+                       "refl1.albedo", "refl1.tint", "refl1.reflection", "refl1.emission", "refl1.normal"};
+  int k = 0;
+  for (const char* n : rgb) {
+    Image& img = f.add(n, 3);
+    for (std::size_t i = 0; i < img.size(); ++i) img.data()[i] = float(k * 1000 + i) * 0.001f - 0.5f;
+    ++k;
+  }
+  Image& normal = f.add("normal", 3);
+  for (std::size_t i = 0; i < normal.size(); ++i) normal.data()[i] = std::sin(float(i));
+  for (const char* n : {"depth", "edge", "samples", "refl1.depth"}) {
+    Image& img = f.add(n, 1);
+    for (std::size_t i = 0; i < img.size(); ++i) img.data()[i] = float(i % 7) + 0.25f * k;
+    ++k;
+  }
+  f.meta.scene = "unit-test";
+  f.meta.spp = 256;
+  f.meta.seed = 0xFFFFFFFFFFFFull;
+  f.meta.tracer_version = "tracer-9";
+  f.meta.build_version = "0.1.0 (abc)";
+  f.meta.render_seconds = 12.345678901234567;
+  f.meta.dropped_samples = 3;
+  f.meta.reflection_levels = 1;
+  f.meta.extra["note"] = "kept";
+  EdgeSubpixels e;
+  for (int p : {1, 5, w * h - 1}) {
+    e.pixels.push_back(p);
+    for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
+      EdgeSample es;
+      for (int c = 0; c < 3; ++c) {
+        es.normal[c] = 0.1f * c + s;
+        es.albedo[c] = 0.01f * (p + c);
+        es.direct[c] = 1.5f * s + c;
+        es.indirect[c] = 0.25f * s - c;
+      }
+      es.depth = 3.0f + s;
+      e.samples.push_back(es);
+    }
+  }
+  f.edges = e;
+  return f;
+}
+
+TEST(ExrIo, FullFrameRoundTripIsBitExact) {
+  test::TempDir dir;
+  AovFrame f = make_full_frame(13, 7);
+  const std::string path = dir.file("frame.exr");
+  write_frame(f, path);
+  AovFrame g = read_frame(path, {"color", "direct", "refl1.tint"});
+  ASSERT_EQ(g.width(), 13);
+  ASSERT_EQ(g.height(), 7);
+  ASSERT_EQ(g.layers().size(), f.layers().size());
+  for (const auto& [name, img] : f.layers()) {
+    ASSERT_TRUE(g.has(name)) << name;
+    EXPECT_TRUE(g.layer(name) == img) << "layer " << name << " changed in the round trip";
+  }
+  EXPECT_EQ(g.meta.scene, "unit-test");
+  EXPECT_EQ(g.meta.spp, 256);
+  EXPECT_EQ(g.meta.seed, 0xFFFFFFFFFFFFull);
+  EXPECT_EQ(g.meta.tracer_version, "tracer-9");
+  EXPECT_EQ(g.meta.build_version, "0.1.0 (abc)");
+  EXPECT_EQ(g.meta.render_seconds, f.meta.render_seconds);
+  EXPECT_EQ(g.meta.dropped_samples, 3);
+  EXPECT_EQ(g.meta.reflection_levels, 1);
+  EXPECT_EQ(g.meta.extra.at("note"), "kept");
+  ASSERT_TRUE(g.edges.has_value());
+  EXPECT_TRUE(*g.edges == *f.edges);
+}
+
+TEST(ExrIo, ChannelsAreNamedAsDesignSays) {
+  test::TempDir dir;
+  AovFrame f = make_full_frame(4, 3);
+  f.edges.reset();
+  write_frame(f, dir.file("f.exr"));
+  auto in = OIIO::ImageInput::open(dir.file("f.exr"));
+  ASSERT_TRUE(in);
+  const auto& spec = in->spec();
+  for (const char* ch : {"R", "G", "B", "direct.R", "indirect.B", "albedo.G", "reflection.R", "emission.B",
+                         "normal.X", "normal.Y", "normal.Z", "depth.Z", "variance.R", "direct_variance.G",
+                         "indirect_variance.B", "edge.Y", "refl1.direct.R", "refl1.tint.B", "refl1.depth.Z",
+                         "refl1.normal.Z"})
+    EXPECT_GE(spec.channelindex(ch), 0) << "channel " << ch << " missing from the file";
+}
+
+TEST(ExrIo, MissingRequiredChannelIsRefusedByName) {
+  test::TempDir dir;
+  AovFrame f(8, 8);
+  f.add("color", 3);
+  f.add("albedo", 3);
+  write_frame(f, dir.file("f.exr"));
+  try {
+    read_frame(dir.file("f.exr"), {"color", "direct"});
+    FAIL() << "a frame without direct.* was accepted";
+  } catch (const InputError& e) {
+    std::string msg = e.what();
+    EXPECT_NE(msg.find("direct.R"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("f.exr"), std::string::npos) << msg;
+  }
+}
+
+TEST(ExrIo, ReadRgbNamesTheMissingChannel) {
+  test::TempDir dir;
+  Image y(4, 4, 1, 0.5f);
+  OIIO::ImageSpec spec(4, 4, 1, OIIO::TypeDesc::FLOAT);
+  spec.channelnames = {"Y"};
+  auto out = OIIO::ImageOutput::create(dir.file("y.exr"));
+  ASSERT_TRUE(out->open(dir.file("y.exr"), spec));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, y.data()));
+  out->close();
+  try {
+    read_rgb(dir.file("y.exr"));
+    FAIL() << "a luminance-only file was read as RGB";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'R'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ExrIo, MissingFileIsAnInputError) {
+  EXPECT_THROW(read_frame("/nonexistent/frame.exr"), InputError);
+  EXPECT_THROW(read_rgb("/nonexistent/image.exr"), InputError);
+}
+
+TEST(ExrIo, EdgeFileMissingBesideFrameIsRefused) {
+  test::TempDir dir;
+  AovFrame f = make_full_frame(6, 6);
+  write_frame(f, dir.file("f.exr"));
+  fs::remove(edges_path(dir.file("f.exr")));
+  EXPECT_THROW(read_frame(dir.file("f.exr")), InputError);
+}
+
+TEST(Image, AbsurdAndZeroSizesAreRefused) {
+  EXPECT_THROW(Image(0, 10, 3), InputError);
+  EXPECT_THROW(Image(10, -1, 3), InputError);
+  EXPECT_THROW(Image(100000, 100000, 3), InputError);
+  EXPECT_THROW(Image(10, 10, 0), InputError);
+  EXPECT_NO_THROW(Image(1, 1, 1));
+}
+
+TEST(Image, ViewsShareStorageAndCropWithoutCopy) {
+  Image img(5, 4, 2);
+  ImageView v = img.view();
+  ImageView c = v.crop(1, 2, 3, 2);
+  c.at(0, 0, 1) = 7.0f;
+  EXPECT_EQ(img.at(1, 2, 1), 7.0f);
+  EXPECT_EQ(c.row_stride, std::size_t(10));
+  Image copy = to_image(c);
+  EXPECT_EQ(copy.width(), 3);
+  EXPECT_EQ(copy.at(0, 0, 1), 7.0f);
+}
+
+TEST(AtomicWrite, FailingWriteLeavesNoFileAtTheDestination) {
+  test::TempDir dir;
+  const std::string dest = dir.file("out.exr");
+  {
+    AovFrame bad(4, 4);  // no layers: the write fails before anything is renamed
+    EXPECT_THROW(write_frame(bad, dest), WorkError);
+  }
+  EXPECT_FALSE(fs::exists(dest));
+  {
+    AtomicOutput out(dir.file("x.txt"));
+    std::FILE* f = std::fopen(out.temp_path().c_str(), "w");
+    std::fputs("partial", f);
+    std::fclose(f);
+    // destroyed without commit(): an interrupted write
+  }
+  EXPECT_FALSE(fs::exists(dir.file("x.txt")));
+  std::size_t leftovers = 0;
+  for (auto& e : fs::directory_iterator(dir.path())) leftovers += !e.path().empty();
+  EXPECT_EQ(leftovers, 0u) << "temporary files were left behind";
+}
+
+TEST(AtomicWrite, CommittedWriteReplacesTheDestination) {
+  test::TempDir dir;
+  write_text_atomic(dir.file("a.txt"), "one");
+  write_text_atomic(dir.file("a.txt"), "two");
+  EXPECT_EQ(read_text_file(dir.file("a.txt")), "two");
+}
+
+}  // namespace
+}  // namespace dnb
