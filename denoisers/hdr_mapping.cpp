@@ -19,7 +19,8 @@ constexpr float kMaxReinhardT = 1.0f - 1.0f / 4096.0f;
 
 float srgb_encode(float x) {
   x = std::clamp(x, 0.0f, 1.0f);
-  return x <= 0.0031308f ? 12.92f * x : 1.055f * std::pow(x, 1.0f / 2.4f) - 0.055f;
+  if (x >= 1.0f) return 1.0f;  // exactly: 1.055 * 1 - 0.055 does not round to 1 in float
+  return x <= 0.0031308f ? 12.92f * x : std::min(1.055f * std::pow(x, 1.0f / 2.4f) - 0.055f, 1.0f);
 }
 float srgb_decode(float y) {
   y = std::clamp(y, 0.0f, 1.0f);

@@ -7,7 +7,10 @@
 namespace dnb {
 
 void register_builtin_methods(MethodRegistry& r) {
+  extern MethodInfo atrous_method(); r.add(atrous_method());        // denoisers/atrous.cpp
   extern MethodInfo bilateral_method(); r.add(bilateral_method());  // denoisers/bilateral.cpp
+  extern MethodInfo guided_method(); r.add(guided_method());        // denoisers/guided.cpp
+  extern MethodInfo nlmeans_method(); r.add(nlmeans_method());      // denoisers/nlmeans.cpp
 }
 
 // Defined here, not in method.cpp, so that linking anything that uses the global registry pulls
