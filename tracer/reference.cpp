@@ -116,6 +116,34 @@ std::string convergence_csv(const std::vector<ConvergenceRow>& rows) {
   return csv;
 }
 
+std::vector<ConvergenceRow> parse_convergence_csv(const std::string& text, const std::string& path) {
+  std::istringstream in(text);
+  std::string line;
+  if (!std::getline(in, line) || line != "spp,seconds,rel_error,est_relmse")
+    throw InputError(fmt::format("'{}': expected the header 'spp,seconds,rel_error,est_relmse'", path));
+  std::vector<ConvergenceRow> rows;
+  for (int n = 2; std::getline(in, line); ++n) {
+    ConvergenceRow r;
+    char* end = nullptr;
+    const char* p = line.c_str();
+    r.spp = std::strtoll(p, &end, 10);
+    double* fields[] = {&r.seconds, &r.rel_error, &r.est_relmse};
+    bool ok = end != p;
+    for (double* f : fields) {
+      if (!ok || *end != ',') {
+        ok = false;
+        break;
+      }
+      p = end + 1;
+      *f = std::strtod(p, &end);  // reads "nan" too
+      ok = end != p;
+    }
+    if (!ok || *end != '\0') throw InputError(fmt::format("'{}' line {}: expected spp,seconds,rel_error,est_relmse", path, n));
+    rows.push_back(r);
+  }
+  return rows;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Checkpoint files
 

@@ -87,6 +87,12 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
 // empty, its convergence log, both atomically.
 void write_reference(const Reference& ref, const std::string& exr_path, const std::string& csv_path);
 std::string convergence_csv(const std::vector<ConvergenceRow>& rows);
+// Reads convergence_csv's text back; InputError naming `path` and the line when malformed.
+std::vector<ConvergenceRow> parse_convergence_csv(const std::string& text, const std::string& path);
+
+// The key of the experiment runner's input frames (use with cached_frame, tracer/cache.h):
+// scene content, size, spp, seed, max depth, reflection levels, edge sub-pixels, tracer version.
+CacheKey frame_cache_key(const Scene& scene, const RenderSettings& settings);
 
 // ---------------------------------------------------------------------------------------------
 // The block driver underneath reference_image, independent of the tracer so that it can be

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/version.h"
@@ -28,6 +29,20 @@ CacheKey reference_cache_key(const Scene& scene, const ReferenceSettings& s) {
   return key;
 }
 
+CacheKey frame_cache_key(const Scene& scene, const RenderSettings& s) {
+  CacheKey key("frame");
+  key.add("scene", scene_content_hash(scene))
+      .add("width", s.width)
+      .add("height", s.height)
+      .add("spp", s.spp)
+      .add("seed", s.seed)
+      .add("max_depth", s.max_depth)
+      .add("reflection_levels", s.reflection_levels)
+      .add("edge_subpixels", s.edge_subpixels ? 1 : 0)
+      .add("tracer", kTracerVersion);
+  return key;
+}
+
 namespace {
 
 Reference read_cached(const CacheEntry& entry) {
@@ -37,6 +52,7 @@ Reference read_cached(const CacheEntry& entry) {
   ref.color = f.layer(layer::kColor);
   ref.variance = f.layer(layer::kVariance);
   ref.meta = f.meta;
+  ref.convergence = parse_convergence_csv(read_text_file(entry.file("convergence.csv")), entry.file("convergence.csv"));
   ref.cache_hit = true;
   return ref;
 }

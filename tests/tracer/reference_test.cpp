@@ -245,5 +245,20 @@ TEST(ReferenceConvergence, MatchesAnalyticVarianceOfTheMean) {
   EXPECT_EQ(convergence_csv(r.convergence).substr(0, 34), "spp,seconds,rel_error,est_relmse\n6");
 }
 
+TEST(ReferenceConvergence, CsvRoundTripAndErrors) {
+  std::vector<ConvergenceRow> rows = {{64, 1.25, 0.125, 0.5}, {128, 2.5, NAN, 0.25}};
+  auto back = parse_convergence_csv(convergence_csv(rows), "log.csv");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[1].spp, 128);
+  EXPECT_EQ(back[0].rel_error, 0.125);
+  EXPECT_TRUE(std::isnan(back[1].rel_error));
+  try {
+    parse_convergence_csv("spp,seconds,rel_error,est_relmse\n64,1,x,2\n", "log.csv");
+    FAIL() << "a malformed line was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("log.csv' line 2"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace dnb
