@@ -1,14 +1,45 @@
 #include "denoisers/method.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
+#include <set>
 
 #include <fmt/format.h>
+#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
-#include "core/timer.h"
 
 namespace dnb {
+
+const char* to_string(ParamType t) {
+  switch (t) {
+    case ParamType::Float: return "float";
+    case ParamType::Int: return "int";
+    case ParamType::Bool: return "bool";
+    case ParamType::String: return "string";
+  }
+  return "?";
+}
+
+const char* to_string(MethodKind k) { return k == MethodKind::Filter ? "filter" : "renderer"; }
+
+std::string ParamSpec::expected() const {
+  switch (type) {
+    case ParamType::Float:
+    case ParamType::Int: {
+      const char* what = type == ParamType::Float ? "a finite number" : "an integer";
+      if (min && max) return fmt::format("{} in [{}, {}]", what, *min, *max);
+      if (min) return fmt::format("{} >= {}", what, *min);
+      if (max) return fmt::format("{} <= {}", what, *max);
+      return what;
+    }
+    case ParamType::Bool: return "true or false";
+    case ParamType::String:
+      return choices.empty() ? "any text" : fmt::format("one of {}", fmt::join(choices, ", "));
+  }
+  return "a value";
+}
 
 const Params::Value& Params::get(const std::string& name) const {
   auto it = values_.find(name);
@@ -23,7 +54,7 @@ double Params::f(const std::string& name) const {
 }
 int Params::i(const std::string& name) const {
   const Value& v = get(name);
-  if (auto* i = std::get_if<std::int64_t>(&v)) return int(*i);
+  if (auto* i = std::get_if<std::int64_t>(&v)) return int(*i);  // parse_value keeps it in int range
   throw WorkError(fmt::format("parameter '{}' is not an integer", name));
 }
 bool Params::b(const std::string& name) const {
@@ -50,67 +81,85 @@ std::map<std::string, std::string> Params::as_strings() const {
   return out;
 }
 
-MethodRegistry& MethodRegistry::global() {
-  static MethodRegistry r = [] {
-    MethodRegistry reg;
-    register_builtin_methods(reg);
-    return reg;
-  }();
-  return r;
+// Parses one value of a parameter and checks it against the spec. InputError naming the
+// method, the parameter, the value and what is expected.
+static Params::Value parse_value(const std::string& method, const ParamSpec& spec, const std::string& text) {
+  auto bad = [&] {
+    return InputError(fmt::format("method '{}': parameter '{}' = '{}': expected {}", method, spec.name, text,
+                                  spec.expected()));
+  };
+  auto in_bounds = [&](double v) { return (!spec.min || v >= *spec.min) && (!spec.max || v <= *spec.max); };
+  // std::sto* skip leading spaces and accept "inf"/"nan": a value must be exactly a number.
+  if ((spec.type == ParamType::Float || spec.type == ParamType::Int) &&
+      (text.empty() || std::isspace(static_cast<unsigned char>(text.front()))))
+    throw bad();
+  switch (spec.type) {
+    case ParamType::Float: {
+      double d = 0;
+      std::size_t pos = 0;
+      try {
+        d = std::stod(text, &pos);
+      } catch (const std::logic_error&) {
+        throw bad();
+      }
+      if (pos != text.size() || !std::isfinite(d) || !in_bounds(d)) throw bad();
+      return d;
+    }
+    case ParamType::Int: {
+      long long v = 0;
+      std::size_t pos = 0;
+      try {
+        v = std::stoll(text, &pos);
+      } catch (const std::logic_error&) {
+        throw bad();
+      }
+      if (pos != text.size() || v < INT_MIN || v > INT_MAX || !in_bounds(double(v))) throw bad();
+      return std::int64_t(v);
+    }
+    case ParamType::Bool:
+      if (text == "true" || text == "1" || text == "on") return true;
+      if (text == "false" || text == "0" || text == "off") return false;
+      throw bad();
+    case ParamType::String:
+      if (!spec.choices.empty() && std::find(spec.choices.begin(), spec.choices.end(), text) == spec.choices.end())
+        throw bad();
+      return text;
+  }
+  throw bad();
 }
 
 void MethodRegistry::add(MethodInfo info) {
+  if (info.name.empty()) throw WorkError("a method was registered without a name");
   if (methods_.count(info.name)) throw WorkError(fmt::format("method '{}' registered twice", info.name));
+  if (!info.create) throw WorkError(fmt::format("method '{}' has no create function", info.name));
+  std::set<std::string> seen;
+  for (const auto& spec : info.params) {
+    if (!seen.insert(spec.name).second)
+      throw WorkError(fmt::format("method '{}' declares parameter '{}' twice", info.name, spec.name));
+    try {
+      parse_value(info.name, spec, spec.default_value);
+    } catch (const InputError& e) {
+      throw WorkError(fmt::format("default value refused by its own spec: {}", e.what()));
+    }
+  }
   std::string n = info.name;
   methods_.emplace(n, std::move(info));
 }
 
 bool MethodRegistry::contains(const std::string& name) const { return methods_.count(name) != 0; }
 
-const MethodInfo& MethodRegistry::info(const std::string& name) const {
-  auto it = methods_.find(name);
-  if (it == methods_.end()) {
-    std::vector<std::string> names;
-    for (auto& [k, v] : methods_) names.push_back(k);
-    throw InputError(fmt::format("unknown method '{}' (valid methods: {})", name, fmt::join(names, ", ")));
-  }
-  return it->second;
+std::vector<std::string> MethodRegistry::names() const {
+  std::vector<std::string> out;
+  for (const auto& [k, v] : methods_) out.push_back(k);
+  return out;
 }
 
-static Params::Value parse_value(const std::string& method, const ParamSpec& spec, const std::string& text) {
-  auto bad = [&](const char* expected) {
-    return InputError(fmt::format("method '{}': parameter '{}' = '{}': expected {}", method, spec.name, text,
-                                  expected));
-  };
-  switch (spec.type) {
-    case ParamType::Float: {
-      try {
-        std::size_t pos = 0;
-        double d = std::stod(text, &pos);
-        if (pos != text.size() || !std::isfinite(d)) throw bad("a finite number");
-        return d;
-      } catch (const std::logic_error&) {
-        throw bad("a number");
-      }
-    }
-    case ParamType::Int: {
-      try {
-        std::size_t pos = 0;
-        long long v = std::stoll(text, &pos);
-        if (pos != text.size()) throw bad("an integer");
-        return std::int64_t(v);
-      } catch (const std::logic_error&) {
-        throw bad("an integer");
-      }
-    }
-    case ParamType::Bool:
-      if (text == "true" || text == "1" || text == "on") return true;
-      if (text == "false" || text == "0" || text == "off") return false;
-      throw bad("true or false");
-    case ParamType::String:
-      return text;
-  }
-  throw bad("a value");
+const MethodInfo& MethodRegistry::info(const std::string& name) const {
+  auto it = methods_.find(name);
+  if (it == methods_.end())
+    throw InputError(fmt::format("unknown method '{}' (valid methods: {})", name,
+                                 methods_.empty() ? std::string("none") : fmt::format("{}", fmt::join(names(), ", "))));
+  return it->second;
 }
 
 Params MethodRegistry::parse_params(const std::string& name,
@@ -133,7 +182,9 @@ Params MethodRegistry::parse_params(const std::string& name,
 
 std::unique_ptr<Method> MethodRegistry::create(const std::string& name,
                                                const std::map<std::string, std::string>& settings) const {
-  return info(name).create(parse_params(name, settings));
+  auto m = info(name).create(parse_params(name, settings));
+  if (!m) throw WorkError(fmt::format("method '{}': create returned nothing", name));
+  return m;
 }
 
 std::vector<const MethodInfo*> MethodRegistry::all() const {
@@ -149,45 +200,101 @@ std::pair<std::string, std::string> parse_setting(const std::string& kv) {
   return {kv.substr(0, eq), kv.substr(eq + 1)};
 }
 
+std::map<std::string, std::string> parse_settings(const std::vector<std::string>& kvs) {
+  std::map<std::string, std::string> out;
+  for (const auto& kv : kvs) {
+    auto [k, v] = parse_setting(kv);
+    if (!out.emplace(k, v).second) throw InputError(fmt::format("--set '{}': parameter '{}' set twice", kv, k));
+  }
+  return out;
+}
+
+// Replaces each non-finite sample of `img` by the mean of the finite values of the same
+// channel among its 8 neighbours in `src` (0 when none is finite). Reads only `src`, so the
+// result does not depend on the order pixels are visited. Returns the number replaced.
+static std::int64_t repair_non_finite(const Image& src, Image& img) {
+  const int w = src.width(), h = src.height(), nc = src.channels();
+  std::vector<std::int64_t> per_row(h, 0);
+  tbb::parallel_for(0, h, [&](int y) {
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < nc; ++c) {
+        if (std::isfinite(src.at(x, y, c))) continue;
+        double sum = 0;
+        int n = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
+            const float v = src.at(xx, yy, c);
+            if (std::isfinite(v)) sum += v, ++n;
+          }
+        img.at(x, y, c) = n ? float(sum / n) : 0.0f;
+        ++per_row[y];
+      }
+  });
+  std::int64_t total = 0;
+  for (auto n : per_row) total += n;
+  return total;
+}
+
+static std::string frame_label(const AovFrame& f) {
+  return f.meta.scene.empty() ? std::string("the frame") : fmt::format("frame of '{}'", f.meta.scene);
+}
+
 MethodResult run_method(Method& method, const MethodInput& input) {
   MethodInput in = input;
   AovFrame repaired;
   std::int64_t repaired_samples = 0;
+  const std::vector<std::string> required = method.required_layers();
+  if (!input.frame && !required.empty())
+    throw InputError(fmt::format("this method needs a frame with layers {}, and none was given", fmt::join(required, ", ")));
+  Stopwatch repair_watch;
   if (input.frame) {
     const AovFrame& f = *input.frame;
-    auto missing = f.missing_channels(method.required_layers());
+    if (f.width() <= 0 || f.height() <= 0)
+      throw InputError(fmt::format("{} is empty ({}x{})", frame_label(f), f.width(), f.height()));
+    auto missing = f.missing_channels(required);
     if (!missing.empty())
-      throw InputError(fmt::format("frame '{}' lacks channel{} {} required by this method", f.meta.scene,
+      throw InputError(fmt::format("{} lacks channel{} {} required by this method", frame_label(f),
                                    missing.size() > 1 ? "s" : "", fmt::join(missing, ", ")));
     // Repair non-finite samples in a copy, only when there are any (no copy in the common case).
     bool any = false;
-    for (const auto& name : method.required_layers()) {
+    for (const auto& name : required) {
       const Image& img = f.layer(name);
+      const int want = default_channels(name);
+      if (img.channels() != want || img.width() != f.width() || img.height() != f.height())
+        throw InputError(fmt::format("{}: layer '{}' is {}x{} with {} channels, expected {}x{} with {} ({})",
+                                     frame_label(f), name, img.width(), img.height(), img.channels(), f.width(),
+                                     f.height(), want, fmt::join(channel_names(name, want), ",")));
       std::size_t bad = count_non_finite(img.view());
       if (bad == img.size())
-        throw InputError(fmt::format("frame '{}': layer '{}' has no finite sample", f.meta.scene, name));
+        throw InputError(fmt::format("{}: layer '{}' has no finite sample", frame_label(f), name));
       any |= bad > 0;
     }
     if (any) {
       repaired = f;
-      for (const auto& name : method.required_layers()) {
-        Image& img = repaired.layer(name);
-        for (std::size_t i = 0; i < img.size(); ++i)
-          if (!std::isfinite(img.data()[i])) {
-            img.data()[i] = 0.0f;
-            ++repaired_samples;
-          }
+      for (const auto& name : required) {
+        const Image& src = f.layer(name);
+        if (count_non_finite(src.view()) == 0) continue;
+        repaired_samples += repair_non_finite(src, repaired.layer(name));
       }
       in.frame = &repaired;
     }
   }
+  const double repair_seconds = repair_watch.seconds();
   Stopwatch sw;
   MethodResult r = method.execute(in);
   r.stats.total_seconds = sw.seconds();
+  // The repair is the harness's work, not the method's: it is reported apart from total_seconds.
+  if (repaired_samples) r.stats.counters["repair_seconds"] = repair_seconds;
   r.stats.counters["repaired_samples"] = double(repaired_samples);
-  if (r.image.channels() != 3) throw WorkError(fmt::format("method returned {} channels, expected 3", r.image.channels()));
-  if (input.frame && (r.image.width() != input.frame->width() || r.image.height() != input.frame->height()))
-    throw WorkError("method changed the image size");
+  if (r.image.channels() != 3)
+    throw WorkError(fmt::format("method returned {} channels, expected 3", r.image.channels()));
+  const int want_w = input.frame ? input.frame->width() : input.width;
+  const int want_h = input.frame ? input.frame->height() : input.height;
+  if ((want_w > 0 || want_h > 0) && (r.image.width() != want_w || r.image.height() != want_h))
+    throw WorkError(fmt::format("method returned a {}x{} image for a {}x{} input", r.image.width(),
+                                r.image.height(), want_w, want_h));
   std::size_t bad = count_non_finite(r.image.view());
   if (bad) throw WorkError(fmt::format("method produced {} non-finite output samples", bad));
   return r;

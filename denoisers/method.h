@@ -3,14 +3,21 @@
 // parameters, execute) and pbrt-v4's Create factories (unknown names and parameters are errors).
 //
 // A method is created from the registry by name with its parameters, declares the frame
-// layers it needs, and turns a MethodInput into an image plus MethodStats. See
-// docs/adding-a-method.md for a worked example.
+// layers it needs, and turns a MethodInput into an image plus MethodStats:
+//
+//   auto m = MethodRegistry::global().create("bilateral", {{"sigma_color", "0.3"}});
+//   AovFrame frame = read_frame("frame.exr", m->required_layers());
+//   MethodResult r = run_method(*m, MethodInput{.frame = &frame});
+//
+// Always run a method through run_method (it checks the input and output and times it) rather
+// than calling execute() directly. See docs/adding-a-method.md for a worked example.
 #pragma once
 
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <variant>
@@ -18,30 +25,40 @@
 
 #include "core/aov_frame.h"
 #include "core/image.h"
+#include "core/timer.h"
 
 namespace dnb {
 
 class Scene;  // tracer/scene.h: only renderer-type methods use it
 
 enum class ParamType { Float, Int, Bool, String };
+const char* to_string(ParamType t);  // "float", "int", "bool", "string"
 
 // One typed parameter: name, type, default (as text, parsed like a --set value) and a
-// one-line description shown by `denoisebench list methods`.
+// one-line description shown by `denoisebench list methods`. Optional bounds (Float and Int,
+// inclusive) and choices (String) make the registry refuse bad values with an InputError that
+// states what is accepted, before the method is created.
 struct ParamSpec {
-  std::string name;
+  std::string name = {};
   ParamType type = ParamType::Float;
-  std::string default_value;
-  std::string doc;
+  std::string default_value = {};
+  std::string doc = {};
+  std::optional<double> min = {};         // inclusive lower bound (Float, Int)
+  std::optional<double> max = {};         // inclusive upper bound (Float, Int)
+  std::vector<std::string> choices = {};  // accepted values (String); empty: any text
+
+  // What a value must be, e.g. "a number in [0, 10]" or "one of log, reinhard".
+  std::string expected() const;
 };
 
 // Parameter values after validation against the specs: every declared parameter is present.
 class Params {
  public:
   using Value = std::variant<double, std::int64_t, bool, std::string>;
-  double f(const std::string& name) const;
-  int i(const std::string& name) const;
-  bool b(const std::string& name) const;
-  const std::string& s(const std::string& name) const;
+  double f(const std::string& name) const;  // Float (an Int converts)
+  int i(const std::string& name) const;     // Int
+  bool b(const std::string& name) const;    // Bool
+  const std::string& s(const std::string& name) const;  // String
   void set(const std::string& name, Value v) { values_[name] = std::move(v); }
   bool has(const std::string& name) const { return values_.count(name) != 0; }
   // name -> value as text, for results files.
@@ -63,8 +80,23 @@ struct MethodInput {
 struct MethodStats {
   std::vector<std::pair<std::string, double>> phases;  // wall seconds per phase, in order
   std::map<std::string, double> counters;              // method-specific counters
-  double total_seconds = 0;
+  double total_seconds = 0;  // wall seconds of execute(), set by run_method
   void add_phase(const std::string& name, double seconds) { phases.emplace_back(name, seconds); }
+};
+
+// Times one phase of execute(): `ScopedPhase p(stats, "blur");` adds ("blur", seconds) to
+// stats.phases when p goes out of scope.
+class ScopedPhase {
+ public:
+  ScopedPhase(MethodStats& stats, std::string name) : stats_(stats), name_(std::move(name)) {}
+  ~ScopedPhase() { stats_.add_phase(name_, watch_.seconds()); }
+  ScopedPhase(const ScopedPhase&) = delete;
+  ScopedPhase& operator=(const ScopedPhase&) = delete;
+
+ private:
+  MethodStats& stats_;
+  std::string name_;
+  Stopwatch watch_;
 };
 
 struct MethodResult {
@@ -72,53 +104,75 @@ struct MethodResult {
   MethodStats stats;
 };
 
+// Filter: turns the AOV frame into an image. Renderer: renders the scene itself (the irradiance
+// cache); it may or may not read a frame.
 enum class MethodKind { Filter, Renderer };
+const char* to_string(MethodKind k);  // "filter", "renderer"
 
 class Method {
  public:
   virtual ~Method() = default;
-  // Layer names (core/aov_frame.h) this method reads from the frame.
+  // Layer names (core/aov_frame.h, e.g. layer::kDirect) this method reads from the frame.
+  // run_method guarantees each is present with its contract channel count and only finite
+  // samples before execute() is called.
   virtual std::vector<std::string> required_layers() const = 0;
+  // Must return a 3-channel image of the frame's size (or input.width x input.height) with
+  // finite samples, and give the bit-identical image for the same input whatever the thread
+  // count. May throw InputError (bad input) or WorkError (failure).
   virtual MethodResult execute(const MethodInput& input) = 0;
 };
 
 struct MethodInfo {
-  std::string name;
-  std::string description;  // one line
+  std::string name = {};
+  std::string description = {};  // one line
   MethodKind kind = MethodKind::Filter;
-  std::vector<ParamSpec> params;
-  std::function<std::unique_ptr<Method>(const Params&)> create;
+  std::vector<ParamSpec> params = {};
+  // Builds the method from validated parameters (every declared one present, in range). May
+  // throw InputError for combinations of values that are invalid together.
+  std::function<std::unique_ptr<Method>(const Params&)> create = {};
 };
 
 class MethodRegistry {
  public:
   // The registry of built-in methods (denoisers/registry.cpp lists them).
   static MethodRegistry& global();
-  void add(MethodInfo info);  // throws WorkError on a duplicate name
+  // Throws WorkError on a duplicate or empty name, a missing create function, a duplicate
+  // parameter, or a default value that its own spec refuses.
+  void add(MethodInfo info);
   bool contains(const std::string& name) const;
   // InputError listing the valid names when unknown.
   const MethodInfo& info(const std::string& name) const;
-  // Parses and validates settings ("sigma_s" -> "16"): unknown parameters and values that do
-  // not parse as the declared type are InputErrors listing the valid parameters.
+  // Parses and validates settings ("sigma_s" -> "16"): unknown parameters, values that do not
+  // parse as the declared type and values out of bounds are InputErrors naming the method, the
+  // parameter and what is expected (and, for an unknown one, listing the valid parameters).
   Params parse_params(const std::string& name, const std::map<std::string, std::string>& settings) const;
   std::unique_ptr<Method> create(const std::string& name,
                                  const std::map<std::string, std::string>& settings = {}) const;
   std::vector<const MethodInfo*> all() const;  // sorted by name
+  std::vector<std::string> names() const;      // sorted
 
  private:
   std::map<std::string, MethodInfo> methods_;
 };
 
-// Runs a method the way the harness always does: checks that the frame has the method's
-// layers (InputError naming the missing channels), refuses frames with no finite sample,
-// repairs NaN/Inf input samples (replaced by 0, counted in stats.counters["repaired_samples"]),
-// times execute(), and checks the output (size kept, 3 channels, finite).
+// Runs a method the way the harness always does:
+// - checks that the frame has the method's layers (InputError naming the missing EXR
+//   channels) with the contract channel counts, and that each has a finite sample;
+// - repairs NaN/Inf samples of those layers in a copy: each becomes the mean of the finite
+//   values of the same channel among its 8 neighbours (0 when there are none), so a lost
+//   sample does not punch a black hole into the image; the number of repaired samples is
+//   stats.counters["repaired_samples"] (always set) and the time it took
+//   stats.counters["repair_seconds"] (set when there were any);
+// - times execute() (stats.total_seconds) and checks its output: 3 channels, the input's
+//   size, every sample finite (WorkError otherwise).
 MethodResult run_method(Method& method, const MethodInput& input);
 
 // Registers every built-in method (denoisers/registry.cpp).
 void register_builtin_methods(MethodRegistry& registry);
 
-// Parses "key=value" into a pair; InputError when there is no '='.
+// Parses "key=value" into a pair; InputError when there is no '=' or no key.
 std::pair<std::string, std::string> parse_setting(const std::string& kv);
+// Parses a list of "key=value" into a map; InputError on a malformed or repeated key.
+std::map<std::string, std::string> parse_settings(const std::vector<std::string>& kvs);
 
 }  // namespace dnb

@@ -1,0 +1,30 @@
+// The paper's decomposition F = (D + I) * T + R + E (NOTES.md, formula 1), shared by the
+// methods that filter the untextured illumination instead of the colour (guided, atrous):
+// filtering L = D + I lets a pixel borrow lighting from neighbours with a different texture,
+// so textures stay sharp. The tracer writes D and I already demodulated (untextured), so no
+// division by the albedo is needed.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/aov_frame.h"
+#include "core/image.h"
+
+namespace dnb {
+
+// Layers compose() and illumination() read: direct, indirect, albedo, reflection, emission.
+std::vector<std::string> illumination_layers();
+
+// L = D + I at the first non-specular hit (3 channels).
+Image illumination(const AovFrame& frame);
+
+// F' = L' * T + R + E with the filtered illumination L'. R and E pass through unfiltered.
+Image compose(const Image& filtered_illumination, const AovFrame& frame);
+
+// Depth divided by the median of its positive finite values, so that depth-based weights and
+// guides work the same in a room of 5 m and a hall of 50 m. Pixels that hit nothing (depth 0 or
+// not finite) get 0.
+Image normalized_depth(const AovFrame& frame);
+
+}  // namespace dnb

@@ -1,0 +1,116 @@
+// Invariants every registered filter-type method must keep (issue 5). The tests loop over
+// MethodRegistry::global().all(), so a method added later is covered without a new line here.
+// Frames are synthetic (tests/denoisers/synthetic_frame.h): no tracer involved.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include <tbb/global_control.h>
+
+#include "core/errors.h"
+#include "denoisers/method.h"
+#include "denoisers/synthetic_frame.h"
+
+namespace dnb {
+namespace {
+
+std::vector<std::string> filter_names() {
+  std::vector<std::string> out;
+  for (const MethodInfo* m : MethodRegistry::global().all())
+    if (m->kind == MethodKind::Filter) out.push_back(m->name);
+  return out;
+}
+
+class FilterInvariants : public ::testing::TestWithParam<std::string> {
+ protected:
+  std::unique_ptr<Method> method() const { return MethodRegistry::global().create(GetParam()); }
+  MethodResult run(const AovFrame& f) const {
+    auto m = method();
+    return run_method(*m, {.frame = &f, .seed = 1});
+  }
+};
+
+// The synthetic frames hold every layer of the contract at levels 0 and 1: a method that needs
+// another layer must add it to synthetic_frame.cpp (this test says which).
+TEST_P(FilterInvariants, SyntheticFramesHoldTheRequiredLayers) {
+  AovFrame f = test::constant_frame(4, 4);
+  EXPECT_TRUE(f.missing_channels(method()->required_layers()).empty())
+      << "add these layers to tests/denoisers/synthetic_frame.cpp";
+}
+
+// A constant frame (every layer constant, colour = formula 1) gives that constant colour back.
+// Tolerance: 1e-5 relative, a few float roundings of a weighted mean (sum w v / sum w) and of a
+// range map and its inverse (exp/log, pow); a method that quantizes must make a flat region
+// come back exactly anyway (see nlmeans).
+TEST_P(FilterInvariants, ConstantImageStaysConstant) {
+  for (auto [w, h] : {std::pair{48, 32}, std::pair{7, 5}}) {
+    MethodResult r = run(test::constant_frame(w, h));
+    float worst = 0;
+    for (std::size_t k = 0; k < r.image.size(); ++k)
+      worst = std::max(worst, std::abs(r.image.data()[k] - test::kConstantColor));
+    EXPECT_LE(worst, 1e-5f * test::kConstantColor) << w << "x" << h;
+  }
+}
+
+TEST_P(FilterInvariants, KeepsSizeAndChannels) {
+  for (auto [w, h] : {std::pair{37, 23}, std::pair{5, 3}, std::pair{1, 1}, std::pair{64, 1}}) {
+    MethodResult r = run(test::planes_frame(w, h, 0.2f));
+    EXPECT_EQ(r.image.width(), w);
+    EXPECT_EQ(r.image.height(), h);
+    EXPECT_EQ(r.image.channels(), 3);
+  }
+}
+
+// NaN and +-Inf samples in every layer the method reads are repaired before it runs and
+// counted; the output is finite (run_method checks that and throws otherwise).
+TEST_P(FilterInvariants, NonFiniteInputIsRepairedAndCounted) {
+  AovFrame f = test::planes_frame(40, 30, 0.2f);
+  const float bad[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
+                       -std::numeric_limits<float>::infinity()};
+  int injected = 0;
+  for (const auto& name : method()->required_layers()) {
+    Image& img = f.layer(name);
+    for (int k = 0; k < 3; ++k) {
+      img.at(5 + 11 * k, 3 + 9 * k, k % img.channels()) = bad[k];
+      ++injected;
+    }
+  }
+  MethodResult r = run(f);
+  EXPECT_EQ(r.stats.counters.at("repaired_samples"), double(injected));
+  EXPECT_EQ(count_non_finite(r.image.view()), 0u);
+}
+
+// The same input gives the bit-identical output: twice in a row, and on one thread.
+TEST_P(FilterInvariants, BitIdenticalOutputWhateverTheThreadCount) {
+  AovFrame f = test::planes_frame(96, 64, 0.3f);
+  MethodResult a = run(f);
+  MethodResult b = run(f);
+  EXPECT_TRUE(a.image == b.image) << "two runs on the same frame differ";
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  MethodResult c = run(f);
+  EXPECT_TRUE(a.image == c.image) << "the one-thread run differs from the default";
+}
+
+// With its defaults, a filter lowers the error of a noisy frame of a smooth scene against the
+// noise-free frame. The bound (at most 70% of the input's MSE) is loose on purpose: relative
+// noise of 0.3 on a smooth, piecewise-planar scene is what every denoiser here is made for, and
+// each removes far more of it (its own tests hold it to tighter bounds).
+TEST_P(FilterInvariants, ReducesNoiseOnASmoothScene) {
+  AovFrame noisy = test::planes_frame(96, 64, 0.3f);
+  const Image truth = test::planes_frame(96, 64, 0.0f).layer(layer::kColor);
+  const double before = test::mse(noisy.layer(layer::kColor), truth);
+  const double after = test::mse(run(noisy).image, truth);
+  EXPECT_LT(after, 0.7 * before) << "input MSE " << before << ", output MSE " << after;
+}
+
+INSTANTIATE_TEST_SUITE_P(AllFilters, FilterInvariants, ::testing::ValuesIn(filter_names()),
+                         [](const auto& info) {
+                           std::string n = info.param;
+                           for (char& ch : n)
+                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                           return n;
+                         });
+
+}  // namespace
+}  // namespace dnb
