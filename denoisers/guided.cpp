@@ -31,6 +31,7 @@
 #include <cmath>
 
 #include <opencv2/imgproc.hpp>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "denoisers/illumination.h"
@@ -42,18 +43,24 @@ namespace {
 constexpr int kBandRows = 64;  // output rows per band: fixed, so bands never depend on threads
 constexpr int kMaxGuide = 7;
 
-// Solves (A) x = rhs for a symmetric positive definite m x m A (row-major) by Cholesky, in place
-// of rhs, for `nrhs` right-hand sides stored one after the other.
+// Per-thread buffers of one band, reused from band to band (a fresh 20 MB per band costs more
+// in page faults than the box filters themselves).
+struct Workspace {
+  cv::Mat stats, means, fit, mean_fit;
+};
+
+// Solves A x = rhs for a symmetric positive definite m x m A (row-major) by Cholesky, in place
+// of rhs, for `nrhs` right-hand sides stored one after the other. A is overwritten.
 void cholesky_solve(double* A, int m, double* rhs, int nrhs) {
+  double inv_diag[kMaxGuide];
   for (int j = 0; j < m; ++j) {
     double d = A[j * m + j];
     for (int k = 0; k < j; ++k) d -= A[j * m + k] * A[j * m + k];
-    d = std::sqrt(std::max(d, 1e-300));
-    A[j * m + j] = d;
+    inv_diag[j] = 1.0 / std::sqrt(std::max(d, 1e-300));
     for (int i = j + 1; i < m; ++i) {
       double s = A[i * m + j];
       for (int k = 0; k < j; ++k) s -= A[i * m + k] * A[j * m + k];
-      A[i * m + j] = s / d;
+      A[i * m + j] = s * inv_diag[j];
     }
   }
   for (int r = 0; r < nrhs; ++r) {
@@ -61,12 +68,12 @@ void cholesky_solve(double* A, int m, double* rhs, int nrhs) {
     for (int i = 0; i < m; ++i) {  // L y = b
       double s = x[i];
       for (int k = 0; k < i; ++k) s -= A[i * m + k] * x[k];
-      x[i] = s / A[i * m + i];
+      x[i] = s * inv_diag[i];
     }
     for (int i = m - 1; i >= 0; --i) {  // L^T x = y
       double s = x[i];
       for (int k = i + 1; k < m; ++k) s -= A[k * m + i] * x[k];
-      x[i] = s / A[i * m + i];
+      x[i] = s * inv_diag[i];
     }
   }
 }
@@ -100,8 +107,10 @@ class Guided final : public Method {
     {
       ScopedPhase p(r.stats, "guided_filter");
       const int bands = (f.height() + kBandRows - 1) / kBandRows;
+      tbb::enumerable_thread_specific<Workspace> workspaces;
       tbb::parallel_for(0, bands, [&](int b) {
-        filter_band(guide, light, filtered, b * kBandRows, std::min(f.height(), (b + 1) * kBandRows));
+        filter_band(guide, light, filtered, b * kBandRows, std::min(f.height(), (b + 1) * kBandRows),
+                    workspaces.local());
       });
     }
     {
@@ -138,7 +147,7 @@ class Guided final : public Method {
 
   // Filters output rows [y0, y1). Means over rows need a halo of 2 radius rows: one radius for
   // the window statistics, one for the averaging of the fits.
-  void filter_band(const Image& guide, const Image& light, Image& out, int y0, int y1) const {
+  void filter_band(const Image& guide, const Image& light, Image& out, int y0, int y1, Workspace& ws) const {
     const int w = light.width(), h = light.height(), r = radius_;
     const int m = guide.empty() ? 0 : guide.channels();
     const int ya = std::max(0, y0 - 2 * r), yb = std::min(h, y1 + 2 * r);  // statistics rows
@@ -148,7 +157,8 @@ class Guided final : public Method {
     const cv::Size ksize(2 * r + 1, 2 * r + 1);
 
     // Products whose window means give the fit: g (m), L (3), g_i g_j (i <= j), g_i L_c.
-    cv::Mat stats(yb - ya, w, CV_32FC(nstat));
+    cv::Mat& stats = ws.stats;
+    stats.create(yb - ya, w, CV_32FC(nstat));
     for (int y = ya; y < yb; ++y) {
       float* s = stats.ptr<float>(y - ya);
       for (int x = 0; x < w; ++x, s += nstat) {
@@ -163,12 +173,13 @@ class Guided final : public Method {
           for (int c = 0; c < 3; ++c) s[k++] = g[i] * l[c];
       }
     }
-    cv::Mat means;
+    cv::Mat& means = ws.means;
     cv::boxFilter(stats, means, CV_32F, ksize, cv::Point(-1, -1), true, cv::BORDER_REFLECT);
 
     // The fit of each window: a (3 x m) and b (3), for rows [yc, yd).
     const int nfit = 3 * m + 3;
-    cv::Mat fit(yd - yc, w, CV_32FC(nfit));
+    cv::Mat& fit = ws.fit;
+    fit.create(yd - yc, w, CV_32FC(nfit));
     double A[kMaxGuide * kMaxGuide], rhs[3 * kMaxGuide];
     for (int y = yc; y < yd; ++y) {
       const float* s = means.ptr<float>(y - ya);
@@ -198,7 +209,7 @@ class Guided final : public Method {
         }
       }
     }
-    cv::Mat mean_fit;
+    cv::Mat& mean_fit = ws.mean_fit;
     cv::boxFilter(fit, mean_fit, CV_32F, ksize, cv::Point(-1, -1), true, cv::BORDER_REFLECT);
 
     for (int y = y0; y < y1; ++y) {
