@@ -1,0 +1,199 @@
+#include "tracer/integrator.h"
+
+namespace dnb::rt {
+namespace {
+
+float power_heuristic(float a, float b) {
+  float a2 = a * a, b2 = b * b;
+  return a2 + b2 > 0 ? a2 / (a2 + b2) : 0.0f;
+}
+
+// Lobe choice at a vertex (see integrator.h, "coated x").
+struct Lobe {
+  bool specular = false;
+  Vec3 spec_weight;        // weight of the mirror bounce (tint, x Fr / Pc for a coat)
+  float base_weight = 0;   // weight of the diffuse base, (1 - Fr) / (1 - Pc) for a coat
+  float base_prob = 0;     // probability that the base lobe is chosen (for MIS densities)
+};
+
+Lobe choose_lobe(const SurfaceHit& hit, Vec3 wo, Sampler& s) {
+  const Material& m = *hit.material;
+  Lobe l;
+  switch (m.type) {
+    case MaterialType::kDiffuse:
+      l.base_weight = 1;
+      l.base_prob = 1;
+      break;
+    case MaterialType::kMirror:
+      l.specular = true;
+      l.spec_weight = m.tint;
+      break;
+    case MaterialType::kCoated: {
+      float fr = fresnel_schlick(dot(wo, hit.ns), m.ior);
+      float pc = std::clamp(fr, 0.2f, 0.8f);
+      l.base_prob = 1 - pc;
+      if (s.next() < pc) {
+        l.specular = true;
+        l.spec_weight = m.tint * (fr / pc);
+      } else {
+        l.base_weight = (1 - fr) / (1 - pc);
+      }
+      break;
+    }
+  }
+  return l;
+}
+
+}  // namespace
+
+PathTracer::PathTracer(const Scene& scene, Options options) : scene_(scene), opt_(options) {
+  opt_.reflection_levels = std::clamp(opt_.reflection_levels, 0, kMaxReflectionLevels);
+  opt_.max_depth = std::max(1, opt_.max_depth);
+}
+
+Vec3 PathTracer::nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ctx) const {
+  Sampler& s = ctx.sampler;
+  float u0 = s.next(), u1 = s.next(), u2 = s.next();
+  LightSample ls;
+  if (!scene_.sample_light(hit.p, u0, u1, u2, ls)) return Vec3(0.0f);
+  float cos_s = dot(ls.wi, hit.ns);
+  if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return Vec3(0.0f);
+  Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
+  ++ctx.rays;
+  if (scene_.occluded(shadow)) return Vec3(0.0f);
+  float bsdf_pdf = lobe_prob * cos_s * kInvPi;
+  float w = power_heuristic(ls.pdf, bsdf_pdf);
+  return ls.radiance * (kInvPi * cos_s * w / ls.pdf);
+}
+
+Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx) const {
+  Sampler& s = ctx.sampler;
+  float u0 = s.next(), u1 = s.next(), u2 = s.next();
+  LightSample ls;
+  if (!scene_.sample_light(hit.p, u0, u1, u2, ls)) return Vec3(0.0f);
+  float cos_s = dot(ls.wi, hit.ns);
+  if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return Vec3(0.0f);
+  Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
+  ++ctx.rays;
+  if (scene_.occluded(shadow)) return Vec3(0.0f);
+  return ls.radiance * (kInvPi * cos_s / ls.pdf);
+}
+
+PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 path_weight, PathContext& ctx) const {
+  PathRadiance out;
+  Vec3 beta(1.0f);
+  Vec3* sink = &out.first_emission;
+  Sampler& s = ctx.sampler;
+  Vec3 prev_p = ray.origin;
+  for (;;) {
+    SurfaceHit hit;
+    ++ctx.rays;
+    if (!scene_.intersect(ray, hit)) {
+      Vec3 Le = scene_.escaped_radiance(ray.dir);
+      if (!is_black(Le)) {
+        float w = prev_pdf > 0 ? power_heuristic(prev_pdf, scene_.escaped_light_pdf(ray.dir)) : 1.0f;
+        *sink += beta * Le * w;
+      }
+      break;
+    }
+    ++depth;
+    Vec3 Le = hit.emitted();
+    if (!is_black(Le)) {
+      float w = prev_pdf > 0 ? power_heuristic(prev_pdf, scene_.light_pdf(prev_p, hit)) : 1.0f;
+      *sink += beta * Le * w;
+    }
+    sink = &out.rest;
+    if (depth >= opt_.max_depth) break;
+    // Russian roulette on the whole path's weight, after rr_depth vertices.
+    if (depth > opt_.rr_depth) {
+      float q = std::min(0.95f, max_component(beta * path_weight));
+      if (!(q > 0) || s.next() >= q) break;
+      beta *= 1.0f / q;
+    }
+    Vec3 wo = -ray.dir;
+    Lobe lobe = choose_lobe(hit, wo, s);
+    if (lobe.specular) {
+      Vec3 wr = reflect(wo, hit.ns);
+      if (dot(wr, hit.ng) <= 0) break;
+      beta *= lobe.spec_weight;
+      prev_pdf = 0;
+      prev_p = hit.p;
+      ray = Ray{hit.spawn_origin(wr), wr, 1e30f};
+      continue;
+    }
+    Vec3 base = hit.albedo * lobe.base_weight;
+    out.rest += beta * base * nee_mis(hit, lobe.base_prob, ctx);
+    Frame f(hit.ns);
+    float u1 = s.next(), u2 = s.next();
+    Vec3 wi = f.to_world(sample_cosine_hemisphere(u1, u2));
+    float cos_i = dot(wi, hit.ns);
+    if (cos_i <= 1e-7f || dot(wi, hit.ng) <= 0) break;
+    beta *= base;  // f cos / pdf = (albedo / pi) cos / (cos / pi)
+    if (is_black(beta)) break;
+    prev_pdf = lobe.base_prob * cos_i * kInvPi;
+    prev_p = hit.p;
+    ray = Ray{hit.spawn_origin(wi), wi, 1e30f};
+  }
+  return out;
+}
+
+PathRadiance PathTracer::incoming(const Ray& ray, PathContext& ctx, int depth) const {
+  return trace(ray, depth, 0.0f, Vec3(1.0f), ctx);
+}
+
+void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ctx, SampleResult& out) const {
+  LevelSample& L = out.level[level];
+  L = LevelSample{};
+  L.present = true;
+  out.levels = std::max(out.levels, level + 1);
+  SurfaceHit hit;
+  ++ctx.rays;
+  if (!scene_.intersect(ray, hit)) {
+    L.emission = scene_.escaped_radiance(ray.dir);
+    return;
+  }
+  ++depth;
+  L.normal = hit.ns;
+  L.depth = hit.t;
+  L.emission = hit.emitted();
+  const Material& m = *hit.material;
+  if (m.type != MaterialType::kMirror) L.albedo = hit.albedo;
+  if (depth >= opt_.max_depth) return;
+  Vec3 wo = -ray.dir;
+  Lobe lobe = choose_lobe(hit, wo, ctx.sampler);
+  if (lobe.specular) {
+    L.tint = lobe.spec_weight;
+    Vec3 wr = reflect(wo, hit.ns);
+    if (dot(wr, hit.ng) <= 0) return;  // shading normal sends the mirror ray below the surface
+    Ray r{hit.spawn_origin(wr), wr, 1e30f};
+    if (level < opt_.reflection_levels) {
+      decompose(r, level + 1, depth, ctx, out);
+      L.reflection = L.tint * out.level[level + 1].color();
+    } else {
+      L.reflection = L.tint * trace(r, depth, 0.0f, L.tint, ctx).total();
+    }
+    return;
+  }
+  // Diffuse base: D and I for a white surface, scaled by the lobe weight (1 for diffuse).
+  Vec3 direct = nee_mis(hit, lobe.base_prob, ctx);
+  Vec3 indirect(0.0f);
+  Frame f(hit.ns);
+  float u1 = ctx.sampler.next(), u2 = ctx.sampler.next();
+  Vec3 wi = f.to_world(sample_cosine_hemisphere(u1, u2));
+  float cos_i = dot(wi, hit.ns);
+  if (cos_i > 1e-7f && dot(wi, hit.ng) > 0) {
+    Ray r{hit.spawn_origin(wi), wi, 1e30f};
+    PathRadiance pr = trace(r, depth, lobe.base_prob * cos_i * kInvPi, hit.albedo * lobe.base_weight, ctx);
+    direct += pr.first_emission;
+    indirect = pr.rest;
+  }
+  L.direct = direct * lobe.base_weight;
+  L.indirect = indirect * lobe.base_weight;
+}
+
+void PathTracer::sample_layers(const Ray& camera_ray, PathContext& ctx, SampleResult& out) const {
+  out.levels = 0;
+  decompose(camera_ray, 0, 0, ctx, out);
+}
+
+}  // namespace dnb::rt

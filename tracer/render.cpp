@@ -1,0 +1,455 @@
+// render_frame and render_color_sums: per-pixel sample loops over tiles (TBB), accumulation of
+// the layers of tracer/integrator.h, the edge set G and its sub-pixel data (paper 3.1).
+//
+// Sampling: sample s of pixel (x, y) lies in stratum (s mod g, s div g) of a g x g grid,
+// g = floor(sqrt(spp)), jittered inside it; samples past g^2 are uniform in the pixel. Every
+// random number comes from Sampler(seed, pixel, s) (tracer/math.h), so a sample's value does not
+// depend on threads, tiles or order, and samples of one pixel are summed in index order: frames
+// are bit-identical for any thread count.
+//
+// Edge set G (paper 3.1), from the finished normal and depth layers: pixel p is in G when
+//  - its own samples disagree: |mean normal| < kEdgeNormalLength (normals spread over > ~25
+//    degrees, or hits mixed with misses) or the relative standard deviation of its depth
+//    samples exceeds kEdgeDepthSpread; or
+//  - a 4-neighbour q differs: the angle between their mean normals exceeds kEdgeNormalAngle,
+//    one is a miss and the other not, or |depth_p - depth_q| > kEdgeDepthRel * min(depth_p,
+//    depth_q) (both then belong to G).
+// For pixels of G the samples are traced again (the same random numbers give the same paths)
+// and averaged per 4x4 sub-pixel stratum: sub-pixel (i, j) holds the samples whose film position
+// falls in [i/4, (i+1)/4) x [j/4, (j+1)/4) of the pixel. With spp = 256 each holds 16 samples.
+// A sub-pixel that no sample falls in (spp < 16) gets the pixel's means.
+#include <xmmintrin.h>
+#include <pmmintrin.h>
+
+#include <atomic>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "core/errors.h"
+#include "core/timer.h"
+#include "core/version.h"
+#include "tracer/integrator.h"
+#include "tracer/render.h"
+#include "tracer/scene.h"
+
+namespace dnb {
+using namespace rt;
+
+namespace {
+
+constexpr float kEdgeNormalLength = 0.95f;  // |mean of unit normals| below: normals disagree inside
+constexpr float kEdgeNormalAngle = 25.0f;   // degrees between neighbours' normals
+constexpr float kEdgeDepthRel = 0.05f;      // relative depth jump between neighbours
+constexpr float kEdgeDepthSpread = 0.02f;   // relative std. deviation of depth inside a pixel
+constexpr int kTile = 16;
+
+void set_ftz_daz() {
+  // Embree and the integrator want denormals flushed (speed); set on every rendering thread,
+  // so every thread computes the same bits.
+  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+}
+
+void check_settings(const RenderSettings& s) {
+  Image::check_size(s.width, s.height, 3, "render size");
+  if (s.spp < 1) throw InputError(fmt::format("spp must be at least 1 (got {})", s.spp));
+  if (s.max_depth < 1) throw InputError(fmt::format("max depth must be at least 1 (got {})", s.max_depth));
+  if (s.reflection_levels < 0 || s.reflection_levels > kMaxReflectionLevels)
+    throw InputError(fmt::format("reflection levels must be in 0..{} (got {})", kMaxReflectionLevels,
+                                 s.reflection_levels));
+  if (s.threads < 0) throw InputError(fmt::format("threads must be >= 0 (got {})", s.threads));
+}
+
+// Film position of sample s inside its pixel, in [0, 1)^2 (see top of file).
+inline void sample_position(int s, int grid, Sampler& rng, float& fx, float& fy) {
+  float u = rng.next(), v = rng.next();
+  if (s < grid * grid) {
+    fx = (float(s % grid) + u) / float(grid);
+    fy = (float(s / grid) + v) / float(grid);
+  } else {
+    fx = u;
+    fy = v;
+  }
+  fx = std::min(fx, 0x1.fffffep-1f);
+  fy = std::min(fy, 0x1.fffffep-1f);
+}
+
+inline bool sample_finite(const SampleResult& r) {
+  float acc = 0;
+  for (int k = 0; k < r.levels; ++k) {
+    const LevelSample& l = r.level[k];
+    acc += l.direct.x + l.direct.y + l.direct.z + l.indirect.x + l.indirect.y + l.indirect.z + l.reflection.x +
+           l.reflection.y + l.reflection.z + l.emission.x + l.emission.y + l.emission.z + l.tint.x + l.tint.y +
+           l.tint.z + l.depth;
+  }
+  return std::isfinite(acc) && is_finite(r.level[0].color());
+}
+
+// Runs f(tile_x0, tile_y0, tile_x1, tile_y1) over all tiles with `threads` threads (0: all).
+template <typename F>
+void for_each_tile(int width, int height, int threads, F&& f) {
+  const int tx = (width + kTile - 1) / kTile, ty = (height + kTile - 1) / kTile;
+  auto body = [&] {
+    tbb::parallel_for(0, tx * ty, [&](int t) {
+      set_ftz_daz();
+      int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
+      f(x0, y0, std::min(width, x0 + kTile), std::min(height, y0 + kTile));
+    });
+  };
+  if (threads > 0) {
+    tbb::task_arena arena(threads);
+    arena.execute(body);
+  } else {
+    body();
+  }
+}
+
+struct D3 {
+  double v[3] = {0, 0, 0};
+  void add(Vec3 a) {
+    v[0] += a.x;
+    v[1] += a.y;
+    v[2] += a.z;
+  }
+  void add_sq(Vec3 a) {
+    v[0] += double(a.x) * a.x;
+    v[1] += double(a.y) * a.y;
+    v[2] += double(a.z) * a.z;
+  }
+};
+
+// Per-pixel sums of one level's layers over the samples that reached the level.
+struct LevelSums {
+  std::int64_t n = 0;
+  D3 direct, indirect, albedo, reflection, emission, normal, tint;
+  double depth = 0, depth_sq = 0;
+  void add(const LevelSample& l) {
+    ++n;
+    direct.add(l.direct);
+    indirect.add(l.indirect);
+    albedo.add(l.albedo);
+    reflection.add(l.reflection);
+    emission.add(l.emission);
+    normal.add(l.normal);
+    tint.add(l.tint);
+    depth += l.depth;
+    depth_sq += double(l.depth) * l.depth;
+  }
+};
+
+void store(Image& img, int x, int y, const D3& s, double inv) {
+  float* p = img.pixel(x, y);
+  for (int c = 0; c < 3; ++c) p[c] = float(s.v[c] * inv);
+}
+
+void store_var(Image& img, int x, int y, const D3& sum, const D3& sq, std::int64_t n) {
+  float* p = img.pixel(x, y);
+  for (int c = 0; c < 3; ++c) {
+    if (n < 2) {
+      p[c] = 0;
+      continue;
+    }
+    double mean = sum.v[c] / n;
+    double var = std::max(0.0, (sq.v[c] - mean * sum.v[c]) / double(n - 1));
+    p[c] = float(var / n);
+  }
+}
+
+PathTracer::Options tracer_options(const RenderSettings& s) {
+  PathTracer::Options o;
+  o.max_depth = s.max_depth;
+  o.reflection_levels = s.reflection_levels;
+  return o;
+}
+
+Vec3 pixel_vec(const Image& img, int x, int y) {
+  const float* p = img.pixel(x, y);
+  return {p[0], p[1], p[2]};
+}
+
+}  // namespace
+
+AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
+  check_settings(settings);
+  Stopwatch clock;
+  const int W = settings.width, H = settings.height, K = settings.reflection_levels, spp = settings.spp;
+  const int grid = std::max(1, int(std::floor(std::sqrt(double(spp)))));
+  PathTracer tracer(scene, tracer_options(settings));
+
+  AovFrame frame(W, H);
+  Image& color = frame.add(layer::kColor, 3);
+  Image& var_f = frame.add(layer::kVariance, 3);
+  Image& var_d = frame.add(layer::kDirectVariance, 3);
+  Image& var_i = frame.add(layer::kIndirectVariance, 3);
+  Image& samples = frame.add(layer::kSamples, 1);
+  Image& edge = frame.add(layer::kEdge, 1);
+  struct LevelImages {
+    Image *direct, *indirect, *albedo, *reflection, *emission, *normal, *depth, *tint;
+  };
+  std::vector<LevelImages> lv(K + 1);
+  for (int k = 0; k <= K; ++k) {
+    lv[k].direct = &frame.add(layer::at_level(k, layer::kDirect), 3);
+    lv[k].indirect = &frame.add(layer::at_level(k, layer::kIndirect), 3);
+    lv[k].albedo = &frame.add(layer::at_level(k, layer::kAlbedo), 3);
+    lv[k].reflection = &frame.add(layer::at_level(k, layer::kReflection), 3);
+    lv[k].emission = &frame.add(layer::at_level(k, layer::kEmission), 3);
+    lv[k].normal = &frame.add(layer::at_level(k, layer::kNormal), 3);
+    lv[k].depth = &frame.add(layer::at_level(k, layer::kDepth), 1);
+    lv[k].tint = k > 0 ? &frame.add(layer::at_level(k, layer::kTint), 3) : nullptr;
+  }
+  // Relative depth spread inside each pixel, for the edge test (kept only until G is known).
+  Image depth_spread(W, H, 1);
+
+  std::atomic<std::int64_t> dropped{0};
+  for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
+    SampleResult r;
+    std::int64_t tile_dropped = 0;
+    std::vector<LevelSums> sums(K + 1);
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x) {
+        const std::uint64_t pixel = std::uint64_t(y) * W + x;
+        for (auto& s : sums) s = LevelSums{};
+        D3 f_sum, f_sq, d_sq, i_sq;
+        for (int s = 0; s < spp; ++s) {
+          Sampler rng(settings.seed, pixel, std::uint64_t(s));
+          float fx, fy;
+          sample_position(s, grid, rng, fx, fy);
+          PathContext ctx{rng};
+          tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
+          if (!sample_finite(r)) {
+            ++tile_dropped;
+            continue;
+          }
+          Vec3 f = r.level[0].color();
+          f_sum.add(f);
+          f_sq.add_sq(f);
+          d_sq.add_sq(r.level[0].direct);
+          i_sq.add_sq(r.level[0].indirect);
+          for (int k = 0; k < r.levels && k <= K; ++k) sums[k].add(r.level[k]);
+        }
+        const std::int64_t n = sums[0].n;
+        const double inv = n > 0 ? 1.0 / n : 0.0;
+        store(color, x, y, f_sum, inv);
+        store_var(var_f, x, y, f_sum, f_sq, n);
+        store_var(var_d, x, y, sums[0].direct, d_sq, n);
+        store_var(var_i, x, y, sums[0].indirect, i_sq, n);
+        samples.at(x, y, 0) = float(n);
+        for (int k = 0; k <= K; ++k) {
+          const LevelSums& L = sums[k];
+          const double li = L.n > 0 ? 1.0 / L.n : 0.0;
+          store(*lv[k].direct, x, y, L.direct, li);
+          store(*lv[k].indirect, x, y, L.indirect, li);
+          store(*lv[k].albedo, x, y, L.albedo, li);
+          store(*lv[k].reflection, x, y, L.reflection, li);
+          store(*lv[k].emission, x, y, L.emission, li);
+          store(*lv[k].normal, x, y, L.normal, li);
+          lv[k].depth->at(x, y, 0) = float(L.depth * li);
+          // refl(k).tint: mean over the samples of level k-1 of the bounce weight into level k.
+          if (k > 0) {
+            const LevelSums& P = sums[k - 1];
+            store(*lv[k].tint, x, y, P.tint, P.n > 0 ? 1.0 / P.n : 0.0);
+          }
+        }
+        if (n > 1) {
+          double m = sums[0].depth * inv;
+          double var = std::max(0.0, sums[0].depth_sq * inv - m * m);
+          depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
+        }
+      }
+    dropped += tile_dropped;
+    if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * spp);
+  });
+
+  // ---- Edge set G ----
+  const Image& normal = *lv[0].normal;
+  const Image& depth = *lv[0].depth;
+  const float cos_edge = std::cos(kEdgeNormalAngle * kPi / 180);
+  auto differ = [&](int xa, int ya, int xb, int yb) {
+    Vec3 na = pixel_vec(normal, xa, ya), nb = pixel_vec(normal, xb, yb);
+    float la = length(na), lb = length(nb);
+    if ((la < 1e-3f) != (lb < 1e-3f)) return true;
+    if (la >= 1e-3f && dot(na, nb) < cos_edge * la * lb) return true;
+    float da = depth.at(xa, ya, 0), db = depth.at(xb, yb, 0);
+    return std::fabs(da - db) > kEdgeDepthRel * std::min(da, db);
+  };
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      Vec3 n = pixel_vec(normal, x, y);
+      float ln = length(n);
+      bool inner = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread;
+      if (inner) edge.at(x, y, 0) = 1;
+      if (x + 1 < W && differ(x, y, x + 1, y)) edge.at(x, y, 0) = edge.at(x + 1, y, 0) = 1;
+      if (y + 1 < H && differ(x, y, x, y + 1)) edge.at(x, y, 0) = edge.at(x, y + 1, 0) = 1;
+    }
+  depth_spread = Image();
+
+  if (settings.edge_subpixels) {
+    EdgeSubpixels es;
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        if (edge.at(x, y, 0) > 0) es.pixels.push_back(std::int32_t(y * W + x));
+    es.samples.resize(es.pixels.size() * EdgeSubpixels::kPerPixel);
+    // Re-trace the samples of edge pixels, in parallel over chunks of edge pixels.
+    const std::size_t chunk = 64;
+    const std::size_t chunks = (es.pixels.size() + chunk - 1) / chunk;
+    auto body = [&] {
+      tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+        set_ftz_daz();
+        SampleResult r;
+        for (std::size_t i = c * chunk; i < std::min(es.pixels.size(), (c + 1) * chunk); ++i) {
+          const int x = es.pixels[i] % W, y = es.pixels[i] / W;
+          struct Sub {
+            int n = 0;
+            D3 normal, albedo, direct, indirect;
+            double depth = 0;
+          } sub[EdgeSubpixels::kPerPixel];
+          for (int s = 0; s < spp; ++s) {
+            Sampler rng(settings.seed, std::uint64_t(es.pixels[i]), std::uint64_t(s));
+            float fx, fy;
+            sample_position(s, grid, rng, fx, fy);
+            PathContext ctx{rng};
+            tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
+            if (!sample_finite(r)) continue;
+            Sub& b = sub[int(fy * EdgeSubpixels::kPerSide) * EdgeSubpixels::kPerSide + int(fx * EdgeSubpixels::kPerSide)];
+            ++b.n;
+            b.normal.add(r.level[0].normal);
+            b.albedo.add(r.level[0].albedo);
+            b.direct.add(r.level[0].direct);
+            b.indirect.add(r.level[0].indirect);
+            b.depth += r.level[0].depth;
+          }
+          EdgeSample* out = &es.samples[i * EdgeSubpixels::kPerPixel];
+          for (int k = 0; k < EdgeSubpixels::kPerPixel; ++k) {
+            EdgeSample& e = out[k];
+            if (sub[k].n == 0) {
+              for (int c2 = 0; c2 < 3; ++c2) {
+                e.normal[c2] = normal.at(x, y, c2);
+                e.albedo[c2] = lv[0].albedo->at(x, y, c2);
+                e.direct[c2] = lv[0].direct->at(x, y, c2);
+                e.indirect[c2] = lv[0].indirect->at(x, y, c2);
+              }
+              e.depth = depth.at(x, y, 0);
+              continue;
+            }
+            const double inv = 1.0 / sub[k].n;
+            for (int c2 = 0; c2 < 3; ++c2) {
+              e.normal[c2] = float(sub[k].normal.v[c2] * inv);
+              e.albedo[c2] = float(sub[k].albedo.v[c2] * inv);
+              e.direct[c2] = float(sub[k].direct.v[c2] * inv);
+              e.indirect[c2] = float(sub[k].indirect.v[c2] * inv);
+            }
+            e.depth = float(sub[k].depth * inv);
+          }
+        }
+      });
+    };
+    if (settings.threads > 0) {
+      tbb::task_arena arena(settings.threads);
+      arena.execute(body);
+    } else {
+      body();
+    }
+    frame.edges = std::move(es);
+  }
+
+  frame.meta.scene = scene_name(scene);
+  frame.meta.spp = spp;
+  frame.meta.seed = settings.seed;
+  frame.meta.tracer_version = kTracerVersion;
+  frame.meta.build_version = std::string(DNB_VERSION) + " (" + DNB_GIT_REVISION + ")";
+  frame.meta.dropped_samples = dropped.load();
+  frame.meta.reflection_levels = K;
+  frame.meta.extra["max_depth"] = std::to_string(settings.max_depth);
+  frame.meta.extra["scene_hash"] = scene_content_hash(scene);
+  frame.meta.render_seconds = clock.seconds();
+  return frame;
+}
+
+ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, int sample_begin, int sample_end) {
+  check_settings(settings);
+  if (sample_begin < 0 || sample_end > settings.spp || sample_begin > sample_end)
+    throw InputError(fmt::format("sample range [{}, {}) is not inside [0, {})", sample_begin, sample_end,
+                                 settings.spp));
+  const int W = settings.width, H = settings.height, spp = settings.spp;
+  const int grid = std::max(1, int(std::floor(std::sqrt(double(spp)))));
+  PathTracer tracer(scene, tracer_options(settings));
+  ColorSums out;
+  out.width = W;
+  out.height = H;
+  out.samples = sample_end - sample_begin;
+  out.sum.assign(std::size_t(W) * H * 3, 0.0);
+  out.sum_sq.assign(std::size_t(W) * H * 3, 0.0);
+  std::atomic<std::int64_t> dropped{0};
+  for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
+    SampleResult r;
+    std::int64_t tile_dropped = 0;
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x) {
+        const std::uint64_t pixel = std::uint64_t(y) * W + x;
+        double* s1 = &out.sum[pixel * 3];
+        double* s2 = &out.sum_sq[pixel * 3];
+        for (int s = sample_begin; s < sample_end; ++s) {
+          Sampler rng(settings.seed, pixel, std::uint64_t(s));
+          float fx, fy;
+          sample_position(s, grid, rng, fx, fy);
+          PathContext ctx{rng};
+          tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
+          if (!sample_finite(r)) {
+            ++tile_dropped;
+            continue;
+          }
+          Vec3 f = r.level[0].color();
+          for (int c = 0; c < 3; ++c) {
+            s1[c] += f[c];
+            s2[c] += double(f[c]) * f[c];
+          }
+        }
+      }
+    dropped += tile_dropped;
+    if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * (sample_end - sample_begin));
+  });
+  out.dropped = dropped.load();
+  return out;
+}
+
+void ColorSums::add(const ColorSums& o) {
+  if (sum.empty()) {
+    *this = o;
+    return;
+  }
+  if (o.width != width || o.height != height)
+    throw WorkError(fmt::format("cannot add colour sums of {}x{} to {}x{}", o.width, o.height, width, height));
+  samples += o.samples;
+  dropped += o.dropped;
+  for (std::size_t i = 0; i < sum.size(); ++i) {
+    sum[i] += o.sum[i];
+    sum_sq[i] += o.sum_sq[i];
+  }
+}
+
+Image ColorSums::mean() const {
+  // `samples` counts per-pixel samples attempted; dropped samples (rare) are spread over the
+  // image, so dividing by the attempted count biases by at most dropped / (pixels x samples).
+  Image img(width, height, 3);
+  const double inv = samples > 0 ? 1.0 / double(samples) : 0.0;
+  for (std::size_t i = 0; i < sum.size(); ++i) img.data()[i] = float(sum[i] * inv);
+  return img;
+}
+
+Image ColorSums::variance_of_mean() const {
+  Image img(width, height, 3);
+  if (samples < 2) return img;
+  const double n = double(samples);
+  for (std::size_t i = 0; i < sum.size(); ++i) {
+    double m = sum[i] / n;
+    double var = std::max(0.0, (sum_sq[i] - m * sum[i]) / (n - 1));
+    img.data()[i] = float(var / n);
+  }
+  return img;
+}
+
+}  // namespace dnb

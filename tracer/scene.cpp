@@ -1,0 +1,300 @@
+#include "tracer/scene.h"
+
+#include <fmt/format.h>
+
+#include "core/errors.h"
+
+namespace dnb {
+using namespace rt;
+
+namespace rt {
+
+Vec3 SurfaceHit::spawn_origin(Vec3 dir) const {
+  return p + ng * (dot(dir, ng) >= 0 ? offset : -offset);
+}
+
+Ray Camera::generate_ray(float fx, float fy, int width, int height) const {
+  Vec3 forward = normalize(look_at - eye);
+  Vec3 right = normalize(cross(forward, up));
+  Vec3 true_up = cross(right, forward);
+  float tan_half = std::tan(vfov_degrees * kPi / 360.0f);
+  float aspect = float(width) / float(height);
+  float sx = (2.0f * fx / width - 1.0f) * tan_half * aspect;
+  float sy = (1.0f - 2.0f * fy / height) * tan_half;
+  return Ray{eye, normalize(forward + right * sx + true_up * sy), 1e30f};
+}
+
+Vec3 Sky::radiance(Vec3 dir) const {
+  if (!enabled) return Vec3(0.0f);
+  if (!gradient) return color;
+  float c = dot(dir, up);
+  if (c >= 0) {
+    float w = std::pow(c, 0.5f);  // a bright band near the horizon, as real skies have
+    return horizon * (1 - w) + zenith * w;
+  }
+  float w = std::min(1.0f, -c * 4.0f);
+  return horizon * (1 - w) + ground * w;
+}
+
+}  // namespace rt
+
+Scene::Scene() {
+  device_ = rtcNewDevice(nullptr);
+  if (!device_) throw WorkError(fmt::format("cannot create an Embree device (error {})", int(rtcGetDeviceError(nullptr))));
+}
+
+Scene::~Scene() {
+  if (rtc_) rtcReleaseScene(rtc_);
+  if (device_) rtcReleaseDevice(device_);
+}
+
+std::size_t Scene::triangle_count() const {
+  std::size_t n = 0;
+  for (const auto& m : meshes) n += m.triangles();
+  return n;
+}
+
+void Scene::commit() {
+  rtc_ = rtcNewScene(device_);
+  rtcSetSceneBuildQuality(rtc_, RTC_BUILD_QUALITY_HIGH);
+  bmin_ = Vec3(1e30f);
+  bmax_ = Vec3(-1e30f);
+  for (std::size_t gi = 0; gi < meshes.size(); ++gi) {
+    const Mesh& m = meshes[gi];
+    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    const std::size_t nv = m.positions.size();
+    auto* vb = static_cast<float*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
+    for (std::size_t i = 0; i < nv; ++i) {
+      vb[3 * i] = m.positions[i].x;
+      vb[3 * i + 1] = m.positions[i].y;
+      vb[3 * i + 2] = m.positions[i].z;
+      bmin_ = vmin(bmin_, m.positions[i]);
+      bmax_ = vmax(bmax_, m.positions[i]);
+    }
+    auto* ib = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nv / 3));
+    for (std::size_t i = 0; i < nv; ++i) ib[i] = unsigned(i);
+    rtcCommitGeometry(g);
+    unsigned id = rtcAttachGeometry(rtc_, g);
+    rtcReleaseGeometry(g);
+    if (id != gi) throw WorkError("Embree assigned an unexpected geometry id");
+  }
+  rtcCommitScene(rtc_);
+  if (meshes.empty()) bmin_ = bmax_ = Vec3(0.0f);
+
+  // Emitter distribution: weight = an estimate of emitted power (luminance x area x pi per
+  // emitting side for triangles; for sun and sky, the power they send through a disc of the
+  // scene's bounding radius). Any positive weights keep the estimator unbiased; these make
+  // bright and large emitters get the shadow rays.
+  emitters_.clear();
+  emitter_cdf_.clear();
+  select_prob_.assign(meshes.size(), {});
+  float total = 0;
+  for (std::size_t gi = 0; gi < meshes.size(); ++gi) {
+    const Mesh& m = meshes[gi];
+    for (std::size_t t = 0; t < m.triangles(); ++t) {
+      const Material& mat = materials[m.material[t]];
+      if (!mat.is_emitter()) continue;
+      Vec3 a = m.positions[3 * t], b = m.positions[3 * t + 1], c = m.positions[3 * t + 2];
+      float area = 0.5f * length(cross(b - a, c - a));
+      if (!(area > 0)) continue;
+      float w = luminance(mat.emission) * area * kPi * (mat.two_sided ? 2.0f : 1.0f);
+      if (!(w > 0)) continue;
+      emitters_.push_back({unsigned(gi), unsigned(t), area});
+      total += w;
+      emitter_cdf_.push_back(total);
+    }
+  }
+  Vec3 ext = bmax_ - bmin_;
+  float radius = 0.5f * length(ext);
+  float disc = kPi * radius * radius;
+  float sun_w = sun.enabled ? luminance(sun.radiance) * sun.solid_angle() * disc : 0.0f;
+  float sky_w = sky.enabled ? luminance(sky.average) * kPi * disc : 0.0f;
+  total += sun_w;
+  emitter_cdf_.push_back(total);
+  total += sky_w;
+  emitter_cdf_.push_back(total);
+  total_light_weight_ = total;
+  tri_select_.resize(emitters_.size());
+  float prev = 0;
+  for (std::size_t i = 0; i < emitters_.size(); ++i) {
+    float p = (emitter_cdf_[i] - prev) / total;
+    prev = emitter_cdf_[i];
+    tri_select_[i] = p;
+    auto& v = select_prob_[emitters_[i].mesh];
+    if (v.empty()) v.assign(meshes[emitters_[i].mesh].triangles(), 0.0f);
+    v[emitters_[i].prim] = p;
+  }
+  sun_select_ = total > 0 ? sun_w / total : 0;
+  sky_select_ = total > 0 ? sky_w / total : 0;
+}
+
+void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const {
+  const Mesh& m = meshes[rh.hit.geomID];
+  const unsigned prim = rh.hit.primID;
+  const float b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1.0f - b1 - b2;
+  hit.t = rh.ray.tfar;
+  hit.geom = rh.hit.geomID;
+  hit.prim = prim;
+  hit.p = ray.origin + ray.dir * hit.t;
+  Vec3 ng = normalize(Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
+  hit.front = dot(ng, ray.dir) < 0;
+  if (!hit.front) ng = -ng;
+  hit.ng = ng;
+  if (!m.normals.empty()) {
+    Vec3 ns = normalize(m.normals[3 * prim] * b0 + m.normals[3 * prim + 1] * b1 + m.normals[3 * prim + 2] * b2);
+    if (dot(ns, ng) < 0) ns = -ns;
+    hit.ns = ns;
+  } else {
+    hit.ns = ng;
+  }
+  if (!m.uvs.empty()) {
+    const float* uv = &m.uvs[6 * prim];
+    hit.u = uv[0] * b0 + uv[2] * b1 + uv[4] * b2;
+    hit.v = uv[1] * b0 + uv[3] * b1 + uv[5] * b2;
+  } else {
+    hit.u = b1;
+    hit.v = b2;
+  }
+  hit.material = &materials[m.material[prim]];
+  const Material& mat = *hit.material;
+  if (mat.type == MaterialType::kMirror) {
+    hit.albedo = Vec3(0.0f);
+  } else {
+    hit.albedo = mat.albedo;
+    if (mat.texture >= 0) hit.albedo *= textures[mat.texture]->eval(hit.u, hit.v);
+  }
+  float mag = std::max(std::max(std::fabs(hit.p.x), std::fabs(hit.p.y)), std::fabs(hit.p.z));
+  hit.offset = 1e-4f * std::max(1.0f, mag);
+}
+
+bool Scene::intersect(const Ray& ray, SurfaceHit& hit) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = ray.origin.x;
+  rh.ray.org_y = ray.origin.y;
+  rh.ray.org_z = ray.origin.z;
+  rh.ray.dir_x = ray.dir.x;
+  rh.ray.dir_y = ray.dir.y;
+  rh.ray.dir_z = ray.dir.z;
+  rh.ray.tnear = 0.0f;
+  rh.ray.tfar = ray.tmax;
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.ray.time = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(rtc_, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  fill_hit(ray, rh, hit);
+  return true;
+}
+
+bool Scene::occluded(const Ray& ray) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay r;
+  r.org_x = ray.origin.x;
+  r.org_y = ray.origin.y;
+  r.org_z = ray.origin.z;
+  r.dir_x = ray.dir.x;
+  r.dir_y = ray.dir.y;
+  r.dir_z = ray.dir.z;
+  r.tnear = 0.0f;
+  r.tfar = ray.tmax;
+  r.mask = 0xFFFFFFFFu;
+  r.flags = 0;
+  r.time = 0;
+  rtcOccluded1(rtc_, &ctx, &r);
+  return r.tfar < 0;  // Embree sets tfar = -inf on a hit
+}
+
+Vec3 Scene::escaped_radiance(Vec3 dir) const {
+  Vec3 L = sky.radiance(dir);
+  if (sun.enabled && dot(dir, sun.direction) >= sun.cos_max) L += sun.radiance;
+  return L;
+}
+
+bool Scene::sample_light(Vec3 p, float u0, float u1, float u2, LightSample& out) const {
+  if (total_light_weight_ <= 0) return false;
+  const float target = u0 * total_light_weight_;
+  const std::size_t ntri = emitters_.size();
+  std::size_t idx = std::size_t(std::upper_bound(emitter_cdf_.begin(), emitter_cdf_.end(), target) -
+                                emitter_cdf_.begin());
+  // upper_bound never lands on a zero-weight entry (its cdf equals the previous one) unless
+  // u0 * total rounded up to total: then take the last entry of positive weight.
+  if (idx >= emitter_cdf_.size()) {
+    idx = emitter_cdf_.size() - 1;
+    while (idx > 0 && emitter_cdf_[idx] == emitter_cdf_[idx - 1]) --idx;
+  }
+  if (idx < ntri) {
+    const EmissiveTriangle& e = emitters_[idx];
+    const Mesh& m = meshes[e.mesh];
+    Vec3 a = m.positions[3 * e.prim], b = m.positions[3 * e.prim + 1], c = m.positions[3 * e.prim + 2];
+    // Uniform point on the triangle.
+    float su = std::sqrt(u1);
+    float b0 = 1 - su, b1 = u2 * su;
+    Vec3 q = a * b0 + b * b1 + c * (1 - b0 - b1);
+    Vec3 d = q - p;
+    float dist2 = dot(d, d);
+    if (!(dist2 > 0)) return false;
+    float dist = std::sqrt(dist2);
+    Vec3 wi = d / dist;
+    Vec3 n = normalize(cross(b - a, c - a));
+    float cos_l = -dot(n, wi);
+    const Material& mat = materials[m.material[e.prim]];
+    if (cos_l <= 0) {
+      if (!mat.two_sided) return false;
+      cos_l = -cos_l;
+    }
+    if (cos_l < 1e-7f) return false;
+    out.wi = wi;
+    out.dist = dist;
+    out.radiance = mat.emission;
+    out.pdf = tri_select_[idx] * dist2 / (cos_l * e.area);
+    return true;
+  }
+  if (idx == ntri) {
+    Frame f(sun.direction);
+    out.wi = f.to_world(sample_cone(u1, u2, sun.cos_max));
+    out.dist = 1e30f;
+    out.radiance = sun.radiance + sky.radiance(out.wi);
+    out.pdf = escaped_light_pdf(out.wi);
+    return true;
+  }
+  out.wi = sample_sphere(u1, u2);
+  out.dist = 1e30f;
+  out.radiance = escaped_radiance(out.wi);
+  out.pdf = escaped_light_pdf(out.wi);
+  return true;
+}
+
+float Scene::light_pdf(Vec3 from, const SurfaceHit& hit) const {
+  const auto& v = select_prob_[hit.geom];
+  if (v.empty()) return 0;
+  float sel = v[hit.prim];
+  if (sel <= 0) return 0;
+  if (!hit.front && !hit.material->two_sided) return 0;
+  const Mesh& m = meshes[hit.geom];
+  Vec3 a = m.positions[3 * hit.prim], b = m.positions[3 * hit.prim + 1], c = m.positions[3 * hit.prim + 2];
+  Vec3 cr = cross(b - a, c - a);
+  float area = 0.5f * length(cr);
+  Vec3 d = hit.p - from;
+  float dist2 = dot(d, d);
+  float cos_l = std::fabs(dot(normalize(cr), normalize(d)));
+  if (cos_l < 1e-7f) return 0;
+  return sel * dist2 / (cos_l * area);
+}
+
+float Scene::escaped_light_pdf(Vec3 dir) const {
+  // The sun and the sky are both sampled, and both contribute along a direction inside the
+  // sun's disc: the density is the sum over the two strategies' choices.
+  float pdf = 0;
+  if (sun_select_ > 0 && dot(dir, sun.direction) >= sun.cos_max) pdf += sun_select_ / sun.solid_angle();
+  if (sky_select_ > 0) pdf += sky_select_ / (4 * kPi);
+  return pdf;
+}
+
+}  // namespace dnb

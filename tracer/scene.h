@@ -1,0 +1,204 @@
+// The scene as the tracer and renderer-type methods (irradiance_cache/) see it: camera,
+// triangle meshes in one Embree 3 scene, materials, emitters (emissive triangles, a sun, a sky),
+// and the queries a renderer needs: primary rays, closest hit with full surface data, shadow
+// rays, and light sampling for next-event estimation.
+//
+// Conventions
+// - World units are whatever the scene file uses (metres in the built-in scenes); y is up in
+//   the built-in scenes, but nothing depends on it except the sky gradient's `up`.
+// - Every surface is a triangle. Primitives (quad, box, sphere, cylinder) are tessellated at
+//   load time; spheres and cylinders carry interpolated shading normals.
+// - The *front* of a triangle is the side its counter-clockwise winding faces
+//   (cross(p1 - p0, p2 - p0)). Emitters emit from the front only unless their material says
+//   `two_sided = true`. Diffuse, mirror and coated surfaces reflect on both sides.
+// - Radiance is linear RGB.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <embree3/rtcore.h>
+
+#include "tracer/math.h"
+#include "tracer/texture.h"
+
+namespace dnb {
+
+namespace rt {
+
+struct Ray {
+  Vec3 origin;
+  Vec3 dir;  // unit length
+  float tmax = 1e30f;
+};
+
+enum class MaterialType : std::uint8_t {
+  kDiffuse,  // Lambertian, albedo = `albedo` x texture
+  kMirror,   // perfect mirror, reflectance `tint`
+  kCoated,   // Lambertian base (as kDiffuse) under a smooth dielectric coat of index `ior`: the coat
+             // reflects a Fresnel (Schlick) fraction Fr(cos) as a perfect mirror (times `tint`),
+             // the base receives 1 - Fr(cos). (Energy is not exactly conserved at grazing
+             // angles; the usual simplification of a "plastic" material.)
+};
+
+struct Material {
+  std::string name;
+  MaterialType type = MaterialType::kDiffuse;
+  Vec3 albedo{0.8f};        // diffuse reflectance (multiplied by the texture when there is one)
+  int texture = -1;         // index into Scene::textures, or -1
+  Vec3 tint{1.0f};          // mirror / coat reflectance
+  float ior = 1.5f;         // coat index of refraction (kCoated)
+  Vec3 emission{0.0f};      // emitted radiance (front face unless two_sided)
+  bool two_sided = false;   // emission on both faces
+  bool is_specular() const { return type != MaterialType::kDiffuse; }
+  bool is_emitter() const { return !is_black(emission); }
+};
+
+// Schlick's approximation of the dielectric Fresnel reflectance for the coat.
+inline float fresnel_schlick(float cos_theta, float ior) {
+  float r0 = (ior - 1) / (ior + 1);
+  r0 *= r0;
+  float m = 1.0f - std::clamp(cos_theta, 0.0f, 1.0f);
+  float m2 = m * m;
+  return r0 + (1 - r0) * m2 * m2 * m;
+}
+
+// One triangle mesh = one Embree geometry (geomID = index in Scene::meshes). Corners are not
+// shared: corner 3*i+k belongs to triangle i, so normals and uvs need no separate index lists.
+struct Mesh {
+  std::string name;
+  std::vector<Vec3> positions;        // 3 per triangle
+  std::vector<Vec3> normals;          // 3 per triangle, or empty (flat shading)
+  std::vector<float> uvs;             // 6 per triangle, or empty (uv = barycentrics)
+  std::vector<std::uint32_t> material;  // 1 per triangle (index into Scene::materials)
+  std::size_t triangles() const { return positions.size() / 3; }
+};
+
+// Everything a renderer needs at a ray's closest hit.
+struct SurfaceHit {
+  float t = 0;                // distance along the (unit) ray
+  Vec3 p;                     // position
+  Vec3 ng;                    // unit geometric normal, flipped to face the incoming ray
+  Vec3 ns;                    // unit shading normal, flipped to the same side as ng
+  float u = 0, v = 0;         // texture coordinates
+  bool front = true;          // the ray hit the triangle's front (winding) side
+  unsigned geom = 0, prim = 0;
+  const Material* material = nullptr;
+  Vec3 albedo;                // diffuse albedo at the hit: material albedo x texture (0 for mirrors)
+  // Radiance emitted towards the ray's origin (0 unless an emitter seen from its emitting side).
+  Vec3 emitted() const {
+    return (front || material->two_sided) ? material->emission : Vec3(0.0f);
+  }
+  // A ray origin just off the surface on the side of `dir`, so that the new ray does not hit
+  // this triangle again (nor a coplanar duplicate of it, as in CornellBox-Original.obj).
+  Vec3 spawn_origin(Vec3 dir) const;
+  float offset = 1e-4f;       // size of that offset (scales with the position's magnitude)
+};
+
+struct Camera {
+  Vec3 eye{0, 0, 0};
+  Vec3 look_at{0, 0, -1};
+  Vec3 up{0, 1, 0};
+  float vfov_degrees = 45.0f;
+  // A pinhole camera ray through film position (fx, fy) in pixels, (0, 0) being the top-left
+  // corner of the image and (width, height) the bottom-right one.
+  Ray generate_ray(float fx, float fy, int width, int height) const;
+};
+
+// The sky: radiance arriving from directions no surface blocks.
+struct Sky {
+  bool enabled = false;
+  bool gradient = false;
+  Vec3 color{0.0f};                       // constant sky
+  Vec3 zenith{0.0f}, horizon{0.0f}, ground{0.0f};  // gradient sky: blended by dot(dir, up)
+  Vec3 up{0, 1, 0};
+  Vec3 radiance(Vec3 dir) const;
+  Vec3 average = Vec3(0.0f);              // mean radiance over the sphere (for light selection)
+};
+
+// A directional sun of angular radius `angular_radius`: a disc of constant radiance
+// `radiance` around `direction` (pointing towards the sun).
+struct Sun {
+  bool enabled = false;
+  Vec3 direction{0, 1, 0};
+  Vec3 radiance{0.0f};
+  float cos_max = 1.0f;  // cos(angular radius)
+  float solid_angle() const { return 2 * kPi * (1 - cos_max); }
+};
+
+// One light sample for next-event estimation.
+struct LightSample {
+  Vec3 wi;            // unit direction from the shading point to the light
+  float dist = 0;     // distance to the light point (1e30 for sun and sky)
+  Vec3 radiance;      // emitted radiance arriving along -wi (before visibility)
+  float pdf = 0;      // solid-angle density of choosing wi, light selection included
+};
+
+}  // namespace rt
+
+class Scene {
+ public:
+  Scene();
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  // ---- content (filled by the loader, then commit()) ----
+  std::string name;                 // built-in name or file stem
+  std::string source_file;          // the scene TOML
+  std::vector<std::string> files;   // every file read (TOML, meshes, textures) for the content hash
+  rt::Camera camera;
+  std::vector<rt::Material> materials;
+  std::vector<std::unique_ptr<rt::Texture>> textures;
+  std::vector<rt::Mesh> meshes;
+  rt::Sky sky;
+  rt::Sun sun;
+
+  // Builds the Embree scene and the emitter distribution. Called once by the loader.
+  void commit();
+
+  // ---- queries (thread-safe after commit) ----
+  // Closest hit along the ray in (0, ray.tmax); false on a miss.
+  bool intersect(const rt::Ray& ray, rt::SurfaceHit& hit) const;
+  // True when something blocks the segment origin + t dir, t in (0, tmax).
+  bool occluded(const rt::Ray& ray) const;
+  // Radiance arriving along a ray that escapes the scene (sky plus the sun's disc).
+  rt::Vec3 escaped_radiance(rt::Vec3 dir) const;
+
+  // Chooses an emitter (emissive triangle, sun or sky) in proportion to an estimate of its
+  // power and a point/direction on it, seen from `p`. Returns false when the scene has no
+  // emitter. u0 selects the emitter, (u1, u2) the point.
+  bool sample_light(rt::Vec3 p, float u0, float u1, float u2, rt::LightSample& out) const;
+  // The solid-angle density with which sample_light() from `from` would have produced the
+  // emitter point `hit` (reached along a unit direction), and the same for an escaped direction.
+  float light_pdf(rt::Vec3 from, const rt::SurfaceHit& hit) const;
+  float escaped_light_pdf(rt::Vec3 dir) const;
+  bool has_lights() const { return total_light_weight_ > 0; }
+
+  rt::Vec3 bounds_min() const { return bmin_; }
+  rt::Vec3 bounds_max() const { return bmax_; }
+  std::size_t triangle_count() const;
+
+ private:
+  void fill_hit(const rt::Ray& ray, const RTCRayHit& rh, rt::SurfaceHit& hit) const;
+
+  RTCDevice device_ = nullptr;
+  RTCScene rtc_ = nullptr;
+  rt::Vec3 bmin_, bmax_;
+  // Emitter distribution: emissive triangles (in order), then the sun, then the sky.
+  struct EmissiveTriangle {
+    unsigned mesh, prim;
+    float area;
+  };
+  std::vector<EmissiveTriangle> emitters_;
+  std::vector<float> emitter_cdf_;   // over emitters_, then sun, then sky (unnormalised)
+  std::vector<float> tri_select_;    // per emissive triangle: selection probability
+  // Selection probability of emissive triangle (mesh, prim), looked up on BSDF hits.
+  std::vector<std::vector<float>> select_prob_;
+  float sun_select_ = 0, sky_select_ = 0;
+  float total_light_weight_ = 0;
+};
+
+}  // namespace dnb

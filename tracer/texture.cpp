@@ -1,0 +1,205 @@
+#include "tracer/texture.h"
+
+#include <filesystem>
+
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <fmt/format.h>
+
+#include "core/config.h"
+#include "core/errors.h"
+
+namespace dnb::rt {
+namespace {
+
+float srgb_to_linear(float c) {
+  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+
+float fract(float x) { return x - std::floor(x); }
+
+class ImageTexture final : public Texture {
+ public:
+  ImageTexture(int w, int h, std::vector<float> rgb) : w_(w), h_(h), rgb_(std::move(rgb)) {}
+  Vec3 eval(float u, float v) const override {
+    // Bilinear between texel centres, wrapping around (textures of the scenes tile).
+    float x = fract(u) * w_ - 0.5f;
+    float y = (1.0f - fract(v)) * h_ - 0.5f;
+    int x0 = int(std::floor(x)), y0 = int(std::floor(y));
+    float fx = x - x0, fy = y - y0;
+    auto at = [&](int xi, int yi) {
+      xi = ((xi % w_) + w_) % w_;
+      yi = ((yi % h_) + h_) % h_;
+      const float* p = &rgb_[(std::size_t(yi) * w_ + xi) * 3];
+      return Vec3(p[0], p[1], p[2]);
+    };
+    return (at(x0, y0) * (1 - fx) + at(x0 + 1, y0) * fx) * (1 - fy) +
+           (at(x0, y0 + 1) * (1 - fx) + at(x0 + 1, y0 + 1) * fx) * fy;
+  }
+
+ private:
+  int w_, h_;
+  std::vector<float> rgb_;
+};
+
+class Checker final : public Texture {
+ public:
+  Checker(float scale, Vec3 a, Vec3 b) : scale_(scale), a_(a), b_(b) {}
+  Vec3 eval(float u, float v) const override {
+    int i = int(std::floor(u * scale_)) + int(std::floor(v * scale_));
+    return (i & 1) ? b_ : a_;
+  }
+
+ private:
+  float scale_;
+  Vec3 a_, b_;
+};
+
+// Planks along v with growth rings: the ring phase is distorted by noise so rings wobble.
+class Wood final : public Texture {
+ public:
+  Wood(float scale, Vec3 light, Vec3 dark, float rings) : scale_(scale), a_(light), b_(dark), rings_(rings) {}
+  Vec3 eval(float u, float v) const override {
+    float x = u * scale_, y = v * scale_;
+    float plank = std::floor(x);  // each plank its own ring offset
+    float offset = float(mix64(std::uint64_t(std::int64_t(plank)) + 17) >> 40) / 16777216.0f;
+    float n = fbm_noise(x * 4.0f, y * 0.5f, 3, 1 << 20);
+    float r = fract((fract(x) + offset + 0.6f * n) * rings_);
+    float w = std::pow(0.5f + 0.5f * std::cos(2 * kPi * r), 3.0f);
+    float seam = fract(x) < 0.02f ? 0.6f : 1.0f;  // dark gap between planks: a sharp texture edge
+    return (a_ * (1 - w) + b_ * w) * seam;
+  }
+
+ private:
+  float scale_;
+  Vec3 a_, b_;
+  float rings_;
+};
+
+class Brick final : public Texture {
+ public:
+  Brick(float scale, Vec3 brick, Vec3 mortar, float rows, float mortar_w, float variation)
+      : scale_(scale), a_(brick), b_(mortar), rows_(rows), mortar_(mortar_w), var_(variation) {}
+  Vec3 eval(float u, float v) const override {
+    float y = v * scale_ * rows_;
+    float row = std::floor(y);
+    float x = u * scale_ * rows_ * 0.5f + ((int(row) & 1) ? 0.5f : 0.0f);  // bricks twice as wide as tall
+    float col = std::floor(x);
+    float fx = x - col, fy = y - row;
+    if (fx < mortar_ * 0.5f || fy < mortar_) return b_;
+    std::uint64_t h = mix64(std::uint64_t(std::int64_t(row)) * 73856093ULL ^ std::uint64_t(std::int64_t(col)) * 19349663ULL);
+    float k = 1.0f + var_ * (float(h >> 40) / 16777216.0f - 0.5f);
+    return a_ * k;
+  }
+
+ private:
+  float scale_;
+  Vec3 a_, b_;
+  float rows_, mortar_, var_;
+};
+
+class Noise final : public Texture {
+ public:
+  Noise(float scale, Vec3 a, Vec3 b, int octaves) : scale_(scale), a_(a), b_(b), octaves_(octaves) {}
+  Vec3 eval(float u, float v) const override {
+    int period = std::max(1, int(std::lround(scale_)));
+    float n = fbm_noise(fract(u) * period, fract(v) * period, octaves_, period);
+    return a_ * (1 - n) + b_ * n;
+  }
+
+ private:
+  float scale_;
+  Vec3 a_, b_;
+  int octaves_;
+};
+
+Vec3 vec3(const std::array<double, 3>& a) { return {float(a[0]), float(a[1]), float(a[2])}; }
+
+}  // namespace
+
+float fbm_noise(float x, float y, int octaves, int period) {
+  auto lattice = [](int i, int j, int p) {
+    i = ((i % p) + p) % p;
+    j = ((j % p) + p) % p;
+    return float(mix64(std::uint64_t(i) * 0x9E3779B1ULL + std::uint64_t(j) * 0x85EBCA77ULL + 1) >> 40) / 16777216.0f;
+  };
+  float sum = 0, amp = 0.5f, norm = 0;
+  for (int o = 0; o < octaves; ++o) {
+    int i = int(std::floor(x)), j = int(std::floor(y));
+    float fx = x - i, fy = y - j;
+    fx = fx * fx * (3 - 2 * fx);
+    fy = fy * fy * (3 - 2 * fy);
+    float v = (lattice(i, j, period) * (1 - fx) + lattice(i + 1, j, period) * fx) * (1 - fy) +
+              (lattice(i, j + 1, period) * (1 - fx) + lattice(i + 1, j + 1, period) * fx) * fy;
+    sum += amp * v;
+    norm += amp;
+    amp *= 0.5f;
+    x *= 2;
+    y *= 2;
+    period = period < (1 << 20) ? period * 2 : period;
+  }
+  return norm > 0 ? sum / norm : 0;
+}
+
+std::unique_ptr<Texture> load_image_texture(const std::string& path) {
+  OIIO::ImageBuf in(path);
+  if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT))
+    throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
+  const OIIO::ImageSpec& spec = in.spec();
+  const bool encoded = spec.format.basetype == OIIO::TypeDesc::UINT8 ||
+                       in.nativespec().format.basetype == OIIO::TypeDesc::UINT8 ||
+                       in.nativespec().format.basetype == OIIO::TypeDesc::UINT16;
+  const int w = spec.width, h = spec.height, c = spec.nchannels;
+  std::vector<float> px(std::size_t(w) * h * c);
+  in.get_pixels(OIIO::ROI(0, w, 0, h, 0, 1, 0, c), OIIO::TypeDesc::FLOAT, px.data());
+  std::vector<float> rgb(std::size_t(w) * h * 3);
+  for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
+    for (int k = 0; k < 3; ++k) {
+      float v = px[i * c + std::min(k, c - 1)];
+      rgb[i * 3 + k] = encoded ? srgb_to_linear(v) : v;
+    }
+  return std::make_unique<ImageTexture>(w, h, std::move(rgb));
+}
+
+std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_dir,
+                                      std::vector<std::string>& files) {
+  const std::string type = t.require_string("type");
+  std::unique_ptr<Texture> tex;
+  if (type == "image") {
+    std::string file = t.require_string("file");
+    std::filesystem::path p(file);
+    if (p.is_relative()) p = std::filesystem::path(scene_dir) / p;
+    if (!std::filesystem::exists(p))
+      throw InputError(fmt::format("{}: texture file '{}' not found", t.where("file"), p.string()));
+    files.push_back(p.string());
+    tex = load_image_texture(p.string());
+  } else if (type == "checker") {
+    float scale = float(t.get("scale", 8.0));
+    tex = std::make_unique<Checker>(scale, vec3(t.get("color_a", std::array<double, 3>{0.8, 0.8, 0.8})),
+                                    vec3(t.get("color_b", std::array<double, 3>{0.2, 0.2, 0.2})));
+  } else if (type == "wood") {
+    float scale = float(t.get("scale", 4.0));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.62, 0.42, 0.24}));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.36, 0.21, 0.10}));
+    tex = std::make_unique<Wood>(scale, a, b, float(t.get("rings", 6.0)));
+  } else if (type == "brick") {
+    float scale = float(t.get("scale", 1.0));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.55, 0.25, 0.18}));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.75, 0.73, 0.70}));
+    float rows = float(t.get("rows", 12.0));
+    float mortar = float(t.get("mortar", 0.08));
+    tex = std::make_unique<Brick>(scale, a, b, rows, mortar, float(t.get("variation", 0.3)));
+  } else if (type == "noise") {
+    float scale = float(t.get("scale", 8.0));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.3, 0.3, 0.3}));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.7, 0.7, 0.7}));
+    tex = std::make_unique<Noise>(scale, a, b, t.get("octaves", 4));
+  } else {
+    throw InputError(fmt::format("{}: unknown texture type '{}' (expected image, checker, wood, brick or noise)",
+                                 t.where("type"), type));
+  }
+  t.finish();
+  return tex;
+}
+
+}  // namespace dnb::rt

@@ -1,0 +1,47 @@
+// Textures of the diffuse albedo: image files read through OpenImageIO, and procedural ones
+// generated in code (checker, wood, brick, noise) so that built-in scenes need no files.
+// All textures are looked up by surface (u, v); procedural ones repeat with period 1 in u and v
+// after multiplying by `scale`.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "tracer/math.h"
+
+namespace dnb {
+class ConfigTable;
+}
+
+namespace dnb::rt {
+
+class Texture {
+ public:
+  virtual ~Texture() = default;
+  // Linear RGB reflectance at (u, v).
+  virtual Vec3 eval(float u, float v) const = 0;
+};
+
+// An image file (any format OpenImageIO reads). 8-bit images are taken as sRGB-encoded and
+// converted to linear; float images are used as they are. Bilinear lookup, repeating edges,
+// v = 0 at the bottom row (the OBJ convention). Throws InputError naming the file when it
+// cannot be read.
+std::unique_ptr<Texture> load_image_texture(const std::string& path);
+
+// A texture described by a [textures.NAME] table of a scene file:
+//   type = "image"   file = "path" (relative to the scene file's folder)
+//   type = "checker" scale, color_a, color_b
+//   type = "wood"    scale, color_a (light wood), color_b (dark rings), rings (rings per unit)
+//   type = "brick"   scale, color_a (brick), color_b (mortar), rows, mortar (fraction), variation
+//   type = "noise"   scale, color_a, color_b, octaves
+// `resolve` turns a file name of the scene into a path. The file paths read are appended to
+// `files` (for the scene's content hash).
+std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_dir,
+                                      std::vector<std::string>& files);
+
+// Value noise in [0, 1] with `octaves` octaves (fractional Brownian motion), periodic with
+// period `period` lattice cells; exposed for the wood and brick patterns and for tests.
+float fbm_noise(float x, float y, int octaves, int period);
+
+}  // namespace dnb::rt
