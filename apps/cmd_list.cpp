@@ -5,6 +5,7 @@
 #include "apps/commands.h"
 #include "core/errors.h"
 #include "denoisers/method.h"
+#include "tracer/render.h"
 
 namespace dnb::app {
 
@@ -28,9 +29,8 @@ static int list_methods() {
 }
 
 static int list_scenes() {
-  // builtin_scene_names() (tracer/render.h) is defined once the tracer lands.
-  fmt::print(stderr, "denoisebench list scenes: not available in this build yet\n");
-  return 2;
+  for (const auto& name : builtin_scene_names()) fmt::print("{}\n", name);
+  return 0;
 }
 
 static int list_metrics() {

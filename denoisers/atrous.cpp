@@ -30,6 +30,9 @@
 //   range_map          string  domain of the colour distance: linear, log, reinhard, srgb
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <optional>
 
 #include <tbb/parallel_for.h>
 
@@ -41,6 +44,64 @@ namespace dnb {
 namespace {
 
 constexpr float kB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};
+
+// exp(x) for x <= 0, to 1.1e-5 relative (measured over [-80, 0]; below -87 it returns
+// exp(-87)): 2^t split into integer and fraction, the fraction's power by its degree-6 Taylor
+// polynomial. Written here because glibc's expf does not vectorise without
+// -ffast-math, and the edge-stopping weights need nothing better; it is a plain function of
+// its argument, so results do not depend on vector width or threads.
+inline float exp_nonpositive(float x) {
+  const float t = std::max(x, -87.0f) * 1.44269504089f;  // log2(e)
+  const float n = std::floor(t);
+  const float f = t - n;  // [0, 1)
+  // Taylor series of 2^f = e^(f ln 2), evaluated by Horner's rule.
+  float p = 1.5403530e-4f;
+  p = p * f + 1.3333558e-3f;
+  p = p * f + 9.6181291e-3f;
+  p = p * f + 5.5504109e-2f;
+  p = p * f + 2.4022651e-1f;
+  p = p * f + 6.9314718e-1f;
+  p = p * f + 1.0f;
+  const std::int32_t bits = (std::int32_t(n) + 127) << 23;
+  float scale;
+  std::memcpy(&scale, &bits, sizeof scale);
+  return p * scale;
+}
+
+// One image as three (or one) planes of floats: the inner loops over a row then read
+// contiguous memory and vectorise.
+struct Planes {
+  int w = 0, h = 0, n = 0;
+  std::vector<float> data;
+  Planes(const Image& img) : w(img.width()), h(img.height()), n(img.channels()), data(img.size()) {
+    for (int c = 0; c < n; ++c)
+      for (std::size_t px = 0; px < img.pixel_count(); ++px) data[c * img.pixel_count() + px] = img.data()[px * n + c];
+  }
+  const float* row(int c, int y) const { return data.data() + (std::size_t(c) * h + y) * w; }
+};
+
+// Adds one tap (offset already applied to the q* rows) to the sums of pixels [x0, x1) of a row.
+// Separate, with restrict pointers, so that the compiler vectorises it.
+void accumulate_taps(int x0, int x1, float hk, float inv_c, float inv_n, float inv_z, const float* __restrict kr,
+                     const float* __restrict kg, const float* __restrict kb, const float* __restrict nx,
+                     const float* __restrict ny, const float* __restrict nz, const float* __restrict zp,
+                     const float* __restrict inv_zp, const float* __restrict qkr, const float* __restrict qkg,
+                     const float* __restrict qkb, const float* __restrict qnx, const float* __restrict qny,
+                     const float* __restrict qnz, const float* __restrict qz, const float* __restrict qr,
+                     const float* __restrict qg, const float* __restrict qb, float* __restrict sr,
+                     float* __restrict sg, float* __restrict sb, float* __restrict ws) {
+  for (int x = x0; x < x1; ++x) {
+    const float cr = kr[x] - qkr[x], cg = kg[x] - qkg[x], cb = kb[x] - qkb[x];
+    const float ax = nx[x] - qnx[x], ay = ny[x] - qny[x], az = nz[x] - qnz[x];
+    const float dz = (zp[x] - qz[x]) * inv_zp[x];
+    const float e = -(cr * cr + cg * cg + cb * cb) * inv_c - (ax * ax + ay * ay + az * az) * inv_n - dz * dz * inv_z;
+    const float wq = hk * exp_nonpositive(e);
+    sr[x] += wq * qr[x];
+    sg[x] += wq * qg[x];
+    sb[x] += wq * qb[x];
+    ws[x] += wq;
+  }
+}
 
 class Atrous final : public Method {
  public:
@@ -62,11 +123,12 @@ class Atrous final : public Method {
   MethodResult execute(const MethodInput& in) override {
     MethodResult r;
     const AovFrame& f = *in.frame;
-    const Image& normal = f.layer(layer::kNormal);
-    Image depth, cur, next(f.width(), f.height(), 3), key;
+    std::optional<Planes> normal, depth;
+    Image cur, next(f.width(), f.height(), 3), key;
     {
       ScopedPhase p(r.stats, "prepare");
-      depth = normalized_depth(f);
+      normal.emplace(f.layer(layer::kNormal));
+      depth.emplace(normalized_depth(f));
       cur = illumination(f);
     }
     {
@@ -75,7 +137,7 @@ class Atrous final : public Method {
       for (int it = 0; it < iterations_; ++it) {
         key = cur;  // the colour the edge-stopping function compares, in the compressed domain
         compress(map_, key);
-        pass(cur, key, normal, depth, 1 << it, sigma_c, next);
+        pass(Planes(cur), Planes(key), *normal, *depth, 1 << it, sigma_c, next);
         std::swap(cur, next);
         if (halve_) sigma_c *= 0.5f;
       }
@@ -88,43 +150,44 @@ class Atrous final : public Method {
   }
 
  private:
-  void pass(const Image& in, const Image& key, const Image& normal, const Image& depth, int step, float sigma_c,
+  void pass(const Planes& in, const Planes& key, const Planes& normal, const Planes& depth, int step, float sigma_c,
             Image& out) const {
-    const int w = in.width(), h = in.height();
+    const int w = in.w, h = in.h;
     const float inv_c = 1.0f / (sigma_c * sigma_c);
     const float inv_n = 1.0f / (sigma_normal_ * sigma_normal_);
     const float inv_z = 1.0f / (sigma_depth_ * sigma_depth_);
     tbb::parallel_for(0, h, [&](int y) {
-      for (int x = 0; x < w; ++x) {
-        const float* kp = key.pixel(x, y);
-        const float* np = normal.pixel(x, y);
-        const float zp = depth.at(x, y, 0);
-        // Pixels that hit nothing have depth 0: compare absolute depths there.
-        const float inv_zp = zp > 0 ? 1.0f / zp : 1.0f;
-        float sum[3] = {0, 0, 0}, wsum = 0;
-        for (int j = 0; j < 5; ++j) {
-          const int yy = y + (j - 2) * step;
-          if (yy < 0 || yy >= h) continue;
-          for (int i = 0; i < 5; ++i) {
-            const int xx = x + (i - 2) * step;
-            if (xx < 0 || xx >= w) continue;
-            const float* kq = key.pixel(xx, yy);
-            const float* nq = normal.pixel(xx, yy);
-            float dc = 0, dn = 0;
-            for (int c = 0; c < 3; ++c) {
-              dc += (kp[c] - kq[c]) * (kp[c] - kq[c]);
-              dn += (np[c] - nq[c]) * (np[c] - nq[c]);
-            }
-            const float dz = (zp - depth.at(xx, yy, 0)) * inv_zp;
-            const float wq = kB3[i] * kB3[j] * std::exp(-dc * inv_c - dn * inv_n - dz * dz * inv_z);
-            const float* cq = in.pixel(xx, yy);
-            for (int c = 0; c < 3; ++c) sum[c] += wq * cq[c];
-            wsum += wq;
-          }
+      // Sums over the taps for every pixel of row y, taps in a fixed order (j, then i).
+      std::vector<float> acc(4 * std::size_t(w), 0.0f);
+      float *sr = acc.data(), *sg = sr + w, *sb = sg + w, *ws = sb + w;
+      std::vector<float> inv_zp(w);
+      const float* zp = depth.row(0, y);
+      // Pixels that hit nothing have depth 0: compare absolute depths there.
+      for (int x = 0; x < w; ++x) inv_zp[x] = zp[x] > 0 ? 1.0f / zp[x] : 1.0f;
+      const float *kr = key.row(0, y), *kg = key.row(1, y), *kb = key.row(2, y);
+      const float *nx = normal.row(0, y), *ny = normal.row(1, y), *nz = normal.row(2, y);
+      for (int j = 0; j < 5; ++j) {
+        const int yy = y + (j - 2) * step;
+        if (yy < 0 || yy >= h) continue;
+        const float *qkr = key.row(0, yy), *qkg = key.row(1, yy), *qkb = key.row(2, yy);
+        const float *qnx = normal.row(0, yy), *qny = normal.row(1, yy), *qnz = normal.row(2, yy);
+        const float* qz = depth.row(0, yy);
+        const float *qr = in.row(0, yy), *qg = in.row(1, yy), *qb = in.row(2, yy);
+        for (int i = 0; i < 5; ++i) {
+          const int dx = (i - 2) * step;
+          const float hk = kB3[i] * kB3[j];
+          const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);  // taps inside the image
+          accumulate_taps(x0, x1, hk, inv_c, inv_n, inv_z, kr, kg, kb, nx, ny, nz, zp, inv_zp.data(), qkr + dx,
+                          qkg + dx, qkb + dx, qnx + dx, qny + dx, qnz + dx, qz + dx, qr + dx, qg + dx, qb + dx, sr, sg,
+                          sb, ws);
         }
-        // The centre tap always has weight h(0)^2 > 0, so wsum > 0.
+      }
+      // The centre tap has weight h(0)^2 * exp(0) > 0, so ws > 0.
+      for (int x = 0; x < w; ++x) {
         float* o = out.pixel(x, y);
-        for (int c = 0; c < 3; ++c) o[c] = sum[c] / wsum;
+        o[0] = sr[x] / ws[x];
+        o[1] = sg[x] / ws[x];
+        o[2] = sb[x] / ws[x];
       }
     });
   }

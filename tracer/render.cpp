@@ -9,8 +9,10 @@
 //
 // Edge set G (paper 3.1), from the finished normal and depth layers: pixel p is in G when
 //  - its own samples disagree: |mean normal| < kEdgeNormalLength (normals spread over > ~25
-//    degrees, or hits mixed with misses) or the relative standard deviation of its depth
-//    samples exceeds kEdgeDepthSpread; or
+//    degrees, or hits mixed with misses), the relative standard deviation of its depth
+//    samples exceeds kEdgeDepthSpread, or that of its albedo samples exceeds kEdgeAlbedoSpread
+//    (a texture edge inside the pixel: formula 1 fails there for the same reason as at a
+//    geometric edge, the mean of a product not being the product of the means); or
 //  - a 4-neighbour q differs: the angle between their mean normals exceeds kEdgeNormalAngle,
 //    one is a miss and the other not, or |depth_p - depth_q| > kEdgeDepthRel * min(depth_p,
 //    depth_q) (both then belong to G).
@@ -45,6 +47,7 @@ constexpr float kEdgeNormalLength = 0.95f;  // |mean of unit normals| below: nor
 constexpr float kEdgeNormalAngle = 25.0f;   // degrees between neighbours' normals
 constexpr float kEdgeDepthRel = 0.05f;      // relative depth jump between neighbours
 constexpr float kEdgeDepthSpread = 0.02f;   // relative std. deviation of depth inside a pixel
+constexpr float kEdgeAlbedoSpread = 0.01f;  // relative std. deviation of albedo inside a pixel
 constexpr int kTile = 16;
 
 void set_ftz_daz() {
@@ -125,13 +128,14 @@ struct D3 {
 // Per-pixel sums of one level's layers over the samples that reached the level.
 struct LevelSums {
   std::int64_t n = 0;
-  D3 direct, indirect, albedo, reflection, emission, normal, tint;
+  D3 direct, indirect, albedo, reflection, emission, normal, tint, albedo_sq;
   double depth = 0, depth_sq = 0;
   void add(const LevelSample& l) {
     ++n;
     direct.add(l.direct);
     indirect.add(l.indirect);
     albedo.add(l.albedo);
+    albedo_sq.add_sq(l.albedo);
     reflection.add(l.reflection);
     emission.add(l.emission);
     normal.add(l.normal);
@@ -201,8 +205,9 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     lv[k].depth = &frame.add(layer::at_level(k, layer::kDepth), 1);
     lv[k].tint = k > 0 ? &frame.add(layer::at_level(k, layer::kTint), 3) : nullptr;
   }
-  // Relative depth spread inside each pixel, for the edge test (kept only until G is known).
-  Image depth_spread(W, H, 1);
+  // Relative depth and albedo spreads inside each pixel, for the edge test (kept only until G
+  // is known).
+  Image depth_spread(W, H, 1), albedo_spread(W, H, 1);
 
   std::atomic<std::int64_t> dropped{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
@@ -258,6 +263,13 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
           double m = sums[0].depth * inv;
           double var = std::max(0.0, sums[0].depth_sq * inv - m * m);
           depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
+          double tv = 0, tm = 0;
+          for (int c = 0; c < 3; ++c) {
+            double mc = sums[0].albedo.v[c] * inv;
+            tv += std::max(0.0, sums[0].albedo_sq.v[c] * inv - mc * mc);
+            tm += mc * mc;
+          }
+          albedo_spread.at(x, y, 0) = float(std::sqrt(tv) / (std::sqrt(tm) + 1e-3));
         }
       }
     dropped += tile_dropped;
@@ -280,12 +292,14 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     for (int x = 0; x < W; ++x) {
       Vec3 n = pixel_vec(normal, x, y);
       float ln = length(n);
-      bool inner = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread;
+      bool inner = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread ||
+                   albedo_spread.at(x, y, 0) > kEdgeAlbedoSpread;
       if (inner) edge.at(x, y, 0) = 1;
       if (x + 1 < W && differ(x, y, x + 1, y)) edge.at(x, y, 0) = edge.at(x + 1, y, 0) = 1;
       if (y + 1 < H && differ(x, y, x, y + 1)) edge.at(x, y, 0) = edge.at(x, y + 1, 0) = 1;
     }
   depth_spread = Image();
+  albedo_spread = Image();
 
   if (settings.edge_subpixels) {
     EdgeSubpixels es;

@@ -78,6 +78,7 @@ struct MeshBuilder {
   bool smooth = false;
   void tri(Vec3 a, Vec3 b, Vec3 c, float ua, float va, float ub, float vb, float uc, float vc, unsigned mat,
            Vec3 na = {}, Vec3 nb = {}, Vec3 nc = {}) {
+    if (!(length(cross(b - a, c - a)) > 0)) return;  // degenerate (sphere poles)
     mesh.positions.insert(mesh.positions.end(), {a, b, c});
     mesh.uvs.insert(mesh.uvs.end(), {ua, va, ub, vb, uc, vc});
     mesh.material.push_back(mat);
@@ -115,8 +116,8 @@ void build_box(MeshBuilder& b, Vec3 size, const Transform& x, float su, float sv
 }
 
 void build_sphere(MeshBuilder& b, Vec3 c, float r, int seg, const Transform& x, float su, float sv, unsigned mat,
-                  bool inward) {
-  b.smooth = true;
+                  bool inward, bool smooth) {
+  b.smooth = smooth;
   int rings = std::max(4, seg / 2);
   auto pt = [&](int i, int j, Vec3& p, Vec3& n, float& u, float& v) {
     float th = kPi * i / rings, ph = 2 * kPi * j / seg;
@@ -137,8 +138,8 @@ void build_sphere(MeshBuilder& b, Vec3 c, float r, int seg, const Transform& x, 
       // Counter-clockwise from outside (or inside when inward).
       int a = 0, bb = 1, cc = 2, d = 3;
       if (inward) std::swap(bb, d);
-      if (i != 0) b.tri(p[a], p[bb], p[cc], u[a], v[a], u[bb], v[bb], u[cc], v[cc], mat, n[a], n[bb], n[cc]);
-      if (i != rings - 1) b.tri(p[a], p[cc], p[d], u[a], v[a], u[cc], v[cc], u[d], v[d], mat, n[a], n[cc], n[d]);
+      b.tri(p[a], p[bb], p[cc], u[a], v[a], u[bb], v[bb], u[cc], v[cc], mat, n[a], n[bb], n[cc]);
+      b.tri(p[a], p[cc], p[d], u[a], v[a], u[cc], v[cc], u[d], v[d], mat, n[a], n[cc], n[d]);
     }
 }
 
@@ -369,14 +370,17 @@ class Loader {
     } else if (type == "sphere") {
       float r = float(t.require_double("radius"));
       if (!(r > 0)) throw InputError(fmt::format("{}: expected a positive radius", t.where("radius")));
-      build_sphere(b, vec3(t.get("center", Arr3{0, 0, 0})), r, t.get("segments", 48), x, su, sv, mat,
-                   t.get("inward", false));
+      int seg = t.get("segments", 48);
+      if (seg < 3) throw InputError(fmt::format("{}: expected at least 3 segments", t.where("segments")));
+      bool inward = t.get("inward", false);
+      build_sphere(b, vec3(t.get("center", Arr3{0, 0, 0})), r, seg, x, su, sv, mat, inward, t.get("smooth", true));
     } else if (type == "cylinder") {
       float r = float(t.require_double("radius"));
       float h = float(t.require_double("height"));
       if (!(r > 0 && h > 0)) throw InputError(fmt::format("{}: expected positive radius and height", t.where("radius")));
-      build_cylinder(b, vec3(t.get("center", Arr3{0, 0, 0})), r, h, t.get("segments", 32), t.get("capped", true), x,
-                     su, sv, mat);
+      int seg = t.get("segments", 32);
+      if (seg < 3) throw InputError(fmt::format("{}: expected at least 3 segments", t.where("segments")));
+      build_cylinder(b, vec3(t.get("center", Arr3{0, 0, 0})), r, h, seg, t.get("capped", true), x, su, sv, mat);
     } else {
       throw InputError(fmt::format("{}: unknown {} type '{}' (expected {})", t.where("type"),
                                    light ? "light" : "object", type,

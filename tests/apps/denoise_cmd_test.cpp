@@ -94,5 +94,11 @@ TEST(ListCommand, MethodsShowEveryParameterWithTypeDefaultAndDoc) {
   EXPECT_EQ(test::run_denoisebench("list nothing").exit_code, 2);
 }
 
+TEST(ListCommand, ScenesListsTheBuiltInScenes) {
+  auto r = test::run_denoisebench("list scenes");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("cornell-box"));
+}
+
 }  // namespace
 }  // namespace dnb

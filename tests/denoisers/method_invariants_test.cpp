@@ -104,6 +104,55 @@ TEST_P(FilterInvariants, ReducesNoiseOnASmoothScene) {
   EXPECT_LT(after, 0.7 * before) << "input MSE " << before << ", output MSE " << after;
 }
 
+// Taking away any one required layer gets the frame refused, naming that layer's EXR channels.
+TEST_P(FilterInvariants, RefusesAFrameMissingARequiredLayer) {
+  const AovFrame full = test::constant_frame(8, 6);
+  for (const auto& name : method()->required_layers()) {
+    AovFrame f(8, 6);
+    for (const auto& [n, img] : full.layers())
+      if (n != name) f.set(n, img);
+    try {
+      run(f);
+      ADD_FAILURE() << "a frame without '" << name << "' was accepted";
+    } catch (const InputError& e) {
+      for (const auto& ch : channel_names(name, default_channels(name)))
+        EXPECT_NE(std::string(e.what()).find(ch), std::string::npos) << e.what() << " does not name " << ch;
+    }
+  }
+}
+
+// Every parameter refuses values outside what its spec accepts, before the method exists.
+TEST_P(FilterInvariants, RefusesBadParameterValues) {
+  const MethodInfo& info = MethodRegistry::global().info(GetParam());
+  for (const ParamSpec& p : info.params) {
+    std::vector<std::string> bad;
+    switch (p.type) {
+      case dnb::ParamType::Float:
+        bad = {"abc", "nan", "inf", ""};
+        break;
+      case dnb::ParamType::Int:
+        bad = {"abc", "1.5", ""};
+        break;
+      case dnb::ParamType::Bool:
+        bad = {"maybe", ""};
+        break;
+      case dnb::ParamType::String:
+        if (!p.choices.empty()) bad = {"no-such-choice"};
+        break;
+    }
+    if (p.min) bad.push_back(std::to_string(*p.min - 1));
+    if (p.max) bad.push_back(std::to_string(*p.max + 1));
+    for (const auto& v : bad) {
+      try {
+        MethodRegistry::global().create(GetParam(), {{p.name, v}});
+        ADD_FAILURE() << p.name << "=" << v << " was accepted";
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find(p.name), std::string::npos) << e.what();
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(AllFilters, FilterInvariants, ::testing::ValuesIn(filter_names()),
                          [](const auto& info) {
                            std::string n = info.param;
