@@ -31,7 +31,13 @@
 //                  - base chosen: D and I as for diffuse x, both times (1 - Fr) / (1 - Pc);
 //                    tint = 0, R = 0 (the next level is absent for this sample).
 // F is then computed per sample as (D + I) * T + R + E, so the identity holds exactly per
-// sample; means over a pixel satisfy it up to the product-of-means error (edge pixels).
+// sample. The frame's pixel means of D and I are albedo-weighted (render.cpp), so that the
+// identity also holds for the means of every pixel, edge pixels included.
+// Reflection levels in a frame: refl(k).* are means over the samples that reached level k
+// (went through k specular bounces), and refl(k).tint is the mean over the samples of level
+// k - 1 of the bounce weight into level k (0 for samples that took a diffuse lobe); so
+// reflection at level k - 1 = refl(k).tint * ((D + I) * T + R + E at level k), up to the
+// product-of-means error where the tint varies inside a pixel (Fresnel weights on curved coats).
 // A path reaching max_depth at x stops there: D = I = R = 0 (E and T still set).
 #pragma once
 
