@@ -112,8 +112,9 @@ class PathTracer {
   // probability lobe_prob, for a white surface.
   Vec3 nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ctx) const;
   // Continues a path along `ray` whose previous vertex sampled it with solid-angle density
-  // prev_pdf (0 for a specular bounce or a camera ray: weight 1 for emission found).
-  PathRadiance trace(Ray ray, int depth, float prev_pdf, Vec3 path_weight, PathContext& ctx) const;
+  // prev_pdf (0 for a specular bounce or a camera ray: weight 1 for emission found) from a
+  // point of shading normal prev_n; path_weight is the path's weight so far (Russian roulette).
+  PathRadiance trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, Vec3 path_weight, PathContext& ctx) const;
   void decompose(const Ray& ray, int level, int depth, PathContext& ctx, SampleResult& out) const;
 
   const Scene& scene_;
