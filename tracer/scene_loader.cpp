@@ -41,9 +41,14 @@ fs::path builtin_dir() {
 fs::path mcguire_dir(const SceneLoadOptions& o) {
   if (!o.scenes_dir.empty()) return o.scenes_dir;
   if (const char* s = std::getenv("DENOISEBENCH_SCENES"); s && *s) return s;
-  fs::path repo = builtin_dir().parent_path().parent_path();
-  fs::path p = repo.parent_path() / "shared" / "scenes";
-  if (fs::is_directory(p)) return p;
+  // ../shared/scenes beside the repository; a git worktree one or two folders further down
+  // (worktrees/NAME) also finds it, by looking up to two more levels up.
+  fs::path dir = builtin_dir().parent_path().parent_path().parent_path();
+  for (int up = 0; up < 3 && !dir.empty(); ++up, dir = dir.parent_path()) {
+    fs::path p = dir / "shared" / "scenes";
+    if (fs::is_directory(p)) return p;
+    if (dir == dir.parent_path()) break;
+  }
   return {};
 }
 
