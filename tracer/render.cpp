@@ -246,9 +246,11 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   Image depth_spread(W, H, 1);
 
   std::atomic<std::int64_t> dropped{0};
+  std::atomic<std::uint64_t> rays{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
     SampleResult r;
     std::int64_t tile_dropped = 0;
+    std::uint64_t tile_rays = 0;
     std::vector<LevelSums> sums(K + 1);
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
@@ -261,6 +263,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
           sample_position(s, grid, rng, fx, fy);
           PathContext ctx{rng};
           tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
+          tile_rays += ctx.rays;
           if (!sample_finite(r)) {
             ++tile_dropped;
             continue;
@@ -304,6 +307,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
         }
       }
     dropped += tile_dropped;
+    rays += tile_rays;
     if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * spp);
   });
 
@@ -411,6 +415,8 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   frame.meta.reflection_levels = K;
   frame.meta.extra["max_depth"] = std::to_string(settings.max_depth);
   frame.meta.extra["scene_hash"] = scene_content_hash(scene);
+  // Rays of the main pass (closest-hit and shadow rays; the edge pass re-traces G's samples).
+  frame.meta.extra["rays"] = std::to_string(rays.load());
   frame.meta.render_seconds = clock.seconds();
   return frame;
 }

@@ -13,15 +13,11 @@ Vec3 SurfaceHit::spawn_origin(Vec3 dir) const {
   return p + ng * (dot(dir, ng) >= 0 ? offset : -offset);
 }
 
-Ray Camera::generate_ray(float fx, float fy, int width, int height) const {
-  Vec3 forward = normalize(look_at - eye);
-  Vec3 right = normalize(cross(forward, up));
-  Vec3 true_up = cross(right, forward);
-  float tan_half = std::tan(vfov_degrees * kPi / 360.0f);
-  float aspect = float(width) / float(height);
-  float sx = (2.0f * fx / width - 1.0f) * tan_half * aspect;
-  float sy = (1.0f - 2.0f * fy / height) * tan_half;
-  return Ray{eye, normalize(forward + right * sx + true_up * sy), 1e30f};
+void Camera::prepare() {
+  forward_ = normalize(look_at - eye);
+  right_ = normalize(cross(forward_, up));
+  up_ = cross(right_, forward_);
+  tan_half_ = std::tan(vfov_degrees * kPi / 360.0f);
 }
 
 Vec3 Sky::radiance(Vec3 dir) const {
@@ -55,6 +51,7 @@ std::size_t Scene::triangle_count() const {
 }
 
 void Scene::commit() {
+  camera.prepare();
   rtc_ = rtcNewScene(device_);
   rtcSetSceneBuildQuality(rtc_, RTC_BUILD_QUALITY_HIGH);
   bmin_ = Vec3(1e30f);

@@ -274,6 +274,8 @@ class Loader {
       throw InputError(fmt::format("{}: expected a field of view in (0, 179) degrees", c->where("vfov")));
     if (length(scene_.camera.look_at - scene_.camera.eye) <= 0)
       throw InputError(fmt::format("{}: eye and look_at coincide", c->where("look_at")));
+    if (length(cross(normalize(scene_.camera.look_at - scene_.camera.eye), normalize(scene_.camera.up))) < 1e-4f)
+      throw InputError(fmt::format("{}: up is parallel to the viewing direction", c->where("up")));
     c->finish();
   }
 
