@@ -21,7 +21,7 @@
 // of a pass reads only the previous pass, so rows run in parallel (TBB) and the output does not
 // depend on the thread count.
 //
-// Parameters:
+// Parameters (defaults from the sweep in docs/method-defaults.md):
 //   iterations         int     number of a-trous passes (tap spacing 1, 2, 4, ...)
 //   sigma_color        float   colour edge-stopping sigma of the first pass, compressed units
 //   sigma_normal       float   normal edge-stopping sigma (distance between unit normals)

@@ -21,7 +21,7 @@
 // here. The image is processed in fixed bands of rows (with a halo of 2 radius rows), in parallel
 // over bands: memory stays small and the result does not depend on the thread count.
 //
-// Parameters:
+// Parameters (defaults from the sweep in docs/method-defaults.md):
 //   radius         int    window radius in pixels
 //   eps            float  regularisation of the fit (in squared guide units)
 //   albedo_weight  float  scale of the albedo guide channels (0: not used)
