@@ -57,24 +57,27 @@ GRIDS = {
         },
     },
     "guided": {
-        "start": {"radius": "8", "eps": "0.01", "albedo_weight": "1", "normal_weight": "1", "depth_weight": "1"},
+        "start": {"radius": "8", "eps": "0.01", "albedo_weight": "1", "normal_weight": "1", "depth_weight": "1",
+                  "filter_reflection": "false"},
         "grid": {
             "radius": ["2", "4", "6", "8", "12", "16", "24"],
             "eps": ["0.0001", "0.001", "0.003", "0.01", "0.03", "0.1", "0.3"],
             "albedo_weight": ["0", "0.3", "1", "3"],
             "normal_weight": ["0", "0.3", "1", "3", "10"],
             "depth_weight": ["0", "0.3", "1", "3", "10", "30"],
+            "filter_reflection": ["false", "true"],
         },
     },
     "atrous": {
         "start": {"sigma_color": "0.5", "sigma_normal": "0.3", "sigma_depth": "0.1", "halve_color_sigma": "true",
-                  "range_map": "log"},
+                  "range_map": "log", "filter_reflection": "false"},
         "grid": {
             "sigma_color": ["0.05", "0.1", "0.2", "0.5", "1", "2", "5", "10"],
             "sigma_normal": ["0.03", "0.1", "0.3", "1", "3"],
             "sigma_depth": ["0.003", "0.01", "0.03", "0.1", "0.3", "1", "3"],
             "halve_color_sigma": ["true", "false"],
             "range_map": ["log", "reinhard", "linear"],
+            "filter_reflection": ["false", "true"],
         },
     },
 }
