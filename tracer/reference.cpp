@@ -1,6 +1,6 @@
 // The block driver of references: fixed-order reduction, checkpoints, MPI passes, progress and
-// the convergence log. Nothing here calls the tracer (reference_image.cpp does), so the driver
-// is tested with synthetic sums.
+// the convergence log. Nothing here renders (reference_image.cpp calls the tracer), so the
+// driver is tested with synthetic sums.
 #include "tracer/reference.h"
 
 #include <algorithm>
@@ -81,11 +81,8 @@ void add_block(ColorSums& total, const ColorSums& block) {
       total.sum_sq.size() != block.sum_sq.size())
     throw WorkError(fmt::format("block sums of {}x{} cannot be added to a total of {}x{}", block.width,
                                 block.height, total.width, total.height));
-  // Element-wise, in pixel order: the fold step whose fixed order makes references bit-identical.
-  for (std::size_t i = 0; i < total.sum.size(); ++i) total.sum[i] += block.sum[i];
-  for (std::size_t i = 0; i < total.sum_sq.size(); ++i) total.sum_sq[i] += block.sum_sq[i];
-  total.samples += block.samples;
-  total.dropped += block.dropped;
+  // The tracer's element-wise add: applied in block order, it makes references bit-identical.
+  total.add(block);
 }
 
 ConvergenceRow convergence_of(const ColorSums& s) {

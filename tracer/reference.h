@@ -49,6 +49,7 @@ struct ReferenceOptions {
   bool use_cache = true;       // false: do not look up the cache, render (the result still
                                // replaces the cache entry, so a damaged one is repaired)
   std::string checkpoint_dir;  // empty: <cache_dir>/checkpoints/<key digest>/
+  bool checkpoints = true;     // false: no checkpoints (a crash loses the render)
   bool progress = true;        // progress lines (rank 0)
 };
 

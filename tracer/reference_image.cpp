@@ -97,10 +97,11 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
   job.spp = settings.spp;
   job.block_spp = settings.block_spp;
   job.identity = key.canonical();
-  job.checkpoint_path = ((options.checkpoint_dir.empty() ? fs::path(cache.dir()) / "checkpoints" / digest
-                                                         : fs::path(options.checkpoint_dir)) /
-                         "reference.ckpt")
-                            .string();
+  if (options.checkpoints)
+    job.checkpoint_path = ((options.checkpoint_dir.empty() ? fs::path(cache.dir()) / "checkpoints" / digest
+                                                           : fs::path(options.checkpoint_dir)) /
+                           "reference.ckpt")
+                              .string();
   job.progress = options.progress;
   job.what = label;
 
@@ -134,7 +135,7 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
   m.dropped_samples = blocks.sums.dropped;
   m.extra["reference"] = std::string("1");  // std::string: GCC 12 warns falsely on = "1" (PR 105329)
   m.extra["cache_key"] = digest;
-  m.extra["scene_hash"] = scene_content_hash(scene);
+  m.extra["scene_hash"] = key.parts().front().second;  // scene_content_hash, computed once
   m.extra["max_depth"] = std::to_string(settings.max_depth);
   m.extra["block_spp"] = std::to_string(settings.block_spp);
   if (!blocks.convergence.empty()) {
@@ -147,8 +148,10 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
   ref.path = entry.file("reference.exr");
   // The finished reference is safe in the cache: the checkpoint has served its purpose.
   std::error_code ec;
-  fs::remove(job.checkpoint_path, ec);
-  if (options.checkpoint_dir.empty()) fs::remove(fs::path(job.checkpoint_path).parent_path(), ec);
+  if (!job.checkpoint_path.empty()) {
+    fs::remove(job.checkpoint_path, ec);
+    if (options.checkpoint_dir.empty()) fs::remove(fs::path(job.checkpoint_path).parent_path(), ec);
+  }
   spdlog::info("{}: rendered {} blocks ({} resumed from a checkpoint), relative error {:.3g}, stored in cache", label,
                ref.blocks_rendered, ref.blocks_resumed,
                ref.convergence.empty() ? NAN : ref.convergence.back().rel_error);

@@ -18,6 +18,16 @@
 // and averaged per 4x4 sub-pixel stratum: sub-pixel (i, j) holds the samples whose film position
 // falls in [i/4, (i+1)/4) x [j/4, (j+1)/4) of the pixel. With spp = 256 each holds 16 samples.
 // A sub-pixel that no sample falls in (spp < 16) gets the pixel's means.
+//
+// Pixel means of D and I are albedo-weighted ("demodulated"): per channel c,
+//   D_c = sum_s D_c(s) T_c(s) / sum_s T_c(s)   (and likewise I), T_c = mean of T_c(s),
+// so that (D + I) * T + R + E equals the mean of F exactly for every pixel, also where the
+// albedo varies inside the pixel (texture detail, silhouettes): the product-of-means error of
+// paper 3.1 never enters the layers. Where sum_s T_c(s) = 0 (mirrors, sky, black albedo) D_c and
+// I_c are the plain means, which keeps the illumination of such pixels available to filters.
+// For a pixel of constant albedo both definitions coincide. direct_variance and
+// indirect_variance are the variances of these means (of D T / mean T: the ratio estimator's
+// first-order variance). Edge sub-pixels use the same definition over their stratum's samples.
 #include <xmmintrin.h>
 #include <pmmintrin.h>
 
@@ -126,12 +136,15 @@ struct D3 {
 struct LevelSums {
   std::int64_t n = 0;
   D3 direct, indirect, albedo, reflection, emission, normal, tint;
+  D3 direct_t, indirect_t;  // sums of D * T and I * T
   double depth = 0, depth_sq = 0;
   void add(const LevelSample& l) {
     ++n;
     direct.add(l.direct);
     indirect.add(l.indirect);
     albedo.add(l.albedo);
+    direct_t.add(l.direct * l.albedo);
+    indirect_t.add(l.indirect * l.albedo);
     reflection.add(l.reflection);
     emission.add(l.emission);
     normal.add(l.normal);
@@ -156,6 +169,34 @@ void store_var(Image& img, int x, int y, const D3& sum, const D3& sq, std::int64
     double mean = sum.v[c] / n;
     double var = std::max(0.0, (sq.v[c] - mean * sum.v[c]) / double(n - 1));
     p[c] = float(var / n);
+  }
+}
+
+// The albedo-weighted mean of an illumination layer (see top of file) into out[0..2].
+void demodulated(const D3& sum_t, const D3& sum, const D3& albedo, std::int64_t n, float* out) {
+  for (int c = 0; c < 3; ++c) {
+    if (albedo.v[c] > 1e-12 * double(n)) out[c] = float(sum_t.v[c] / albedo.v[c]);
+    else out[c] = n > 0 ? float(sum.v[c] / double(n)) : 0.0f;
+  }
+}
+
+// Variance of that mean: of the samples X T / mean(T), or of X where the albedo sums to 0.
+void demodulated_var(const D3& sum_t, const D3& sq_t, const D3& sum, const D3& sq, const D3& albedo,
+                     std::int64_t n, float* out) {
+  for (int c = 0; c < 3; ++c) {
+    if (n < 2) {
+      out[c] = 0;
+      continue;
+    }
+    const bool weighted = albedo.v[c] > 1e-12 * double(n);
+    const double s1 = weighted ? sum_t.v[c] : sum.v[c], s2 = weighted ? sq_t.v[c] : sq.v[c];
+    const double mean = s1 / n;
+    double var = std::max(0.0, (s2 - mean * s1) / double(n - 1)) / n;
+    if (weighted) {
+      const double t = albedo.v[c] / n;
+      var /= t * t;
+    }
+    out[c] = float(var);
   }
 }
 
@@ -213,7 +254,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
       for (int x = x0; x < x1; ++x) {
         const std::uint64_t pixel = std::uint64_t(y) * W + x;
         for (auto& s : sums) s = LevelSums{};
-        D3 f_sum, f_sq, d_sq, i_sq;
+        D3 f_sum, f_sq, d_sq, i_sq, dt_sq, it_sq;
         for (int s = 0; s < spp; ++s) {
           Sampler rng(settings.seed, pixel, std::uint64_t(s));
           float fx, fy;
@@ -229,20 +270,22 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
           f_sq.add_sq(f);
           d_sq.add_sq(r.level[0].direct);
           i_sq.add_sq(r.level[0].indirect);
+          dt_sq.add_sq(r.level[0].direct * r.level[0].albedo);
+          it_sq.add_sq(r.level[0].indirect * r.level[0].albedo);
           for (int k = 0; k < r.levels && k <= K; ++k) sums[k].add(r.level[k]);
         }
         const std::int64_t n = sums[0].n;
         const double inv = n > 0 ? 1.0 / n : 0.0;
         store(color, x, y, f_sum, inv);
         store_var(var_f, x, y, f_sum, f_sq, n);
-        store_var(var_d, x, y, sums[0].direct, d_sq, n);
-        store_var(var_i, x, y, sums[0].indirect, i_sq, n);
+        demodulated_var(sums[0].direct_t, dt_sq, sums[0].direct, d_sq, sums[0].albedo, n, var_d.pixel(x, y));
+        demodulated_var(sums[0].indirect_t, it_sq, sums[0].indirect, i_sq, sums[0].albedo, n, var_i.pixel(x, y));
         samples.at(x, y, 0) = float(n);
         for (int k = 0; k <= K; ++k) {
           const LevelSums& L = sums[k];
           const double li = L.n > 0 ? 1.0 / L.n : 0.0;
-          store(*lv[k].direct, x, y, L.direct, li);
-          store(*lv[k].indirect, x, y, L.indirect, li);
+          demodulated(L.direct_t, L.direct, L.albedo, L.n, lv[k].direct->pixel(x, y));
+          demodulated(L.indirect_t, L.indirect, L.albedo, L.n, lv[k].indirect->pixel(x, y));
           store(*lv[k].albedo, x, y, L.albedo, li);
           store(*lv[k].reflection, x, y, L.reflection, li);
           store(*lv[k].emission, x, y, L.emission, li);
@@ -304,7 +347,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
           const int x = es.pixels[i] % W, y = es.pixels[i] / W;
           struct Sub {
             int n = 0;
-            D3 normal, albedo, direct, indirect;
+            D3 normal, albedo, direct, indirect, direct_t, indirect_t;
             double depth = 0;
           } sub[EdgeSubpixels::kPerPixel];
           for (int s = 0; s < spp; ++s) {
@@ -320,6 +363,8 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
             b.albedo.add(r.level[0].albedo);
             b.direct.add(r.level[0].direct);
             b.indirect.add(r.level[0].indirect);
+            b.direct_t.add(r.level[0].direct * r.level[0].albedo);
+            b.indirect_t.add(r.level[0].indirect * r.level[0].albedo);
             b.depth += r.level[0].depth;
           }
           EdgeSample* out = &es.samples[i * EdgeSubpixels::kPerPixel];
@@ -339,10 +384,11 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
             for (int c2 = 0; c2 < 3; ++c2) {
               e.normal[c2] = float(sub[k].normal.v[c2] * inv);
               e.albedo[c2] = float(sub[k].albedo.v[c2] * inv);
-              e.direct[c2] = float(sub[k].direct.v[c2] * inv);
-              e.indirect[c2] = float(sub[k].indirect.v[c2] * inv);
+
             }
             e.depth = float(sub[k].depth * inv);
+            demodulated(sub[k].direct_t, sub[k].direct, sub[k].albedo, sub[k].n, e.direct);
+            demodulated(sub[k].indirect_t, sub[k].indirect, sub[k].albedo, sub[k].n, e.indirect);
           }
         }
       });

@@ -83,16 +83,22 @@ void Scene::commit() {
   rtcCommitScene(rtc_);
   if (meshes.empty()) bmin_ = bmax_ = Vec3(0.0f);
 
-  // Emitter distribution: weight = an estimate of emitted power (luminance x area x pi per
-  // emitting side for triangles; for sun and sky, the power they send through a disc of the
-  // scene's bounding radius). Any positive weights keep the estimator unbiased; these make
-  // bright and large emitters get the shadow rays.
+  // Emitter distribution. Light groups are the emissive meshes, the sun and the sky; an
+  // emitter is chosen with probability 1/2 (its share of the estimated power) + 1/2 (a uniform
+  // choice of its group, then its share of the group's power). Power alone starves small
+  // lights beside a bright but mostly occluded one (a lamp beside the sun behind a window);
+  // the uniform half keeps every group sampled. Estimated power: luminance x area x pi per
+  // emitting side for triangles; for sun and sky, what they send through a disc of the scene's
+  // bounding radius. Any positive probabilities keep the estimator unbiased.
   emitters_.clear();
   emitter_cdf_.clear();
   select_prob_.assign(meshes.size(), {});
-  float total = 0;
+  std::vector<float> power;                  // per emitter, then sun, then sky
+  std::vector<int> group;                    // group of each entry
+  std::vector<double> group_power;
   for (std::size_t gi = 0; gi < meshes.size(); ++gi) {
     const Mesh& m = meshes[gi];
+    int g = -1;
     for (std::size_t t = 0; t < m.triangles(); ++t) {
       const Material& mat = materials[m.material[t]];
       if (!mat.is_emitter()) continue;
@@ -101,9 +107,14 @@ void Scene::commit() {
       if (!(area > 0)) continue;
       float w = luminance(mat.emission) * area * kPi * (mat.two_sided ? 2.0f : 1.0f);
       if (!(w > 0)) continue;
+      if (g < 0) {
+        g = int(group_power.size());
+        group_power.push_back(0);
+      }
       emitters_.push_back({unsigned(gi), unsigned(t), area});
-      total += w;
-      emitter_cdf_.push_back(total);
+      power.push_back(w);
+      group.push_back(g);
+      group_power[g] += w;
     }
   }
   Vec3 ext = bmax_ - bmin_;
@@ -111,23 +122,36 @@ void Scene::commit() {
   float disc = kPi * radius * radius;
   float sun_w = sun.enabled ? luminance(sun.radiance) * sun.solid_angle() * disc : 0.0f;
   float sky_w = sky.enabled ? luminance(sky.average) * kPi * disc : 0.0f;
-  total += sun_w;
-  emitter_cdf_.push_back(total);
-  total += sky_w;
-  emitter_cdf_.push_back(total);
-  total_light_weight_ = total;
-  tri_select_.resize(emitters_.size());
-  float prev = 0;
+  for (float w : {sun_w, sky_w}) {
+    power.push_back(w);
+    if (w > 0) {
+      group.push_back(int(group_power.size()));
+      group_power.push_back(w);
+    } else {
+      group.push_back(-1);
+    }
+  }
+  double total = 0;
+  for (float w : power) total += w;
+  const double ngroups = double(group_power.size());
+  std::vector<float> prob(power.size(), 0.0f);
+  for (std::size_t i = 0; i < power.size(); ++i)
+    if (power[i] > 0 && total > 0)
+      prob[i] = float(0.5 * power[i] / total + 0.5 / ngroups * power[i] / group_power[group[i]]);
+  double acc = 0;
+  for (float p : prob) {
+    acc += p;
+    emitter_cdf_.push_back(float(acc));
+  }
+  total_light_weight_ = total > 0 ? float(acc) : 0.0f;
+  tri_select_.assign(prob.begin(), prob.begin() + emitters_.size());
   for (std::size_t i = 0; i < emitters_.size(); ++i) {
-    float p = (emitter_cdf_[i] - prev) / total;
-    prev = emitter_cdf_[i];
-    tri_select_[i] = p;
     auto& v = select_prob_[emitters_[i].mesh];
     if (v.empty()) v.assign(meshes[emitters_[i].mesh].triangles(), 0.0f);
-    v[emitters_[i].prim] = p;
+    v[emitters_[i].prim] = tri_select_[i];
   }
-  sun_select_ = total > 0 ? sun_w / total : 0;
-  sky_select_ = total > 0 ? sky_w / total : 0;
+  sun_select_ = prob[emitters_.size()];
+  sky_select_ = prob[emitters_.size() + 1];
 }
 
 void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const {
@@ -217,7 +241,7 @@ Vec3 Scene::escaped_radiance(Vec3 dir) const {
   return L;
 }
 
-bool Scene::sample_light(Vec3 p, float u0, float u1, float u2, LightSample& out) const {
+bool Scene::sample_light(Vec3 p, Vec3 n, float u0, float u1, float u2, LightSample& out) const {
   if (total_light_weight_ <= 0) return false;
   const float target = u0 * total_light_weight_;
   const std::size_t ntri = emitters_.size();
@@ -261,14 +285,14 @@ bool Scene::sample_light(Vec3 p, float u0, float u1, float u2, LightSample& out)
     out.wi = f.to_world(sample_cone(u1, u2, sun.cos_max));
     out.dist = 1e30f;
     out.radiance = sun.radiance + sky.radiance(out.wi);
-    out.pdf = escaped_light_pdf(out.wi);
+    out.pdf = escaped_light_pdf(out.wi, n);
     return true;
   }
-  out.wi = sample_sphere(u1, u2);
+  out.wi = Frame(n).to_world(sample_cosine_hemisphere(u1, u2));
   out.dist = 1e30f;
   out.radiance = escaped_radiance(out.wi);
-  out.pdf = escaped_light_pdf(out.wi);
-  return true;
+  out.pdf = escaped_light_pdf(out.wi, n);
+  return out.pdf > 0;
 }
 
 float Scene::light_pdf(Vec3 from, const SurfaceHit& hit) const {
@@ -288,12 +312,12 @@ float Scene::light_pdf(Vec3 from, const SurfaceHit& hit) const {
   return sel * dist2 / (cos_l * area);
 }
 
-float Scene::escaped_light_pdf(Vec3 dir) const {
+float Scene::escaped_light_pdf(Vec3 dir, Vec3 n) const {
   // The sun and the sky are both sampled, and both contribute along a direction inside the
   // sun's disc: the density is the sum over the two strategies' choices.
   float pdf = 0;
   if (sun_select_ > 0 && dot(dir, sun.direction) >= sun.cos_max) pdf += sun_select_ / sun.solid_angle();
-  if (sky_select_ > 0) pdf += sky_select_ / (4 * kPi);
+  if (sky_select_ > 0) pdf += sky_select_ * std::max(0.0f, dot(dir, n)) * kInvPi;
   return pdf;
 }
 

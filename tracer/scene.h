@@ -167,14 +167,15 @@ class Scene {
   // Radiance arriving along a ray that escapes the scene (sky plus the sun's disc).
   rt::Vec3 escaped_radiance(rt::Vec3 dir) const;
 
-  // Chooses an emitter (emissive triangle, sun or sky) in proportion to an estimate of its
-  // power and a point/direction on it, seen from `p`. Returns false when the scene has no
-  // emitter. u0 selects the emitter, (u1, u2) the point.
-  bool sample_light(rt::Vec3 p, float u0, float u1, float u2, rt::LightSample& out) const;
+  // Chooses an emitter (emissive triangle, sun or sky; see Scene::commit for the probabilities)
+  // and a point or direction on it, for a shading point `p` with shading normal `n` (the sky is
+  // sampled by a cosine-weighted hemisphere about n). Returns false when the scene has no
+  // emitter or the sample is unusable. u0 selects the emitter, (u1, u2) the point.
+  bool sample_light(rt::Vec3 p, rt::Vec3 n, float u0, float u1, float u2, rt::LightSample& out) const;
   // The solid-angle density with which sample_light() from `from` would have produced the
-  // emitter point `hit` (reached along a unit direction), and the same for an escaped direction.
+  // emitter point `hit`, and the same for an escaped direction from a point of normal n.
   float light_pdf(rt::Vec3 from, const rt::SurfaceHit& hit) const;
-  float escaped_light_pdf(rt::Vec3 dir) const;
+  float escaped_light_pdf(rt::Vec3 dir, rt::Vec3 n) const;
   bool has_lights() const { return total_light_weight_ > 0; }
 
   rt::Vec3 bounds_min() const { return bmin_; }
@@ -193,7 +194,7 @@ class Scene {
     float area;
   };
   std::vector<EmissiveTriangle> emitters_;
-  std::vector<float> emitter_cdf_;   // over emitters_, then sun, then sky (unnormalised)
+  std::vector<float> emitter_cdf_;   // over emitters_, then sun, then sky (sums to 1)
   std::vector<float> tri_select_;    // per emissive triangle: selection probability
   // Selection probability of emissive triangle (mesh, prim), looked up on BSDF hits.
   std::vector<std::vector<float>> select_prob_;
