@@ -108,7 +108,7 @@ void Scene::commit() {
         g = int(group_power.size());
         group_power.push_back(0);
       }
-      emitters_.push_back({unsigned(gi), unsigned(t), area});
+      emitters_.push_back({unsigned(gi), unsigned(t), area, a, b - a, c - a, normalize(cross(b - a, c - a)), &mat});
       power.push_back(w);
       group.push_back(g);
       group_power[g] += w;
@@ -252,20 +252,17 @@ bool Scene::sample_light(Vec3 p, Vec3 n, float u0, float u1, float u2, LightSamp
   }
   if (idx < ntri) {
     const EmissiveTriangle& e = emitters_[idx];
-    const Mesh& m = meshes[e.mesh];
-    Vec3 a = m.positions[3 * e.prim], b = m.positions[3 * e.prim + 1], c = m.positions[3 * e.prim + 2];
     // Uniform point on the triangle.
     float su = std::sqrt(u1);
-    float b0 = 1 - su, b1 = u2 * su;
-    Vec3 q = a * b0 + b * b1 + c * (1 - b0 - b1);
+    float b1 = 1 - su, b2 = u2 * su;
+    Vec3 q = e.p0 + e.e1 * b1 + e.e2 * b2;
     Vec3 d = q - p;
     float dist2 = dot(d, d);
     if (!(dist2 > 0)) return false;
     float dist = std::sqrt(dist2);
     Vec3 wi = d / dist;
-    Vec3 n = normalize(cross(b - a, c - a));
-    float cos_l = -dot(n, wi);
-    const Material& mat = materials[m.material[e.prim]];
+    float cos_l = -dot(e.normal, wi);
+    const Material& mat = *e.material;
     if (cos_l <= 0) {
       if (!mat.two_sided) return false;
       cos_l = -cos_l;

@@ -159,6 +159,7 @@ class Scene {
   std::string name;                 // built-in name or file stem
   std::string source_file;          // the scene TOML
   std::vector<std::string> files;   // every file read (TOML, meshes, textures) for the content hash
+  std::string content_hash;         // scene_content_hash, computed by load_scene
   rt::Camera camera;
   std::vector<rt::Material> materials;
   std::vector<std::unique_ptr<rt::Texture>> textures;
@@ -202,6 +203,8 @@ class Scene {
   struct EmissiveTriangle {
     unsigned mesh, prim;
     float area;
+    rt::Vec3 p0, e1, e2, normal;  // corner, edges, unit normal (winding side)
+    const rt::Material* material;
   };
   std::vector<EmissiveTriangle> emitters_;
   std::vector<float> emitter_cdf_;   // over emitters_, then sun, then sky (sums to 1)
