@@ -132,68 +132,94 @@ struct D3 {
   }
 };
 
-// Per-pixel sums of one level's layers over the samples that reached the level.
+// Per-pixel sums of one level's layers over the samples that reached the level, kept as one
+// flat array so that adding a sample is a single loop the compiler vectorises (float -> double
+// conversions and adds four at a time); the per-sample bookkeeping of all layers otherwise
+// costs as much as tracing the camera ray.
+namespace acc {
+enum : int {
+  kDirect = 0, kIndirect = 3, kAlbedo = 6, kReflection = 9, kEmission = 12, kNormal = 15, kTint = 18,
+  kDirectT = 21, kIndirectT = 24, kDepth = 27, kDepthSq = 28,
+  kLevelSize = 32,  // padded to a multiple of 4
+  // Level 0 only: colour and the squares for the variance layers.
+  kColor = 0, kColorSq = 3, kDirectSq = 6, kIndirectSq = 9, kDirectTSq = 12, kIndirectTSq = 15,
+  kExtraSize = 20,
+};
+}  // namespace acc
+
 struct LevelSums {
   std::int64_t n = 0;
-  D3 direct, indirect, albedo, reflection, emission, normal, tint;
-  D3 direct_t, indirect_t;  // sums of D * T and I * T
-  double depth = 0, depth_sq = 0;
-  void add(const LevelSample& l) {
-    ++n;
-    direct.add(l.direct);
-    indirect.add(l.indirect);
-    albedo.add(l.albedo);
-    direct_t.add(l.direct * l.albedo);
-    indirect_t.add(l.indirect * l.albedo);
-    reflection.add(l.reflection);
-    emission.add(l.emission);
-    normal.add(l.normal);
-    tint.add(l.tint);
-    depth += l.depth;
-    depth_sq += double(l.depth) * l.depth;
-  }
+  alignas(32) double v[acc::kLevelSize] = {};
+  const double* at(int off) const { return v + off; }
 };
 
-void store(Image& img, int x, int y, const D3& s, double inv) {
-  float* p = img.pixel(x, y);
-  for (int c = 0; c < 3; ++c) p[c] = float(s.v[c] * inv);
+inline void put3(float* o, Vec3 a) {
+  o[0] = a.x;
+  o[1] = a.y;
+  o[2] = a.z;
 }
 
-void store_var(Image& img, int x, int y, const D3& sum, const D3& sq, std::int64_t n) {
+inline void pack_level(const LevelSample& l, float* o) {
+  put3(o + acc::kDirect, l.direct);
+  put3(o + acc::kIndirect, l.indirect);
+  put3(o + acc::kAlbedo, l.albedo);
+  put3(o + acc::kReflection, l.reflection);
+  put3(o + acc::kEmission, l.emission);
+  put3(o + acc::kNormal, l.normal);
+  put3(o + acc::kTint, l.tint);
+  put3(o + acc::kDirectT, l.direct * l.albedo);
+  put3(o + acc::kIndirectT, l.indirect * l.albedo);
+  o[acc::kDepth] = l.depth;
+  o[acc::kDepthSq] = l.depth * l.depth;
+  o[29] = o[30] = o[31] = 0;
+}
+
+template <int N>
+inline void add_values(double* __restrict a, const float* __restrict v) {
+  for (int i = 0; i < N; ++i) a[i] += double(v[i]);
+}
+
+// Mean of three sums.
+void store(Image& img, int x, int y, const double* s, double inv) {
+  float* p = img.pixel(x, y);
+  for (int c = 0; c < 3; ++c) p[c] = float(s[c] * inv);
+}
+
+void store_var(Image& img, int x, int y, const double* sum, const double* sq, std::int64_t n) {
   float* p = img.pixel(x, y);
   for (int c = 0; c < 3; ++c) {
     if (n < 2) {
       p[c] = 0;
       continue;
     }
-    double mean = sum.v[c] / n;
-    double var = std::max(0.0, (sq.v[c] - mean * sum.v[c]) / double(n - 1));
+    double mean = sum[c] / n;
+    double var = std::max(0.0, (sq[c] - mean * sum[c]) / double(n - 1));
     p[c] = float(var / n);
   }
 }
 
 // The albedo-weighted mean of an illumination layer (see top of file) into out[0..2].
-void demodulated(const D3& sum_t, const D3& sum, const D3& albedo, std::int64_t n, float* out) {
+void demodulated(const double* sum_t, const double* sum, const double* albedo, std::int64_t n, float* out) {
   for (int c = 0; c < 3; ++c) {
-    if (albedo.v[c] > 1e-12 * double(n)) out[c] = float(sum_t.v[c] / albedo.v[c]);
-    else out[c] = n > 0 ? float(sum.v[c] / double(n)) : 0.0f;
+    if (albedo[c] > 1e-12 * double(n)) out[c] = float(sum_t[c] / albedo[c]);
+    else out[c] = n > 0 ? float(sum[c] / double(n)) : 0.0f;
   }
 }
 
 // Variance of that mean: of the samples X T / mean(T), or of X where the albedo sums to 0.
-void demodulated_var(const D3& sum_t, const D3& sq_t, const D3& sum, const D3& sq, const D3& albedo,
-                     std::int64_t n, float* out) {
+void demodulated_var(const double* sum_t, const double* sq_t, const double* sum, const double* sq,
+                     const double* albedo, std::int64_t n, float* out) {
   for (int c = 0; c < 3; ++c) {
     if (n < 2) {
       out[c] = 0;
       continue;
     }
-    const bool weighted = albedo.v[c] > 1e-12 * double(n);
-    const double s1 = weighted ? sum_t.v[c] : sum.v[c], s2 = weighted ? sq_t.v[c] : sq.v[c];
+    const bool weighted = albedo[c] > 1e-12 * double(n);
+    const double s1 = weighted ? sum_t[c] : sum[c], s2 = weighted ? sq_t[c] : sq[c];
     const double mean = s1 / n;
     double var = std::max(0.0, (s2 - mean * s1) / double(n - 1)) / n;
     if (weighted) {
-      const double t = albedo.v[c] / n;
+      const double t = albedo[c] / n;
       var /= t * t;
     }
     out[c] = float(var);
@@ -256,7 +282,9 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
       for (int x = x0; x < x1; ++x) {
         const std::uint64_t pixel = std::uint64_t(y) * W + x;
         for (auto& s : sums) s = LevelSums{};
-        D3 f_sum, f_sq, d_sq, i_sq, dt_sq, it_sq;
+        alignas(32) double extra[acc::kExtraSize] = {};
+        alignas(32) float vals[acc::kLevelSize];
+        alignas(32) float xvals[acc::kExtraSize];
         for (int s = 0; s < spp; ++s) {
           Sampler rng(settings.seed, pixel, std::uint64_t(s));
           float fx, fy;
@@ -268,41 +296,52 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
             ++tile_dropped;
             continue;
           }
-          Vec3 f = r.level[0].color();
-          f_sum.add(f);
-          f_sq.add_sq(f);
-          d_sq.add_sq(r.level[0].direct);
-          i_sq.add_sq(r.level[0].indirect);
-          dt_sq.add_sq(r.level[0].direct * r.level[0].albedo);
-          it_sq.add_sq(r.level[0].indirect * r.level[0].albedo);
-          for (int k = 0; k < r.levels && k <= K; ++k) sums[k].add(r.level[k]);
+          const LevelSample& l0 = r.level[0];
+          const Vec3 f = l0.color(), dt = l0.direct * l0.albedo, it = l0.indirect * l0.albedo;
+          put3(xvals + acc::kColor, f);
+          put3(xvals + acc::kColorSq, f * f);
+          put3(xvals + acc::kDirectSq, l0.direct * l0.direct);
+          put3(xvals + acc::kIndirectSq, l0.indirect * l0.indirect);
+          put3(xvals + acc::kDirectTSq, dt * dt);
+          put3(xvals + acc::kIndirectTSq, it * it);
+          xvals[18] = xvals[19] = 0;
+          add_values<acc::kExtraSize>(extra, xvals);
+          for (int k = 0; k < r.levels && k <= K; ++k) {
+            pack_level(r.level[k], vals);
+            ++sums[k].n;
+            add_values<acc::kLevelSize>(sums[k].v, vals);
+          }
         }
         const std::int64_t n = sums[0].n;
         const double inv = n > 0 ? 1.0 / n : 0.0;
-        store(color, x, y, f_sum, inv);
-        store_var(var_f, x, y, f_sum, f_sq, n);
-        demodulated_var(sums[0].direct_t, dt_sq, sums[0].direct, d_sq, sums[0].albedo, n, var_d.pixel(x, y));
-        demodulated_var(sums[0].indirect_t, it_sq, sums[0].indirect, i_sq, sums[0].albedo, n, var_i.pixel(x, y));
+        const LevelSums& L0 = sums[0];
+        store(color, x, y, extra + acc::kColor, inv);
+        store_var(var_f, x, y, extra + acc::kColor, extra + acc::kColorSq, n);
+        demodulated_var(L0.at(acc::kDirectT), extra + acc::kDirectTSq, L0.at(acc::kDirect), extra + acc::kDirectSq,
+                        L0.at(acc::kAlbedo), n, var_d.pixel(x, y));
+        demodulated_var(L0.at(acc::kIndirectT), extra + acc::kIndirectTSq, L0.at(acc::kIndirect),
+                        extra + acc::kIndirectSq, L0.at(acc::kAlbedo), n, var_i.pixel(x, y));
         samples.at(x, y, 0) = float(n);
         for (int k = 0; k <= K; ++k) {
           const LevelSums& L = sums[k];
           const double li = L.n > 0 ? 1.0 / L.n : 0.0;
-          demodulated(L.direct_t, L.direct, L.albedo, L.n, lv[k].direct->pixel(x, y));
-          demodulated(L.indirect_t, L.indirect, L.albedo, L.n, lv[k].indirect->pixel(x, y));
-          store(*lv[k].albedo, x, y, L.albedo, li);
-          store(*lv[k].reflection, x, y, L.reflection, li);
-          store(*lv[k].emission, x, y, L.emission, li);
-          store(*lv[k].normal, x, y, L.normal, li);
-          lv[k].depth->at(x, y, 0) = float(L.depth * li);
+          demodulated(L.at(acc::kDirectT), L.at(acc::kDirect), L.at(acc::kAlbedo), L.n, lv[k].direct->pixel(x, y));
+          demodulated(L.at(acc::kIndirectT), L.at(acc::kIndirect), L.at(acc::kAlbedo), L.n,
+                      lv[k].indirect->pixel(x, y));
+          store(*lv[k].albedo, x, y, L.at(acc::kAlbedo), li);
+          store(*lv[k].reflection, x, y, L.at(acc::kReflection), li);
+          store(*lv[k].emission, x, y, L.at(acc::kEmission), li);
+          store(*lv[k].normal, x, y, L.at(acc::kNormal), li);
+          lv[k].depth->at(x, y, 0) = float(L.v[acc::kDepth] * li);
           // refl(k).tint: mean over the samples of level k-1 of the bounce weight into level k.
           if (k > 0) {
             const LevelSums& P = sums[k - 1];
-            store(*lv[k].tint, x, y, P.tint, P.n > 0 ? 1.0 / P.n : 0.0);
+            store(*lv[k].tint, x, y, P.at(acc::kTint), P.n > 0 ? 1.0 / P.n : 0.0);
           }
         }
         if (n > 1) {
-          double m = sums[0].depth * inv;
-          double var = std::max(0.0, sums[0].depth_sq * inv - m * m);
+          double m = L0.v[acc::kDepth] * inv;
+          double var = std::max(0.0, L0.v[acc::kDepthSq] * inv - m * m);
           depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
         }
       }
@@ -391,8 +430,8 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
 
             }
             e.depth = float(sub[k].depth * inv);
-            demodulated(sub[k].direct_t, sub[k].direct, sub[k].albedo, sub[k].n, e.direct);
-            demodulated(sub[k].indirect_t, sub[k].indirect, sub[k].albedo, sub[k].n, e.indirect);
+            demodulated(sub[k].direct_t.v, sub[k].direct.v, sub[k].albedo.v, sub[k].n, e.direct);
+            demodulated(sub[k].indirect_t.v, sub[k].indirect.v, sub[k].albedo.v, sub[k].n, e.indirect);
           }
         }
       });
