@@ -28,9 +28,6 @@
 // For a pixel of constant albedo both definitions coincide. direct_variance and
 // indirect_variance are the variances of these means (of D T / mean T: the ratio estimator's
 // first-order variance). Edge sub-pixels use the same definition over their stratum's samples.
-#include <xmmintrin.h>
-#include <pmmintrin.h>
-
 #include <atomic>
 #include <cmath>
 
@@ -57,12 +54,9 @@ constexpr float kEdgeDepthRel = 0.05f;      // relative depth jump between neigh
 constexpr float kEdgeDepthSpread = 0.02f;   // relative std. deviation of depth inside a pixel
 constexpr int kTile = 16;
 
-void set_ftz_daz() {
-  // Embree and the integrator want denormals flushed (speed); set on every rendering thread,
-  // so every thread computes the same bits.
-  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-}
+// Embree and the integrator want denormals flushed (speed); set on every rendering task, so
+// every thread computes the same bits.
+void set_ftz_daz() { enable_flush_to_zero(); }
 
 void check_settings(const RenderSettings& s) {
   Image::check_size(s.width, s.height, 3, "render size");
