@@ -1,7 +1,8 @@
 // atrous: the edge-avoiding a-trous wavelet filter (Dammertz, Sewtz, Hanika and Lensch 2010,
 // "Edge-Avoiding A-Trous Wavelet Transform for fast Global Illumination Filtering", HPG) on the
 // untextured illumination L = D + I; the result is composed as F' = L' * T + R + E
-// (denoisers/illumination.h), the demodulation the paper suggests for textured scenes.
+// (denoisers/illumination.h), the demodulation the paper suggests for textured scenes; R is
+// filtered the same way when filter_reflection is set.
 //
 // Iteration i = 0 .. iterations-1 convolves with the 5x5 B3-spline kernel h = (1, 4, 6, 4, 1)/16
 // (outer product) whose taps are 2^i pixels apart (the "holes" of a trous), each tap q of pixel
@@ -21,18 +22,20 @@
 // of a pass reads only the previous pass, so rows run in parallel (TBB) and the output does not
 // depend on the thread count.
 //
-// Parameters:
+// Parameters (defaults from the sweep in docs/method-defaults.md):
 //   iterations         int     number of a-trous passes (tap spacing 1, 2, 4, ...)
 //   sigma_color        float   colour edge-stopping sigma of the first pass, compressed units
 //   sigma_normal       float   normal edge-stopping sigma (distance between unit normals)
 //   sigma_depth        float   depth edge-stopping sigma (relative depth difference)
 //   halve_color_sigma  bool    halve sigma_color after every pass (Dammertz et al.)
 //   range_map          string  domain of the colour distance: linear, log, reinhard, srgb
+//   filter_reflection  bool    also filter the reflection R (what mirrors show) with the same
+//                              passes, its edge-stopping on the first reflection level's normal and
+//                              depth (refl1.normal, refl1.depth); otherwise R passes through
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <optional>
 
 #include <tbb/parallel_for.h>
 
@@ -111,42 +114,58 @@ class Atrous final : public Method {
         sigma_normal_(float(p.f("sigma_normal"))),
         sigma_depth_(float(p.f("sigma_depth"))),
         halve_(p.b("halve_color_sigma")),
-        map_(parse_range_map(p.s("range_map"))) {}
+        map_(parse_range_map(p.s("range_map"))),
+        filter_reflection_(p.b("filter_reflection")) {}
 
   std::vector<std::string> required_layers() const override {
     auto layers = illumination_layers();
     layers.push_back(layer::kNormal);
     layers.push_back(layer::kDepth);
+    if (filter_reflection_)
+      for (const auto& l : reflection_guide_layers()) layers.push_back(l);
     return layers;
   }
 
   MethodResult execute(const MethodInput& in) override {
     MethodResult r;
     const AovFrame& f = *in.frame;
-    std::optional<Planes> normal, depth;
-    Image cur, next(f.width(), f.height(), 3), key;
+    Image light;
     {
       ScopedPhase p(r.stats, "prepare");
-      normal.emplace(f.layer(layer::kNormal));
-      depth.emplace(normalized_depth(f));
-      cur = illumination(f);
+      light = illumination(f);
     }
     {
       ScopedPhase p(r.stats, "atrous");
-      float sigma_c = sigma_color_;
-      for (int it = 0; it < iterations_; ++it) {
-        key = cur;  // the colour the edge-stopping function compares, in the compressed domain
-        compress(map_, key);
-        pass(Planes(cur), Planes(key), *normal, *depth, 1 << it, sigma_c, next);
-        std::swap(cur, next);
-        if (halve_) sigma_c *= 0.5f;
-      }
+      light = filter(std::move(light), f, 0);
+    }
+    Image reflection;
+    if (filter_reflection_) {
+      ScopedPhase p(r.stats, "atrous_reflection");
+      reflection = filter(f.layer(layer::kReflection), f, 1);
     }
     {
       ScopedPhase p(r.stats, "compose");
-      r.image = compose(cur, f);
+      r.image = filter_reflection_ ? compose(light, f, reflection) : compose(light, f);
     }
     return r;
+  }
+
+ private:
+  // All passes over `cur`, with the normal and depth of reflection level `level` (0: the first
+  // hit; 1: the hit seen in a mirror).
+  Image filter(Image cur, const AovFrame& f, int level) const {
+    const Planes normal(f.layer(layer::at_level(level, layer::kNormal)));
+    const Planes depth(normalized_depth(f, level));
+    Image next(f.width(), f.height(), 3), key;
+    float sigma_c = sigma_color_;
+    for (int it = 0; it < iterations_; ++it) {
+      key = cur;  // the colour the edge-stopping function compares, in the compressed domain
+      compress(map_, key);
+      pass(Planes(cur), Planes(key), normal, depth, 1 << it, sigma_c, next);
+      std::swap(cur, next);
+      if (halve_) sigma_c *= 0.5f;
+    }
+    return cur;
   }
 
  private:
@@ -196,6 +215,7 @@ class Atrous final : public Method {
   float sigma_color_, sigma_normal_, sigma_depth_;
   bool halve_;
   RangeMap map_;
+  bool filter_reflection_;
 };
 
 }  // namespace
@@ -214,6 +234,7 @@ MethodInfo atrous_method() {
               {"halve_color_sigma", ParamType::Bool, "true", "halve sigma_color after every pass (Dammertz et al.)"},
               {"range_map", ParamType::String, "log", "domain of the colour distance (denoisers/hdr_mapping.h)", {}, {},
                range_map_names()},
+              {"filter_reflection", ParamType::Bool, "false", "also filter R, stopping on the refl1 normal/depth"},
           },
       .create = [](const Params& p) { return std::make_unique<Atrous>(p); },
   };

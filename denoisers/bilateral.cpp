@@ -10,7 +10,7 @@
 // come back slightly darker than their linear mean (Jensen's inequality); `range_map=linear`
 // avoids that bias at the price of the range problem above.
 //
-// Parameters (defaults: see "Defaults" in docs/adding-a-method.md's sweep section):
+// Parameters (defaults from the sweep in docs/method-defaults.md):
 //   sigma_space  float   spatial Gaussian sigma, pixels
 //   sigma_color  float   range Gaussian sigma, in units of the compressed domain
 //   diameter     int     window diameter in pixels; 0: OpenCV's choice, 2 * round(1.5 sigma_space) + 1

@@ -2,7 +2,8 @@
 // multi-channel guide of their section 3.5) applied to the untextured illumination L = D + I,
 // with the albedo, the shading normal and the depth as the guide, as Bauszat, Eisemann and Magnor
 // (2011, "Guided Image Filtering for Interactive High-quality Global Illumination") do for Monte
-// Carlo renders. The result is composed as F' = L' * T + R + E (denoisers/illumination.h).
+// Carlo renders. The result is composed as F' = L' * T + R + E (denoisers/illumination.h), R
+// filtered the same way when filter_reflection is set.
 //
 // In every (2 radius + 1)^2 window w_k the filter fits L = a_k^T g + b_k by ridge regression on
 // the m-channel guide g (m = 7: albedo RGB, normal XYZ, depth), one fit per colour channel:
@@ -21,12 +22,15 @@
 // here. The image is processed in fixed bands of rows (with a halo of 2 radius rows), in parallel
 // over bands: memory stays small and the result does not depend on the thread count.
 //
-// Parameters:
+// Parameters (defaults from the sweep in docs/method-defaults.md):
 //   radius         int    window radius in pixels
 //   eps            float  regularisation of the fit (in squared guide units)
 //   albedo_weight  float  scale of the albedo guide channels (0: not used)
 //   normal_weight  float  scale of the normal guide channels (0: not used)
 //   depth_weight   float  scale of the median-normalised depth guide channel (0: not used)
+//   filter_reflection bool  also filter the reflection R (what mirrors show), with the same
+//                  filter guided by the first reflection level's layers (refl1.albedo, normal,
+//                  depth: the hit seen through the mirror); otherwise R passes through
 #include <algorithm>
 #include <cmath>
 
@@ -85,12 +89,15 @@ class Guided final : public Method {
         eps_(p.f("eps")),
         albedo_weight_(float(p.f("albedo_weight"))),
         normal_weight_(float(p.f("normal_weight"))),
-        depth_weight_(float(p.f("depth_weight"))) {}
+        depth_weight_(float(p.f("depth_weight"))),
+        filter_reflection_(p.b("filter_reflection")) {}
 
   std::vector<std::string> required_layers() const override {
     auto layers = illumination_layers();
     layers.push_back(layer::kNormal);
     layers.push_back(layer::kDepth);
+    if (filter_reflection_)
+      for (const auto& l : reflection_guide_layers()) layers.push_back(l);
     return layers;
   }
 
@@ -100,38 +107,48 @@ class Guided final : public Method {
     Image guide, light;
     {
       ScopedPhase p(r.stats, "prepare");
-      guide = make_guide(f);
+      guide = make_guide(f, 0);
       light = illumination(f);
     }
-    Image filtered(f.width(), f.height(), 3);
+    Image filtered, reflection;
     {
       ScopedPhase p(r.stats, "guided_filter");
-      const int bands = (f.height() + kBandRows - 1) / kBandRows;
-      tbb::enumerable_thread_specific<Workspace> workspaces;
-      tbb::parallel_for(0, bands, [&](int b) {
-        filter_band(guide, light, filtered, b * kBandRows, std::min(f.height(), (b + 1) * kBandRows),
-                    workspaces.local());
-      });
+      filtered = filter(guide, light);
+    }
+    if (filter_reflection_) {
+      ScopedPhase p(r.stats, "guided_filter_reflection");
+      reflection = filter(make_guide(f, 1), f.layer(layer::kReflection));
     }
     {
       ScopedPhase p(r.stats, "compose");
-      r.image = compose(filtered, f);
+      r.image = filter_reflection_ ? compose(filtered, f, reflection) : compose(filtered, f);
     }
     r.stats.counters["guide_channels"] = guide.empty() ? 0 : guide.channels();
     return r;
   }
 
  private:
-  // The weighted guide: only the groups with a non-zero weight. Empty when there is none.
-  Image make_guide(const AovFrame& f) const {
+  Image filter(const Image& guide, const Image& src) const {
+    Image out(src.width(), src.height(), 3);
+    const int bands = (src.height() + kBandRows - 1) / kBandRows;
+    tbb::enumerable_thread_specific<Workspace> workspaces;
+    tbb::parallel_for(0, bands, [&](int b) {
+      filter_band(guide, src, out, b * kBandRows, std::min(src.height(), (b + 1) * kBandRows), workspaces.local());
+    });
+    return out;
+  }
+
+  // The weighted guide of reflection level `level` (0: the first hit; 1: the hit seen in a
+  // mirror): only the groups with a non-zero weight. Empty when there is none.
+  Image make_guide(const AovFrame& f, int level) const {
     struct Group {
       const Image* img;
       float weight;
     };
-    Image depth = normalized_depth(f);
+    Image depth = normalized_depth(f, level);
     std::vector<Group> groups;
-    if (albedo_weight_ > 0) groups.push_back({&f.layer(layer::kAlbedo), albedo_weight_});
-    if (normal_weight_ > 0) groups.push_back({&f.layer(layer::kNormal), normal_weight_});
+    if (albedo_weight_ > 0) groups.push_back({&f.layer(layer::at_level(level, layer::kAlbedo)), albedo_weight_});
+    if (normal_weight_ > 0) groups.push_back({&f.layer(layer::at_level(level, layer::kNormal)), normal_weight_});
     if (depth_weight_ > 0) groups.push_back({&depth, depth_weight_});
     int m = 0;
     for (auto& g : groups) m += g.img->channels();
@@ -230,6 +247,7 @@ class Guided final : public Method {
   int radius_;
   double eps_;
   float albedo_weight_, normal_weight_, depth_weight_;
+  bool filter_reflection_;
 };
 
 }  // namespace
@@ -246,6 +264,7 @@ MethodInfo guided_method() {
               {"albedo_weight", ParamType::Float, "1", "scale of the albedo guide channels (0: unused)", 0.0, 1e3},
               {"normal_weight", ParamType::Float, "1", "scale of the normal guide channels (0: unused)", 0.0, 1e3},
               {"depth_weight", ParamType::Float, "1", "scale of the median-normalised depth guide (0: unused)", 0.0, 1e3},
+              {"filter_reflection", ParamType::Bool, "false", "also filter R, guided by the refl1 albedo/normal/depth"},
           },
       .create = [](const Params& p) { return std::make_unique<Guided>(p); },
   };

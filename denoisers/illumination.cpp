@@ -19,9 +19,14 @@ Image illumination(const AovFrame& frame) {
   return out;
 }
 
-Image compose(const Image& l, const AovFrame& frame) {
+std::vector<std::string> reflection_guide_layers() {
+  return {layer::at_level(1, layer::kAlbedo), layer::at_level(1, layer::kNormal), layer::at_level(1, layer::kDepth)};
+}
+
+Image compose(const Image& l, const AovFrame& frame) { return compose(l, frame, frame.layer(layer::kReflection)); }
+
+Image compose(const Image& l, const AovFrame& frame, const Image& r) {
   const Image& t = frame.layer(layer::kAlbedo);
-  const Image& r = frame.layer(layer::kReflection);
   const Image& e = frame.layer(layer::kEmission);
   Image out(frame.width(), frame.height(), 3);
   tbb::parallel_for(std::size_t(0), out.size(),
@@ -29,8 +34,8 @@ Image compose(const Image& l, const AovFrame& frame) {
   return out;
 }
 
-Image normalized_depth(const AovFrame& frame) {
-  const Image& z = frame.layer(layer::kDepth);
+Image normalized_depth(const AovFrame& frame, int level) {
+  const Image& z = frame.layer(layer::at_level(level, layer::kDepth));
   std::vector<float> valid;
   valid.reserve(z.size());
   for (std::size_t k = 0; k < z.size(); ++k)

@@ -21,10 +21,18 @@ Image illumination(const AovFrame& frame);
 
 // F' = L' * T + R + E with the filtered illumination L'. R and E pass through unfiltered.
 Image compose(const Image& filtered_illumination, const AovFrame& frame);
+// F' = L' * T + R' + E with a filtered reflection R' as well.
+Image compose(const Image& filtered_illumination, const AovFrame& frame, const Image& filtered_reflection);
+
+// The guide layers of the first reflection level (paper 3.2): what the mirror shows, i.e. the
+// albedo, normal and depth of the hit seen through it (refl1.albedo, refl1.normal, refl1.depth).
+// A filter of R uses them as L's filter uses the level-0 layers.
+std::vector<std::string> reflection_guide_layers();
 
 // Depth divided by the median of its positive finite values, so that depth-based weights and
 // guides work the same in a room of 5 m and a hall of 50 m. Pixels that hit nothing (depth 0 or
 // not finite) get 0.
-Image normalized_depth(const AovFrame& frame);
+// `level` 1 reads refl1.depth (the reflection level's depth) instead.
+Image normalized_depth(const AovFrame& frame, int level = 0);
 
 }  // namespace dnb

@@ -17,7 +17,7 @@
 // invisible to the weights: with srgb one code is about 0.9% of the value at x = 1 and 2.3% at
 // x = 0.1; with reinhard 2.4% at x = 1 and far more in highlights.
 //
-// Parameters:
+// Parameters (defaults from the sweep in docs/method-defaults.md):
 //   h                float   filter strength for lightness, in 8-bit code units
 //   h_color          float   filter strength for colour (CIELAB a, b)
 //   template_window  int     patch side in pixels (odd)

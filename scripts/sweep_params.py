@@ -9,9 +9,14 @@ defaults, it tries every grid value of one parameter with the others fixed, keep
 goes round all parameters again until a round changes nothing (at most --rounds rounds).
 
 Everything goes through the program (`denoisebench denoise`, `denoisebench metrics --json`), so
-the sweep measures exactly what the experiment runs. The error is `mse` (8-bit sRGB, the
-paper's Table 1 scale) when the metrics command reports it, else `mse_hdr` (the script says
-which it used).
+the sweep measures exactly what the experiment runs. The error minimised is `mse` (8-bit sRGB,
+the paper's Table 1 scale: clamp to [0, 1], sRGB transfer, 0..255) as the metrics command
+reports it; where that command does not report `mse` yet, the script computes it the same way
+from 8-bit sRGB copies made by oiiotool (reported as `mse` with "source": "oiiotool").
+
+The reference is rendered with `denoisebench reference` when that command is available, else
+with `denoisebench render` at --ref-spp and another seed. A noisy reference adds the same
+constant (its variance) to every candidate's expected MSE, so it does not move the minimum.
 
 Writes OUT/sweep.json (every evaluation) and OUT/sweep.md (best parameters per method, their
 MSE, the MSE at the previous defaults). Example:
@@ -27,6 +32,8 @@ import sys
 import tempfile
 import time
 
+import numpy as np
+
 EVALUATION_SCENES = {"cornell-box", "conference", "bedroom", "sponza"}
 
 # Parameter grids. The first entry of each method is its current default (as in its source
@@ -35,39 +42,42 @@ GRIDS = {
     "bilateral": {
         "start": {"sigma_space": "3", "sigma_color": "0.3", "range_map": "log"},
         "grid": {
-            "sigma_space": ["1", "1.5", "2", "3", "4", "6", "8"],
-            "sigma_color": ["0.05", "0.1", "0.2", "0.3", "0.5", "0.8", "1.2"],
+            "sigma_space": ["1", "1.5", "2", "3", "4", "6", "8", "12"],
+            "sigma_color": ["0.05", "0.1", "0.2", "0.3", "0.5", "0.8", "1.2", "2", "4"],
             "range_map": ["log", "reinhard", "srgb"],
         },
     },
     "nlmeans": {
         "start": {"h": "10", "h_color": "10", "template_window": "7", "range_map": "srgb"},
         "grid": {
-            "h": ["3", "5", "8", "10", "15", "20", "30", "40"],
+            "h": ["2", "3", "5", "8", "10", "15", "20", "30", "40"],
             "h_color": ["3", "5", "10", "15", "20", "30"],
             "template_window": ["5", "7", "9"],
             "range_map": ["srgb", "reinhard"],
         },
     },
     "guided": {
-        "start": {"radius": "8", "eps": "0.01", "albedo_weight": "1", "normal_weight": "1", "depth_weight": "1"},
+        "start": {"radius": "8", "eps": "0.01", "albedo_weight": "1", "normal_weight": "1", "depth_weight": "1",
+                  "filter_reflection": "false"},
         "grid": {
             "radius": ["2", "4", "6", "8", "12", "16", "24"],
             "eps": ["0.0001", "0.001", "0.003", "0.01", "0.03", "0.1", "0.3"],
             "albedo_weight": ["0", "0.3", "1", "3"],
             "normal_weight": ["0", "0.3", "1", "3", "10"],
             "depth_weight": ["0", "0.3", "1", "3", "10", "30"],
+            "filter_reflection": ["false", "true"],
         },
     },
     "atrous": {
         "start": {"sigma_color": "0.5", "sigma_normal": "0.3", "sigma_depth": "0.1", "halve_color_sigma": "true",
-                  "range_map": "log"},
+                  "range_map": "log", "filter_reflection": "false"},
         "grid": {
-            "sigma_color": ["0.1", "0.2", "0.5", "1", "2", "5", "10"],
+            "sigma_color": ["0.05", "0.1", "0.2", "0.5", "1", "2", "5", "10"],
             "sigma_normal": ["0.03", "0.1", "0.3", "1", "3"],
-            "sigma_depth": ["0.01", "0.03", "0.1", "0.3", "1", "3"],
+            "sigma_depth": ["0.003", "0.01", "0.03", "0.1", "0.3", "1", "3"],
             "halve_color_sigma": ["true", "false"],
             "range_map": ["log", "reinhard", "linear"],
+            "filter_reflection": ["false", "true"],
         },
     },
 }
@@ -80,12 +90,37 @@ def run(cmd):
     return p.stdout
 
 
+def srgb8(exr, out_ppm):
+    """The 8-bit sRGB image of an EXR's R,G,B (clamped to [0, 1]) as a numpy array."""
+    run(["oiiotool", exr, "--ch", "R,G,B", "--clamp:min=0:max=1", "--colorconvert", "linear", "sRGB",
+         "-d", "uint8", "-o", out_ppm])
+    with open(out_ppm, "rb") as f:
+        data = f.read()
+    # Binary PPM: "P6\n<w> <h>\n255\n" then w*h*3 bytes.
+    parts = data.split(b"\n", 3)
+    w, h = map(int, parts[1].split())
+    return np.frombuffer(parts[3][: w * h * 3], dtype=np.uint8).reshape(h, w, 3).astype(np.float64)
+
+
 class Evaluator:
     def __init__(self, binary, frame, reference, workdir):
         self.binary, self.frame, self.reference, self.workdir = binary, frame, reference, workdir
         self.cache = {}
         self.records = []
         self.metric = None
+
+    def metrics(self, image):
+        m = json.loads(run([self.binary, "metrics", image, self.reference, "--json"]))
+        if "mse" not in m:
+            if not hasattr(self, "ref8"):
+                self.ref8 = srgb8(self.reference, os.path.join(self.workdir, "ref.ppm"))
+            img8 = srgb8(image, os.path.join(self.workdir, "img.ppm"))
+            m["mse"] = float(np.mean((img8 - self.ref8) ** 2))
+            m["source"] = "oiiotool"
+        if self.metric is None:
+            self.metric = "mse"
+            print(f"sweep_params: minimising 'mse' ({m.get('source', 'denoisebench metrics')})", flush=True)
+        return m
 
     def __call__(self, method, params):
         key = (method, tuple(sorted(params.items())))
@@ -98,10 +133,7 @@ class Evaluator:
         t0 = time.monotonic()
         stats = json.loads(run(cmd))
         wall = time.monotonic() - t0
-        m = json.loads(run([self.binary, "metrics", out, self.reference, "--json"]))
-        if self.metric is None:
-            self.metric = "mse" if "mse" in m else "mse_hdr"
-            print(f"sweep_params: minimising '{self.metric}'", flush=True)
+        m = self.metrics(out)
         err = float(m[self.metric])
         self.cache[key] = err
         self.records.append({"method": method, "params": dict(params), self.metric: err,
@@ -161,11 +193,17 @@ def main():
         run([a.binary, "render", a.scene, "--spp", str(a.spp), "--size", a.size, "--seed", str(a.seed), "-o", frame])
     if not a.reference and not os.path.exists(reference):
         print(f"rendering the reference of {a.scene} at {a.ref_spp} spp ...", flush=True)
-        run([a.binary, "reference", a.scene, "--spp", str(a.ref_spp), "--size", a.size, "-o", reference])
+        probe = subprocess.run([a.binary, "reference", "--help"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               text=True)
+        if "not available" in probe.stdout:
+            run([a.binary, "render", a.scene, "--spp", str(a.ref_spp), "--size", a.size, "--seed",
+                 str(a.seed + 1000), "-o", reference])
+        else:
+            run([a.binary, "reference", a.scene, "--spp", str(a.ref_spp), "--size", a.size, "-o", reference])
 
     with tempfile.TemporaryDirectory() as tmp:
         ev = Evaluator(a.binary, frame, reference, tmp)
-        input_err = json.loads(run([a.binary, "metrics", frame, reference, "--json"]))
+        input_err = ev.metrics(frame)
         results = {}
         for m in methods:
             best, best_err, start_err = descend(ev, m, GRIDS[m], a.rounds)

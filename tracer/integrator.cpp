@@ -55,7 +55,7 @@ Vec3 PathTracer::nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ct
   Sampler& s = ctx.sampler;
   float u0 = s.next(), u1 = s.next(), u2 = s.next();
   LightSample ls;
-  if (!scene_.sample_light(hit.p, u0, u1, u2, ls)) return Vec3(0.0f);
+  if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return Vec3(0.0f);
   float cos_s = dot(ls.wi, hit.ns);
   if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return Vec3(0.0f);
   Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
@@ -70,7 +70,7 @@ Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx) const {
   Sampler& s = ctx.sampler;
   float u0 = s.next(), u1 = s.next(), u2 = s.next();
   LightSample ls;
-  if (!scene_.sample_light(hit.p, u0, u1, u2, ls)) return Vec3(0.0f);
+  if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return Vec3(0.0f);
   float cos_s = dot(ls.wi, hit.ns);
   if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return Vec3(0.0f);
   Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
@@ -79,7 +79,8 @@ Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx) const {
   return ls.radiance * (kInvPi * cos_s / ls.pdf);
 }
 
-PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 path_weight, PathContext& ctx) const {
+PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, Vec3 path_weight,
+                               PathContext& ctx) const {
   PathRadiance out;
   Vec3 beta(1.0f);
   Vec3* sink = &out.first_emission;
@@ -91,7 +92,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 path_wei
     if (!scene_.intersect(ray, hit)) {
       Vec3 Le = scene_.escaped_radiance(ray.dir);
       if (!is_black(Le)) {
-        float w = prev_pdf > 0 ? power_heuristic(prev_pdf, scene_.escaped_light_pdf(ray.dir)) : 1.0f;
+        float w = prev_pdf > 0 ? power_heuristic(prev_pdf, scene_.escaped_light_pdf(ray.dir, prev_n)) : 1.0f;
         *sink += beta * Le * w;
       }
       break;
@@ -132,13 +133,14 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 path_wei
     if (is_black(beta)) break;
     prev_pdf = lobe.base_prob * cos_i * kInvPi;
     prev_p = hit.p;
+    prev_n = hit.ns;
     ray = Ray{hit.spawn_origin(wi), wi, 1e30f};
   }
   return out;
 }
 
 PathRadiance PathTracer::incoming(const Ray& ray, PathContext& ctx, int depth) const {
-  return trace(ray, depth, 0.0f, Vec3(1.0f), ctx);
+  return trace(ray, depth, 0.0f, Vec3(0.0f), Vec3(1.0f), ctx);
 }
 
 void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ctx, SampleResult& out) const {
@@ -170,7 +172,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
       decompose(r, level + 1, depth, ctx, out);
       L.reflection = L.tint * out.level[level + 1].color();
     } else {
-      L.reflection = L.tint * trace(r, depth, 0.0f, L.tint, ctx).total();
+      L.reflection = L.tint * trace(r, depth, 0.0f, Vec3(0.0f), L.tint, ctx).total();
     }
     return;
   }
@@ -183,7 +185,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
   float cos_i = dot(wi, hit.ns);
   if (cos_i > 1e-7f && dot(wi, hit.ng) > 0) {
     Ray r{hit.spawn_origin(wi), wi, 1e30f};
-    PathRadiance pr = trace(r, depth, lobe.base_prob * cos_i * kInvPi, hit.albedo * lobe.base_weight, ctx);
+    PathRadiance pr = trace(r, depth, lobe.base_prob * cos_i * kInvPi, hit.ns, hit.albedo * lobe.base_weight, ctx);
     direct += pr.first_emission;
     indirect = pr.rest;
   }

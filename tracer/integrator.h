@@ -31,8 +31,31 @@
 //                  - base chosen: D and I as for diffuse x, both times (1 - Fr) / (1 - Pc);
 //                    tint = 0, R = 0 (the next level is absent for this sample).
 // F is then computed per sample as (D + I) * T + R + E, so the identity holds exactly per
-// sample; means over a pixel satisfy it up to the product-of-means error (edge pixels).
+// sample. The frame's pixel means of D and I are albedo-weighted (render.cpp), so that the
+// identity also holds for the means of every pixel, edge pixels included.
+// Reflection levels in a frame: refl(k).* are means over the samples that reached level k
+// (went through k specular bounces), and refl(k).tint is the mean over the samples of level
+// k - 1 of the bounce weight into level k (0 for samples that took a diffuse lobe); so
+// reflection at level k - 1 = refl(k).tint * ((D + I) * T + R + E at level k), up to the
+// product-of-means error where the tint varies inside a pixel (Fresnel weights on curved coats).
 // A path reaching max_depth at x stops there: D = I = R = 0 (E and T still set).
+//
+// ---- Use from a renderer-type method (irradiance cache) -----------------------------------
+//   auto scene = load_scene("cornell-box");                  // tracer/render.h
+//   rt::PathTracer tracer(*scene, {});                        // max_depth 8
+//   rt::Sampler rng(seed, pixel_or_record_id, sample_index);  // counter-based: deterministic
+//   rt::PathContext ctx{rng};
+//   rt::Ray ray = scene->camera.generate_ray(x + 0.5f, y + 0.5f, width, height);
+//   rt::SurfaceHit hit;
+//   if (scene->intersect(ray, hit) && !hit.material->is_specular()) {
+//     rt::Vec3 direct = tracer.direct_white(hit, ctx);        // E_direct / pi, white surface
+//     // Hemisphere gather: cosine-distributed directions about hit.ns, each
+//     rt::Ray g{hit.spawn_origin(dir), dir, 1e30f};
+//     rt::Vec3 L = tracer.incoming(g, ctx, /*depth=*/2).rest;   // indirect only (no emission at
+//     // the gathered hit: that light is direct and counted by direct_white)
+//     // outgoing radiance = hit.albedo * (direct + mean of L)   (cosine-weighted mean = E / pi)
+//   }
+// Scene, Camera, SurfaceHit, Material and the light queries are documented in tracer/scene.h.
 #pragma once
 
 #include <cstdint>
@@ -106,8 +129,9 @@ class PathTracer {
   // probability lobe_prob, for a white surface.
   Vec3 nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ctx) const;
   // Continues a path along `ray` whose previous vertex sampled it with solid-angle density
-  // prev_pdf (0 for a specular bounce or a camera ray: weight 1 for emission found).
-  PathRadiance trace(Ray ray, int depth, float prev_pdf, Vec3 path_weight, PathContext& ctx) const;
+  // prev_pdf (0 for a specular bounce or a camera ray: weight 1 for emission found) from a
+  // point of shading normal prev_n; path_weight is the path's weight so far (Russian roulette).
+  PathRadiance trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, Vec3 path_weight, PathContext& ctx) const;
   void decompose(const Ray& ray, int level, int depth, PathContext& ctx, SampleResult& out) const;
 
   const Scene& scene_;

@@ -9,10 +9,8 @@
 //
 // Edge set G (paper 3.1), from the finished normal and depth layers: pixel p is in G when
 //  - its own samples disagree: |mean normal| < kEdgeNormalLength (normals spread over > ~25
-//    degrees, or hits mixed with misses), the relative standard deviation of its depth
-//    samples exceeds kEdgeDepthSpread, or that of its albedo samples exceeds kEdgeAlbedoSpread
-//    (a texture edge inside the pixel: formula 1 fails there for the same reason as at a
-//    geometric edge, the mean of a product not being the product of the means); or
+//    degrees, or hits mixed with misses) or the relative standard deviation of its depth
+//    samples exceeds kEdgeDepthSpread; or
 //  - a 4-neighbour q differs: the angle between their mean normals exceeds kEdgeNormalAngle,
 //    one is a miss and the other not, or |depth_p - depth_q| > kEdgeDepthRel * min(depth_p,
 //    depth_q) (both then belong to G).
@@ -20,9 +18,16 @@
 // and averaged per 4x4 sub-pixel stratum: sub-pixel (i, j) holds the samples whose film position
 // falls in [i/4, (i+1)/4) x [j/4, (j+1)/4) of the pixel. With spp = 256 each holds 16 samples.
 // A sub-pixel that no sample falls in (spp < 16) gets the pixel's means.
-#include <xmmintrin.h>
-#include <pmmintrin.h>
-
+//
+// Pixel means of D and I are albedo-weighted ("demodulated"): per channel c,
+//   D_c = sum_s D_c(s) T_c(s) / sum_s T_c(s)   (and likewise I), T_c = mean of T_c(s),
+// so that (D + I) * T + R + E equals the mean of F exactly for every pixel, also where the
+// albedo varies inside the pixel (texture detail, silhouettes): the product-of-means error of
+// paper 3.1 never enters the layers. Where sum_s T_c(s) = 0 (mirrors, sky, black albedo) D_c and
+// I_c are the plain means, which keeps the illumination of such pixels available to filters.
+// For a pixel of constant albedo both definitions coincide. direct_variance and
+// indirect_variance are the variances of these means (of D T / mean T: the ratio estimator's
+// first-order variance). Edge sub-pixels use the same definition over their stratum's samples.
 #include <atomic>
 #include <cmath>
 
@@ -47,15 +52,11 @@ constexpr float kEdgeNormalLength = 0.95f;  // |mean of unit normals| below: nor
 constexpr float kEdgeNormalAngle = 25.0f;   // degrees between neighbours' normals
 constexpr float kEdgeDepthRel = 0.05f;      // relative depth jump between neighbours
 constexpr float kEdgeDepthSpread = 0.02f;   // relative std. deviation of depth inside a pixel
-constexpr float kEdgeAlbedoSpread = 0.01f;  // relative std. deviation of albedo inside a pixel
 constexpr int kTile = 16;
 
-void set_ftz_daz() {
-  // Embree and the integrator want denormals flushed (speed); set on every rendering thread,
-  // so every thread computes the same bits.
-  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-}
+// Embree and the integrator want denormals flushed (speed); set on every rendering task, so
+// every thread computes the same bits.
+void set_ftz_daz() { enable_flush_to_zero(); }
 
 void check_settings(const RenderSettings& s) {
   Image::check_size(s.width, s.height, 3, "render size");
@@ -118,48 +119,99 @@ struct D3 {
     v[1] += a.y;
     v[2] += a.z;
   }
-  void add_sq(Vec3 a) {
-    v[0] += double(a.x) * a.x;
-    v[1] += double(a.y) * a.y;
-    v[2] += double(a.z) * a.z;
-  }
 };
 
-// Per-pixel sums of one level's layers over the samples that reached the level.
+// Per-pixel sums of one level's layers over the samples that reached the level, kept as one
+// flat array so that adding a sample is a single loop the compiler vectorises (float -> double
+// conversions and adds four at a time); the per-sample bookkeeping of all layers otherwise
+// costs as much as tracing the camera ray.
+namespace acc {
+enum : int {
+  kDirect = 0, kIndirect = 3, kAlbedo = 6, kReflection = 9, kEmission = 12, kNormal = 15, kTint = 18,
+  kDirectT = 21, kIndirectT = 24, kDepth = 27, kDepthSq = 28,
+  kLevelSize = 32,  // padded to a multiple of 4
+  // Level 0 only: colour and the squares for the variance layers.
+  kColor = 0, kColorSq = 3, kDirectSq = 6, kIndirectSq = 9, kDirectTSq = 12, kIndirectTSq = 15,
+  kExtraSize = 20,
+};
+}  // namespace acc
+
 struct LevelSums {
   std::int64_t n = 0;
-  D3 direct, indirect, albedo, reflection, emission, normal, tint, albedo_sq;
-  double depth = 0, depth_sq = 0;
-  void add(const LevelSample& l) {
-    ++n;
-    direct.add(l.direct);
-    indirect.add(l.indirect);
-    albedo.add(l.albedo);
-    albedo_sq.add_sq(l.albedo);
-    reflection.add(l.reflection);
-    emission.add(l.emission);
-    normal.add(l.normal);
-    tint.add(l.tint);
-    depth += l.depth;
-    depth_sq += double(l.depth) * l.depth;
-  }
+  alignas(32) double v[acc::kLevelSize] = {};
+  const double* at(int off) const { return v + off; }
 };
 
-void store(Image& img, int x, int y, const D3& s, double inv) {
-  float* p = img.pixel(x, y);
-  for (int c = 0; c < 3; ++c) p[c] = float(s.v[c] * inv);
+inline void put3(float* o, Vec3 a) {
+  o[0] = a.x;
+  o[1] = a.y;
+  o[2] = a.z;
 }
 
-void store_var(Image& img, int x, int y, const D3& sum, const D3& sq, std::int64_t n) {
+inline void pack_level(const LevelSample& l, float* o) {
+  put3(o + acc::kDirect, l.direct);
+  put3(o + acc::kIndirect, l.indirect);
+  put3(o + acc::kAlbedo, l.albedo);
+  put3(o + acc::kReflection, l.reflection);
+  put3(o + acc::kEmission, l.emission);
+  put3(o + acc::kNormal, l.normal);
+  put3(o + acc::kTint, l.tint);
+  put3(o + acc::kDirectT, l.direct * l.albedo);
+  put3(o + acc::kIndirectT, l.indirect * l.albedo);
+  o[acc::kDepth] = l.depth;
+  o[acc::kDepthSq] = l.depth * l.depth;
+  o[29] = o[30] = o[31] = 0;
+}
+
+template <int N>
+inline void add_values(double* __restrict a, const float* __restrict v) {
+  for (int i = 0; i < N; ++i) a[i] += double(v[i]);
+}
+
+// Mean of three sums.
+void store(Image& img, int x, int y, const double* s, double inv) {
+  float* p = img.pixel(x, y);
+  for (int c = 0; c < 3; ++c) p[c] = float(s[c] * inv);
+}
+
+void store_var(Image& img, int x, int y, const double* sum, const double* sq, std::int64_t n) {
   float* p = img.pixel(x, y);
   for (int c = 0; c < 3; ++c) {
     if (n < 2) {
       p[c] = 0;
       continue;
     }
-    double mean = sum.v[c] / n;
-    double var = std::max(0.0, (sq.v[c] - mean * sum.v[c]) / double(n - 1));
+    double mean = sum[c] / n;
+    double var = std::max(0.0, (sq[c] - mean * sum[c]) / double(n - 1));
     p[c] = float(var / n);
+  }
+}
+
+// The albedo-weighted mean of an illumination layer (see top of file) into out[0..2].
+void demodulated(const double* sum_t, const double* sum, const double* albedo, std::int64_t n, float* out) {
+  for (int c = 0; c < 3; ++c) {
+    if (albedo[c] > 1e-12 * double(n)) out[c] = float(sum_t[c] / albedo[c]);
+    else out[c] = n > 0 ? float(sum[c] / double(n)) : 0.0f;
+  }
+}
+
+// Variance of that mean: of the samples X T / mean(T), or of X where the albedo sums to 0.
+void demodulated_var(const double* sum_t, const double* sq_t, const double* sum, const double* sq,
+                     const double* albedo, std::int64_t n, float* out) {
+  for (int c = 0; c < 3; ++c) {
+    if (n < 2) {
+      out[c] = 0;
+      continue;
+    }
+    const bool weighted = albedo[c] > 1e-12 * double(n);
+    const double s1 = weighted ? sum_t[c] : sum[c], s2 = weighted ? sq_t[c] : sq[c];
+    const double mean = s1 / n;
+    double var = std::max(0.0, (s2 - mean * s1) / double(n - 1)) / n;
+    if (weighted) {
+      const double t = albedo[c] / n;
+      var /= t * t;
+    }
+    out[c] = float(var);
   }
 }
 
@@ -205,74 +257,85 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     lv[k].depth = &frame.add(layer::at_level(k, layer::kDepth), 1);
     lv[k].tint = k > 0 ? &frame.add(layer::at_level(k, layer::kTint), 3) : nullptr;
   }
-  // Relative depth and albedo spreads inside each pixel, for the edge test (kept only until G
-  // is known).
-  Image depth_spread(W, H, 1), albedo_spread(W, H, 1);
+  // Relative depth spread inside each pixel, for the edge test (kept only until G is known).
+  Image depth_spread(W, H, 1);
 
   std::atomic<std::int64_t> dropped{0};
+  std::atomic<std::uint64_t> rays{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
     SampleResult r;
     std::int64_t tile_dropped = 0;
+    std::uint64_t tile_rays = 0;
     std::vector<LevelSums> sums(K + 1);
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
         const std::uint64_t pixel = std::uint64_t(y) * W + x;
         for (auto& s : sums) s = LevelSums{};
-        D3 f_sum, f_sq, d_sq, i_sq;
+        alignas(32) double extra[acc::kExtraSize] = {};
+        alignas(32) float vals[acc::kLevelSize];
+        alignas(32) float xvals[acc::kExtraSize];
         for (int s = 0; s < spp; ++s) {
           Sampler rng(settings.seed, pixel, std::uint64_t(s));
           float fx, fy;
           sample_position(s, grid, rng, fx, fy);
           PathContext ctx{rng};
           tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
+          tile_rays += ctx.rays;
           if (!sample_finite(r)) {
             ++tile_dropped;
             continue;
           }
-          Vec3 f = r.level[0].color();
-          f_sum.add(f);
-          f_sq.add_sq(f);
-          d_sq.add_sq(r.level[0].direct);
-          i_sq.add_sq(r.level[0].indirect);
-          for (int k = 0; k < r.levels && k <= K; ++k) sums[k].add(r.level[k]);
+          const LevelSample& l0 = r.level[0];
+          const Vec3 f = l0.color(), dt = l0.direct * l0.albedo, it = l0.indirect * l0.albedo;
+          put3(xvals + acc::kColor, f);
+          put3(xvals + acc::kColorSq, f * f);
+          put3(xvals + acc::kDirectSq, l0.direct * l0.direct);
+          put3(xvals + acc::kIndirectSq, l0.indirect * l0.indirect);
+          put3(xvals + acc::kDirectTSq, dt * dt);
+          put3(xvals + acc::kIndirectTSq, it * it);
+          xvals[18] = xvals[19] = 0;
+          add_values<acc::kExtraSize>(extra, xvals);
+          for (int k = 0; k < r.levels && k <= K; ++k) {
+            pack_level(r.level[k], vals);
+            ++sums[k].n;
+            add_values<acc::kLevelSize>(sums[k].v, vals);
+          }
         }
         const std::int64_t n = sums[0].n;
         const double inv = n > 0 ? 1.0 / n : 0.0;
-        store(color, x, y, f_sum, inv);
-        store_var(var_f, x, y, f_sum, f_sq, n);
-        store_var(var_d, x, y, sums[0].direct, d_sq, n);
-        store_var(var_i, x, y, sums[0].indirect, i_sq, n);
+        const LevelSums& L0 = sums[0];
+        store(color, x, y, extra + acc::kColor, inv);
+        store_var(var_f, x, y, extra + acc::kColor, extra + acc::kColorSq, n);
+        demodulated_var(L0.at(acc::kDirectT), extra + acc::kDirectTSq, L0.at(acc::kDirect), extra + acc::kDirectSq,
+                        L0.at(acc::kAlbedo), n, var_d.pixel(x, y));
+        demodulated_var(L0.at(acc::kIndirectT), extra + acc::kIndirectTSq, L0.at(acc::kIndirect),
+                        extra + acc::kIndirectSq, L0.at(acc::kAlbedo), n, var_i.pixel(x, y));
         samples.at(x, y, 0) = float(n);
         for (int k = 0; k <= K; ++k) {
           const LevelSums& L = sums[k];
           const double li = L.n > 0 ? 1.0 / L.n : 0.0;
-          store(*lv[k].direct, x, y, L.direct, li);
-          store(*lv[k].indirect, x, y, L.indirect, li);
-          store(*lv[k].albedo, x, y, L.albedo, li);
-          store(*lv[k].reflection, x, y, L.reflection, li);
-          store(*lv[k].emission, x, y, L.emission, li);
-          store(*lv[k].normal, x, y, L.normal, li);
-          lv[k].depth->at(x, y, 0) = float(L.depth * li);
+          demodulated(L.at(acc::kDirectT), L.at(acc::kDirect), L.at(acc::kAlbedo), L.n, lv[k].direct->pixel(x, y));
+          demodulated(L.at(acc::kIndirectT), L.at(acc::kIndirect), L.at(acc::kAlbedo), L.n,
+                      lv[k].indirect->pixel(x, y));
+          store(*lv[k].albedo, x, y, L.at(acc::kAlbedo), li);
+          store(*lv[k].reflection, x, y, L.at(acc::kReflection), li);
+          store(*lv[k].emission, x, y, L.at(acc::kEmission), li);
+          store(*lv[k].normal, x, y, L.at(acc::kNormal), li);
+          lv[k].depth->at(x, y, 0) = float(L.v[acc::kDepth] * li);
           // refl(k).tint: mean over the samples of level k-1 of the bounce weight into level k.
           if (k > 0) {
             const LevelSums& P = sums[k - 1];
-            store(*lv[k].tint, x, y, P.tint, P.n > 0 ? 1.0 / P.n : 0.0);
+            store(*lv[k].tint, x, y, P.at(acc::kTint), P.n > 0 ? 1.0 / P.n : 0.0);
           }
         }
         if (n > 1) {
-          double m = sums[0].depth * inv;
-          double var = std::max(0.0, sums[0].depth_sq * inv - m * m);
+          double m = L0.v[acc::kDepth] * inv;
+          double var = std::max(0.0, L0.v[acc::kDepthSq] * inv - m * m);
           depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
-          double tv = 0, tm = 0;
-          for (int c = 0; c < 3; ++c) {
-            double mc = sums[0].albedo.v[c] * inv;
-            tv += std::max(0.0, sums[0].albedo_sq.v[c] * inv - mc * mc);
-            tm += mc * mc;
-          }
-          albedo_spread.at(x, y, 0) = float(std::sqrt(tv) / (std::sqrt(tm) + 1e-3));
         }
       }
     dropped += tile_dropped;
+    rays += tile_rays;
     if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * spp);
   });
 
@@ -292,14 +355,12 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     for (int x = 0; x < W; ++x) {
       Vec3 n = pixel_vec(normal, x, y);
       float ln = length(n);
-      bool inner = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread ||
-                   albedo_spread.at(x, y, 0) > kEdgeAlbedoSpread;
+      bool inner = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread;
       if (inner) edge.at(x, y, 0) = 1;
       if (x + 1 < W && differ(x, y, x + 1, y)) edge.at(x, y, 0) = edge.at(x + 1, y, 0) = 1;
       if (y + 1 < H && differ(x, y, x, y + 1)) edge.at(x, y, 0) = edge.at(x, y + 1, 0) = 1;
     }
   depth_spread = Image();
-  albedo_spread = Image();
 
   if (settings.edge_subpixels) {
     EdgeSubpixels es;
@@ -318,7 +379,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
           const int x = es.pixels[i] % W, y = es.pixels[i] / W;
           struct Sub {
             int n = 0;
-            D3 normal, albedo, direct, indirect;
+            D3 normal, albedo, direct, indirect, direct_t, indirect_t;
             double depth = 0;
           } sub[EdgeSubpixels::kPerPixel];
           for (int s = 0; s < spp; ++s) {
@@ -334,6 +395,8 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
             b.albedo.add(r.level[0].albedo);
             b.direct.add(r.level[0].direct);
             b.indirect.add(r.level[0].indirect);
+            b.direct_t.add(r.level[0].direct * r.level[0].albedo);
+            b.indirect_t.add(r.level[0].indirect * r.level[0].albedo);
             b.depth += r.level[0].depth;
           }
           EdgeSample* out = &es.samples[i * EdgeSubpixels::kPerPixel];
@@ -353,10 +416,11 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
             for (int c2 = 0; c2 < 3; ++c2) {
               e.normal[c2] = float(sub[k].normal.v[c2] * inv);
               e.albedo[c2] = float(sub[k].albedo.v[c2] * inv);
-              e.direct[c2] = float(sub[k].direct.v[c2] * inv);
-              e.indirect[c2] = float(sub[k].indirect.v[c2] * inv);
+
             }
             e.depth = float(sub[k].depth * inv);
+            demodulated(sub[k].direct_t.v, sub[k].direct.v, sub[k].albedo.v, sub[k].n, e.direct);
+            demodulated(sub[k].indirect_t.v, sub[k].indirect.v, sub[k].albedo.v, sub[k].n, e.indirect);
           }
         }
       });
@@ -379,6 +443,8 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   frame.meta.reflection_levels = K;
   frame.meta.extra["max_depth"] = std::to_string(settings.max_depth);
   frame.meta.extra["scene_hash"] = scene_content_hash(scene);
+  // Rays of the main pass (closest-hit and shadow rays; the edge pass re-traces G's samples).
+  frame.meta.extra["rays"] = std::to_string(rays.load());
   frame.meta.render_seconds = clock.seconds();
   return frame;
 }

@@ -13,15 +13,11 @@ Vec3 SurfaceHit::spawn_origin(Vec3 dir) const {
   return p + ng * (dot(dir, ng) >= 0 ? offset : -offset);
 }
 
-Ray Camera::generate_ray(float fx, float fy, int width, int height) const {
-  Vec3 forward = normalize(look_at - eye);
-  Vec3 right = normalize(cross(forward, up));
-  Vec3 true_up = cross(right, forward);
-  float tan_half = std::tan(vfov_degrees * kPi / 360.0f);
-  float aspect = float(width) / float(height);
-  float sx = (2.0f * fx / width - 1.0f) * tan_half * aspect;
-  float sy = (1.0f - 2.0f * fy / height) * tan_half;
-  return Ray{eye, normalize(forward + right * sx + true_up * sy), 1e30f};
+void Camera::prepare() {
+  forward_ = normalize(look_at - eye);
+  right_ = normalize(cross(forward_, up));
+  up_ = cross(right_, forward_);
+  tan_half_ = std::tan(vfov_degrees * kPi / 360.0f);
 }
 
 Vec3 Sky::radiance(Vec3 dir) const {
@@ -55,6 +51,7 @@ std::size_t Scene::triangle_count() const {
 }
 
 void Scene::commit() {
+  camera.prepare();
   rtc_ = rtcNewScene(device_);
   rtcSetSceneBuildQuality(rtc_, RTC_BUILD_QUALITY_HIGH);
   bmin_ = Vec3(1e30f);
@@ -83,16 +80,22 @@ void Scene::commit() {
   rtcCommitScene(rtc_);
   if (meshes.empty()) bmin_ = bmax_ = Vec3(0.0f);
 
-  // Emitter distribution: weight = an estimate of emitted power (luminance x area x pi per
-  // emitting side for triangles; for sun and sky, the power they send through a disc of the
-  // scene's bounding radius). Any positive weights keep the estimator unbiased; these make
-  // bright and large emitters get the shadow rays.
+  // Emitter distribution. Light groups are the emissive meshes, the sun and the sky; an
+  // emitter is chosen with probability 1/2 (its share of the estimated power) + 1/2 (a uniform
+  // choice of its group, then its share of the group's power). Power alone starves small
+  // lights beside a bright but mostly occluded one (a lamp beside the sun behind a window);
+  // the uniform half keeps every group sampled. Estimated power: luminance x area x pi per
+  // emitting side for triangles; for sun and sky, what they send through a disc of the scene's
+  // bounding radius. Any positive probabilities keep the estimator unbiased.
   emitters_.clear();
   emitter_cdf_.clear();
   select_prob_.assign(meshes.size(), {});
-  float total = 0;
+  std::vector<float> power;                  // per emitter, then sun, then sky
+  std::vector<int> group;                    // group of each entry
+  std::vector<double> group_power;
   for (std::size_t gi = 0; gi < meshes.size(); ++gi) {
     const Mesh& m = meshes[gi];
+    int g = -1;
     for (std::size_t t = 0; t < m.triangles(); ++t) {
       const Material& mat = materials[m.material[t]];
       if (!mat.is_emitter()) continue;
@@ -101,9 +104,14 @@ void Scene::commit() {
       if (!(area > 0)) continue;
       float w = luminance(mat.emission) * area * kPi * (mat.two_sided ? 2.0f : 1.0f);
       if (!(w > 0)) continue;
-      emitters_.push_back({unsigned(gi), unsigned(t), area});
-      total += w;
-      emitter_cdf_.push_back(total);
+      if (g < 0) {
+        g = int(group_power.size());
+        group_power.push_back(0);
+      }
+      emitters_.push_back({unsigned(gi), unsigned(t), area, a, b - a, c - a, normalize(cross(b - a, c - a)), &mat});
+      power.push_back(w);
+      group.push_back(g);
+      group_power[g] += w;
     }
   }
   Vec3 ext = bmax_ - bmin_;
@@ -111,23 +119,36 @@ void Scene::commit() {
   float disc = kPi * radius * radius;
   float sun_w = sun.enabled ? luminance(sun.radiance) * sun.solid_angle() * disc : 0.0f;
   float sky_w = sky.enabled ? luminance(sky.average) * kPi * disc : 0.0f;
-  total += sun_w;
-  emitter_cdf_.push_back(total);
-  total += sky_w;
-  emitter_cdf_.push_back(total);
-  total_light_weight_ = total;
-  tri_select_.resize(emitters_.size());
-  float prev = 0;
+  for (float w : {sun_w, sky_w}) {
+    power.push_back(w);
+    if (w > 0) {
+      group.push_back(int(group_power.size()));
+      group_power.push_back(w);
+    } else {
+      group.push_back(-1);
+    }
+  }
+  double total = 0;
+  for (float w : power) total += w;
+  const double ngroups = double(group_power.size());
+  std::vector<float> prob(power.size(), 0.0f);
+  for (std::size_t i = 0; i < power.size(); ++i)
+    if (power[i] > 0 && total > 0)
+      prob[i] = float(0.5 * power[i] / total + 0.5 / ngroups * power[i] / group_power[group[i]]);
+  double acc = 0;
+  for (float p : prob) {
+    acc += p;
+    emitter_cdf_.push_back(float(acc));
+  }
+  total_light_weight_ = total > 0 ? float(acc) : 0.0f;
+  tri_select_.assign(prob.begin(), prob.begin() + emitters_.size());
   for (std::size_t i = 0; i < emitters_.size(); ++i) {
-    float p = (emitter_cdf_[i] - prev) / total;
-    prev = emitter_cdf_[i];
-    tri_select_[i] = p;
     auto& v = select_prob_[emitters_[i].mesh];
     if (v.empty()) v.assign(meshes[emitters_[i].mesh].triangles(), 0.0f);
-    v[emitters_[i].prim] = p;
+    v[emitters_[i].prim] = tri_select_[i];
   }
-  sun_select_ = total > 0 ? sun_w / total : 0;
-  sky_select_ = total > 0 ? sky_w / total : 0;
+  sun_select_ = prob[emitters_.size()];
+  sky_select_ = prob[emitters_.size() + 1];
 }
 
 void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const {
@@ -217,7 +238,7 @@ Vec3 Scene::escaped_radiance(Vec3 dir) const {
   return L;
 }
 
-bool Scene::sample_light(Vec3 p, float u0, float u1, float u2, LightSample& out) const {
+bool Scene::sample_light(Vec3 p, Vec3 n, float u0, float u1, float u2, LightSample& out) const {
   if (total_light_weight_ <= 0) return false;
   const float target = u0 * total_light_weight_;
   const std::size_t ntri = emitters_.size();
@@ -231,20 +252,17 @@ bool Scene::sample_light(Vec3 p, float u0, float u1, float u2, LightSample& out)
   }
   if (idx < ntri) {
     const EmissiveTriangle& e = emitters_[idx];
-    const Mesh& m = meshes[e.mesh];
-    Vec3 a = m.positions[3 * e.prim], b = m.positions[3 * e.prim + 1], c = m.positions[3 * e.prim + 2];
     // Uniform point on the triangle.
     float su = std::sqrt(u1);
-    float b0 = 1 - su, b1 = u2 * su;
-    Vec3 q = a * b0 + b * b1 + c * (1 - b0 - b1);
+    float b1 = 1 - su, b2 = u2 * su;
+    Vec3 q = e.p0 + e.e1 * b1 + e.e2 * b2;
     Vec3 d = q - p;
     float dist2 = dot(d, d);
     if (!(dist2 > 0)) return false;
     float dist = std::sqrt(dist2);
     Vec3 wi = d / dist;
-    Vec3 n = normalize(cross(b - a, c - a));
-    float cos_l = -dot(n, wi);
-    const Material& mat = materials[m.material[e.prim]];
+    float cos_l = -dot(e.normal, wi);
+    const Material& mat = *e.material;
     if (cos_l <= 0) {
       if (!mat.two_sided) return false;
       cos_l = -cos_l;
@@ -261,14 +279,14 @@ bool Scene::sample_light(Vec3 p, float u0, float u1, float u2, LightSample& out)
     out.wi = f.to_world(sample_cone(u1, u2, sun.cos_max));
     out.dist = 1e30f;
     out.radiance = sun.radiance + sky.radiance(out.wi);
-    out.pdf = escaped_light_pdf(out.wi);
+    out.pdf = escaped_light_pdf(out.wi, n);
     return true;
   }
-  out.wi = sample_sphere(u1, u2);
+  out.wi = Frame(n).to_world(sample_cosine_hemisphere(u1, u2));
   out.dist = 1e30f;
   out.radiance = escaped_radiance(out.wi);
-  out.pdf = escaped_light_pdf(out.wi);
-  return true;
+  out.pdf = escaped_light_pdf(out.wi, n);
+  return out.pdf > 0;
 }
 
 float Scene::light_pdf(Vec3 from, const SurfaceHit& hit) const {
@@ -288,12 +306,12 @@ float Scene::light_pdf(Vec3 from, const SurfaceHit& hit) const {
   return sel * dist2 / (cos_l * area);
 }
 
-float Scene::escaped_light_pdf(Vec3 dir) const {
+float Scene::escaped_light_pdf(Vec3 dir, Vec3 n) const {
   // The sun and the sky are both sampled, and both contribute along a direction inside the
   // sun's disc: the density is the sum over the two strategies' choices.
   float pdf = 0;
   if (sun_select_ > 0 && dot(dir, sun.direction) >= sun.cos_max) pdf += sun_select_ / sun.solid_angle();
-  if (sky_select_ > 0) pdf += sky_select_ / (4 * kPi);
+  if (sky_select_ > 0) pdf += sky_select_ * std::max(0.0f, dot(dir, n)) * kInvPi;
   return pdf;
 }
 

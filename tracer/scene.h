@@ -103,8 +103,18 @@ struct Camera {
   Vec3 up{0, 1, 0};
   float vfov_degrees = 45.0f;
   // A pinhole camera ray through film position (fx, fy) in pixels, (0, 0) being the top-left
-  // corner of the image and (width, height) the bottom-right one.
-  Ray generate_ray(float fx, float fy, int width, int height) const;
+  // corner of the image and (width, height) the bottom-right one. Call prepare() after
+  // changing eye, look_at, up or vfov (Scene::commit does).
+  Ray generate_ray(float fx, float fy, int width, int height) const {
+    float sx = (2.0f * fx / width - 1.0f) * tan_half_ * (float(width) / float(height));
+    float sy = (1.0f - 2.0f * fy / height) * tan_half_;
+    return Ray{eye, normalize(forward_ + right_ * sx + up_ * sy), 1e30f};
+  }
+  void prepare();
+
+ private:
+  Vec3 forward_{0, 0, -1}, right_{1, 0, 0}, up_{0, 1, 0};
+  float tan_half_ = 0.41421356f;
 };
 
 // The sky: radiance arriving from directions no surface blocks.
@@ -149,6 +159,7 @@ class Scene {
   std::string name;                 // built-in name or file stem
   std::string source_file;          // the scene TOML
   std::vector<std::string> files;   // every file read (TOML, meshes, textures) for the content hash
+  std::string content_hash;         // scene_content_hash, computed by load_scene
   rt::Camera camera;
   std::vector<rt::Material> materials;
   std::vector<std::unique_ptr<rt::Texture>> textures;
@@ -167,14 +178,15 @@ class Scene {
   // Radiance arriving along a ray that escapes the scene (sky plus the sun's disc).
   rt::Vec3 escaped_radiance(rt::Vec3 dir) const;
 
-  // Chooses an emitter (emissive triangle, sun or sky) in proportion to an estimate of its
-  // power and a point/direction on it, seen from `p`. Returns false when the scene has no
-  // emitter. u0 selects the emitter, (u1, u2) the point.
-  bool sample_light(rt::Vec3 p, float u0, float u1, float u2, rt::LightSample& out) const;
+  // Chooses an emitter (emissive triangle, sun or sky; see Scene::commit for the probabilities)
+  // and a point or direction on it, for a shading point `p` with shading normal `n` (the sky is
+  // sampled by a cosine-weighted hemisphere about n). Returns false when the scene has no
+  // emitter or the sample is unusable. u0 selects the emitter, (u1, u2) the point.
+  bool sample_light(rt::Vec3 p, rt::Vec3 n, float u0, float u1, float u2, rt::LightSample& out) const;
   // The solid-angle density with which sample_light() from `from` would have produced the
-  // emitter point `hit` (reached along a unit direction), and the same for an escaped direction.
+  // emitter point `hit`, and the same for an escaped direction from a point of normal n.
   float light_pdf(rt::Vec3 from, const rt::SurfaceHit& hit) const;
-  float escaped_light_pdf(rt::Vec3 dir) const;
+  float escaped_light_pdf(rt::Vec3 dir, rt::Vec3 n) const;
   bool has_lights() const { return total_light_weight_ > 0; }
 
   rt::Vec3 bounds_min() const { return bmin_; }
@@ -191,9 +203,11 @@ class Scene {
   struct EmissiveTriangle {
     unsigned mesh, prim;
     float area;
+    rt::Vec3 p0, e1, e2, normal;  // corner, edges, unit normal (winding side)
+    const rt::Material* material;
   };
   std::vector<EmissiveTriangle> emitters_;
-  std::vector<float> emitter_cdf_;   // over emitters_, then sun, then sky (unnormalised)
+  std::vector<float> emitter_cdf_;   // over emitters_, then sun, then sky (sums to 1)
   std::vector<float> tri_select_;    // per emissive triangle: selection probability
   // Selection probability of emissive triangle (mesh, prim), looked up on BSDF hits.
   std::vector<std::vector<float>> select_prob_;

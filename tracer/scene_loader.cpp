@@ -41,9 +41,14 @@ fs::path builtin_dir() {
 fs::path mcguire_dir(const SceneLoadOptions& o) {
   if (!o.scenes_dir.empty()) return o.scenes_dir;
   if (const char* s = std::getenv("DENOISEBENCH_SCENES"); s && *s) return s;
-  fs::path repo = builtin_dir().parent_path().parent_path();
-  fs::path p = repo.parent_path() / "shared" / "scenes";
-  if (fs::is_directory(p)) return p;
+  // ../shared/scenes beside the repository; a git worktree one or two folders further down
+  // (worktrees/NAME) also finds it, by looking up to two more levels up.
+  fs::path dir = builtin_dir().parent_path().parent_path().parent_path();
+  for (int up = 0; up < 3 && !dir.empty(); ++up, dir = dir.parent_path()) {
+    fs::path p = dir / "shared" / "scenes";
+    if (fs::is_directory(p)) return p;
+    if (dir == dir.parent_path()) break;
+  }
   return {};
 }
 
@@ -88,6 +93,11 @@ struct MeshBuilder {
   void quad(Vec3 p0, Vec3 p1, Vec3 p2, Vec3 p3, float su, float sv, unsigned mat) {
     tri(p0, p1, p2, 0, 0, su, 0, su, sv, mat);
     tri(p0, p2, p3, 0, 0, su, sv, 0, sv, mat);
+  }
+  // Quad with explicit texture coordinates per corner.
+  void quad_uv(const Vec3 (&p)[4], const float (&uv)[8], unsigned mat) {
+    tri(p[0], p[1], p[2], uv[0], uv[1], uv[2], uv[3], uv[4], uv[5], mat);
+    tri(p[0], p[2], p[3], uv[0], uv[1], uv[4], uv[5], uv[6], uv[7], mat);
   }
 };
 
@@ -168,6 +178,48 @@ void build_cylinder(MeshBuilder& b, Vec3 base, float r, float height, int seg, b
   }
 }
 
+// An arch: the wall piece between a rectangle [-r, r] x [0, height] and the semicircle of
+// radius r about the origin (the opening), extruded over z in [-depth/2, depth/2]. Front, back,
+// intrados (the curved underside) and top faces; the sides meet the columns.
+void build_arch(MeshBuilder& b, float r, float height, float depth, int seg, const Transform& x, float su, float sv,
+                unsigned mat) {
+  std::vector<float> angles;
+  for (int i = 0; i <= seg; ++i) angles.push_back(kPi * i / seg);
+  const float corner = std::atan2(height, r);
+  angles.push_back(corner);
+  angles.push_back(kPi - corner);
+  std::sort(angles.begin(), angles.end());
+  const float hz = depth / 2, w = 2 * r;
+  auto outer = [&](float a) {
+    float c = std::cos(a), s = std::sin(a);
+    float t = 1e30f;
+    if (std::fabs(c) > 1e-6f) t = std::min(t, r / std::fabs(c));
+    if (s > 1e-6f) t = std::min(t, height / s);
+    return Vec3(t * c, t * s, 0);
+  };
+  auto P = [&](Vec3 p, float z) { return x.point(Vec3(p.x, p.y, z)); };
+  auto U = [&](Vec3 p) { return su * (p.x / w + 0.5f); };
+  auto V = [&](Vec3 p) { return sv * (p.y / height); };
+  for (std::size_t i = 0; i + 1 < angles.size(); ++i) {
+    float a0 = angles[i], a1 = angles[i + 1];
+    if (a1 - a0 < 1e-6f) continue;
+    Vec3 c0(r * std::cos(a0), r * std::sin(a0), 0), c1(r * std::cos(a1), r * std::sin(a1), 0);
+    Vec3 o0 = outer(a0), o1 = outer(a1);
+    // Front and back faces, texture coordinates following the wall's x, y.
+    const Vec3 f[4] = {c0, o0, o1, c1}, k[4] = {c1, o1, o0, c0};
+    const Vec3 pf[4] = {P(f[0], hz), P(f[1], hz), P(f[2], hz), P(f[3], hz)};
+    const Vec3 pk[4] = {P(k[0], -hz), P(k[1], -hz), P(k[2], -hz), P(k[3], -hz)};
+    const float uf[8] = {U(f[0]), V(f[0]), U(f[1]), V(f[1]), U(f[2]), V(f[2]), U(f[3]), V(f[3])};
+    const float uk[8] = {U(k[0]), V(k[0]), U(k[1]), V(k[1]), U(k[2]), V(k[2]), U(k[3]), V(k[3])};
+    b.quad_uv(pf, uf, mat);
+    b.quad_uv(pk, uk, mat);
+    float l = r * (a1 - a0);
+    b.quad(P(c1, hz), P(c1, -hz), P(c0, -hz), P(c0, hz), su * depth / w, sv * l / height, mat);
+  }
+  Vec3 tl(-r, height, 0), tr(r, height, 0);
+  b.quad(P(tr, hz), P(tr, -hz), P(tl, -hz), P(tl, hz), su, sv * depth / height, mat);
+}
+
 // A file name as written in an MTL file, found on disk: the exact name first, else the one file
 // of that folder whose name matches ignoring letter case (sponza.mtl says SP_LUK.JPG for
 // sp_luk.JPG). Backslashes are taken as folder separators.
@@ -222,6 +274,8 @@ class Loader {
       throw InputError(fmt::format("{}: expected a field of view in (0, 179) degrees", c->where("vfov")));
     if (length(scene_.camera.look_at - scene_.camera.eye) <= 0)
       throw InputError(fmt::format("{}: eye and look_at coincide", c->where("look_at")));
+    if (length(cross(normalize(scene_.camera.look_at - scene_.camera.eye), normalize(scene_.camera.up))) < 1e-4f)
+      throw InputError(fmt::format("{}: up is parallel to the viewing direction", c->where("up")));
     c->finish();
   }
 
@@ -374,6 +428,15 @@ class Loader {
       if (seg < 3) throw InputError(fmt::format("{}: expected at least 3 segments", t.where("segments")));
       bool inward = t.get("inward", false);
       build_sphere(b, vec3(t.get("center", Arr3{0, 0, 0})), r, seg, x, su, sv, mat, inward, t.get("smooth", true));
+    } else if (type == "arch") {
+      float r = float(t.require_double("radius"));
+      float h = float(t.require_double("height"));
+      float d = float(t.require_double("depth"));
+      if (!(r > 0 && h >= r && d > 0))
+        throw InputError(fmt::format("{}: expected radius > 0, height >= radius, depth > 0", t.where("radius")));
+      int seg = t.get("segments", 16);
+      if (seg < 2) throw InputError(fmt::format("{}: expected at least 2 segments", t.where("segments")));
+      build_arch(b, r, h, d, seg, x, su, sv, mat);
     } else if (type == "cylinder") {
       float r = float(t.require_double("radius"));
       float h = float(t.require_double("height"));
@@ -384,10 +447,23 @@ class Loader {
     } else {
       throw InputError(fmt::format("{}: unknown {} type '{}' (expected {})", t.where("type"),
                                    light ? "light" : "object", type,
-                                   light ? "quad or sphere" : "quad, box, sphere, cylinder or obj"));
+                                   light ? "quad or sphere" : "quad, box, sphere, cylinder, arch or obj"));
     }
     if (light && type != "quad" && type != "sphere")
       throw InputError(fmt::format("{}: lights are quads or spheres", t.where("type")));
+    // `repeat = N` copies: copy k is moved by k * repeat_offset (rows of chairs, columns).
+    int repeat = t.get("repeat", 1);
+    Vec3 step = vec3(t.get("repeat_offset", Arr3{0, 0, 0}));
+    if (repeat < 1 || repeat > 10000) throw InputError(fmt::format("{}: expected 1..10000", t.where("repeat")));
+    if (repeat > 1) {
+      Mesh one = b.mesh;
+      for (int k = 1; k < repeat; ++k) {
+        for (const Vec3& p : one.positions) b.mesh.positions.push_back(p + step * float(k));
+        b.mesh.normals.insert(b.mesh.normals.end(), one.normals.begin(), one.normals.end());
+        b.mesh.uvs.insert(b.mesh.uvs.end(), one.uvs.begin(), one.uvs.end());
+        b.mesh.material.insert(b.mesh.material.end(), one.material.begin(), one.material.end());
+      }
+    }
     t.finish();
     scene_.meshes.push_back(std::move(b.mesh));
   }
@@ -565,10 +641,12 @@ std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const S
   scene->name = name;
   Loader(*scene, options).load(path.string());
   scene->commit();
+  scene->content_hash = scene_content_hash(*scene);  // once: the OBJ files can be large
   return scene;
 }
 
 std::string scene_content_hash(const Scene& scene) {
+  if (!scene.content_hash.empty()) return scene.content_hash;
   // FNV-1a over the bytes of every file the scene read, in the order read, each preceded by its
   // file name (not its folder: moving a scene collection keeps its caches valid).
   std::uint64_t h = 0xcbf29ce484222325ULL;
