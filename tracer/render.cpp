@@ -119,11 +119,6 @@ struct D3 {
     v[1] += a.y;
     v[2] += a.z;
   }
-  void add_sq(Vec3 a) {
-    v[0] += double(a.x) * a.x;
-    v[1] += double(a.y) * a.y;
-    v[2] += double(a.z) * a.z;
-  }
 };
 
 // Per-pixel sums of one level's layers over the samples that reached the level, kept as one
