@@ -436,8 +436,8 @@ void write_report(const std::string& dir, const ReportOptions& opt) {
           err_rel = png_of(r->at("files")["error_flip"]);
           write_png(false_colour(read_rgb(dir + "/" + r->at("files")["error_flip"].get<std::string>())), dir + "/" + err_rel);
         }
-        options += fmt::format("<option value=\"{}\" data-err=\"{}\">{} (mse {})</option>", png_of(img_rel), err_rel,
-                               html_escape(m), fmt_metric(r->at("metrics").value("mse", json(nullptr))));
+        options += fmt::format("<option value=\"{}\" data-err=\"{}\"{}>{} (mse {})</option>", png_of(img_rel), err_rel,
+                               r == (recs.size() > 1 ? recs[1] : recs[0]) ? " selected" : "", html_escape(m), fmt_metric(r->at("metrics").value("mse", json(nullptr))));
         crops += fmt::format("<figure><img src=\"{}\" alt=\"{} crop\"><figcaption>{}</figcaption></figure>", c_rel, html_escape(m), html_escape(m));
       }
       const json* first = recs.size() > 1 ? recs[1] : recs[0];

@@ -423,8 +423,10 @@ std::string results_csv(const nlohmann::json& results) {
     }
     std::string params;
     if (r.contains("params"))
-      for (auto& [k, v] : r.at("params").items()) params += (params.empty() ? "" : ";") + k + "=" + v.get<std::string>();
-    out += "," + csv_field(params) + "," + csv_field(r.contains("files") ? r["files"].value("image", "") : "") + "\n";
+      for (auto& [k, v] : r.at("params").items())
+        params += fmt::format("{}{}={}", params.empty() ? "" : ";", k, v.get<std::string>());
+    const std::string image = r.contains("files") ? r["files"].value("image", "") : "";
+    out += fmt::format(",{},{}\n", csv_field(params), csv_field(image));
   }
   return out;
 }
