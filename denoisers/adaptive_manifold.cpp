@@ -227,7 +227,7 @@ class AmRun {
     sw_ = (W_ + df_ - 1) / df_;
     sh_ = (H_ + df_ - 1) / df_;
     inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
-    seed_ = hash_guide(guide);
+    seed_ = am_detail::guide_seed(guide);
 
     guide_ = Planes(W_, H_, D_);
     src_ = Planes(W_, H_, C_);
@@ -502,22 +502,7 @@ class AmRun {
         for (int k = 0; k < DD; ++k) cov[k] += cov_rows[std::size_t(sy) * DD + k];
       for (int i = 0; i < D_; ++i)
         for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
-      std::mt19937_64 rng(seed_ ^ (0x9E3779B97F4A7C15ull * std::uint64_t(id)));
-      std::uniform_real_distribution<double> uni(-0.5, 0.5);
-      std::vector<double> vd(D_), u(D_);
-      for (auto& e : vd) e = uni(rng);
-      for (int it = 0; it < std::max(1, s_.pca_iterations); ++it) {
-        double n = 0;
-        for (int i = 0; i < D_; ++i) {
-          u[i] = 0;
-          for (int j = 0; j < D_; ++j) u[i] += cov[i * D_ + j] * vd[j];
-          n += u[i] * u[i];
-        }
-        if (!(n > 1e-300)) break;  // the cluster is flat: any direction splits it
-        n = std::sqrt(n);
-        for (int i = 0; i < D_; ++i) vd[i] = u[i] / n;
-      }
-      for (int i = 0; i < D_; ++i) v[i] = float(vd[i]);
+      v = am_detail::split_direction(cov, D_, seed_, id, s_.pca_iterations);
     }
 
     // Pass 2 (full resolution): slice; above the leaves also split the cluster and splat the
@@ -677,6 +662,33 @@ class AmRun {
 };
 
 }  // namespace
+
+namespace am_detail {
+
+std::uint64_t guide_seed(ConstImageView guide) { return hash_guide(guide); }
+
+std::vector<float> split_direction(const std::vector<double>& cov, int D, std::uint64_t seed, int id, int iterations) {
+  std::mt19937_64 rng(seed ^ (0x9E3779B97F4A7C15ull * std::uint64_t(id)));
+  std::uniform_real_distribution<double> uni(-0.5, 0.5);
+  std::vector<double> vd(D), u(D);
+  for (auto& e : vd) e = uni(rng);
+  for (int it = 0; it < std::max(1, iterations); ++it) {
+    double n = 0;
+    for (int i = 0; i < D; ++i) {
+      u[i] = 0;
+      for (int j = 0; j < D; ++j) u[i] += cov[i * D + j] * vd[j];
+      n += u[i] * u[i];
+    }
+    if (!(n > 1e-300)) break;  // the cluster is flat: any direction splits it
+    n = std::sqrt(n);
+    for (int i = 0; i < D; ++i) vd[i] = u[i] / n;
+  }
+  std::vector<float> v(D);
+  for (int i = 0; i < D; ++i) v[i] = float(vd[i]);
+  return v;
+}
+
+}  // namespace am_detail
 
 Image am_filter(ConstImageView src, ConstImageView guide, const AmSettings& settings,
                 const std::vector<AmQuery>& queries, std::vector<float>* query_out) {
