@@ -447,7 +447,7 @@ class AmRun {
           // Uncentred covariance of (g - eta) over the node's cluster: X is relative to the
           // manifold, itself the cluster's weighted mean (their algorithm 1, step 2). Pixels
           // outside the cluster get X = 0.
-          const std::uint16_t* lab = label_.data() + std::size_t(y) * W_;
+          const std::int32_t* lab = label_.data() + std::size_t(y) * W_;
           for (int c = 0; c < D_; ++c) {
             float* X = sc.x.data() + std::size_t(c) * W_;
             for (int x = 0; x < W_; ++x) X[x] = lab[x] == id ? X[x] : 0.0f;
@@ -536,16 +536,17 @@ class AmRun {
           const float vc = v[c];
           for (int x = 0; x < W_; ++x) dot[x] += vc * (g[x] - e[x]);
         }
-        std::uint16_t* lab = label_.data() + std::size_t(y) * W_;
+        std::int32_t* lab = label_.data() + std::size_t(y) * W_;
         float* tl = sc.w.data();    // (1 - w) for pixels going left, else 0
         float* tr = sc.x.data();    // the same for pixels going right
+        // Branch-free and of one element width (32-bit labels), so the loop vectorises.
         for (int x = 0; x < W_; ++x) {
-          const bool mine = lab[x] == id;
-          const bool go_left = dot[x] < 0;
+          const std::int32_t mine = lab[x] == id;
+          const std::int32_t go_left = dot[x] < 0;
           const float theta = 1.0f - wrow[x];
-          tl[x] = mine && go_left ? theta : 0.0f;
-          tr[x] = mine && !go_left ? theta : 0.0f;
-          if (mine) lab[x] = std::uint16_t(go_left ? left : right);
+          tl[x] = (mine & go_left) ? theta : 0.0f;
+          tr[x] = (mine & (go_left ^ 1)) ? theta : 0.0f;
+          lab[x] = mine ? (go_left ? left : right) : lab[x];
         }
         for (int c = 0; c <= D_; ++c) {
           float* ol = col + std::size_t(c) * W_;
@@ -653,7 +654,7 @@ class AmRun {
   std::uint64_t seed_ = 0;
   Planes guide_, src_, acc_;
   std::vector<float> w_, min_d2_;
-  std::vector<std::uint16_t> label_;
+  std::vector<std::int32_t> label_;
   std::vector<int> x0_, x1_, y0_, y1_;
   std::vector<float> fx_, fy_, frac_;
   std::vector<double> qacc_;

@@ -90,7 +90,8 @@ class Proposed final : public Method {
     MethodResult r;
     const AovFrame& f = *in.frame;
     if (filter_color_) {
-      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), r.stats, nullptr);
+      const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
+      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), depth, r.stats, nullptr);
       r.image = std::move(c.image);
       return r;
     }
@@ -105,8 +106,13 @@ class Proposed final : public Method {
       const bool edges = k == 0 && use_edges_ && f.edges && !f.edges->pixels.empty();
       const Image& d = f.layer(layer::at_level(k, layer::kDirect));
       const Image& i = f.layer(layer::at_level(k, layer::kIndirect));
-      Filtered fd = filter_layer(f, k, d, r.stats, edges ? &EdgeSample::direct : nullptr);
-      Filtered fi = filter_layer(f, k, i, r.stats, edges ? &EdgeSample::indirect : nullptr);
+      Image depth;  // the level's depth over its median, shared by the D and I guides
+      if (use_geometry_) {
+        ScopedPhase p(r.stats, k == 0 ? "depth" : "depth_level" + std::to_string(k));
+        depth = normalized_depth(f, k);
+      }
+      Filtered fd = filter_layer(f, k, d, depth, r.stats, edges ? &EdgeSample::direct : nullptr);
+      Filtered fi = filter_layer(f, k, i, depth, r.stats, edges ? &EdgeSample::indirect : nullptr);
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
       Image out(f.width(), f.height(), 3);
       const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
@@ -158,13 +164,12 @@ class Proposed final : public Method {
   // Filters `src` (a layer of level k) guided by [NLM vector, normal, depth] of that level. With
   // `sub` set (level 0), also answers one slice query per edge sub-pixel, its guide built from
   // the sub-pixel's value of that layer, normal and depth.
-  Filtered filter_layer(const AovFrame& f, int level, const Image& src, MethodStats& stats,
+  Filtered filter_layer(const AovFrame& f, int level, const Image& src, const Image& depth, MethodStats& stats,
                         float (EdgeSample::*sub)[3]) const {
     const std::string suffix = level == 0 ? "" : "_level" + std::to_string(level);
     NlmSpace nlm;
     Image range;
     float range_scale = 1.0f;
-    Image depth;
     std::vector<GuideGroup> groups;
     {
       ScopedPhase p(stats, "nlm_space" + suffix);
@@ -177,7 +182,6 @@ class Proposed final : public Method {
         groups.push_back({range.cview(), sigma_nlm_});
       }
       if (use_geometry_) {
-        depth = normalized_depth(f, level);
         groups.push_back({f.layer(layer::at_level(level, layer::kNormal)).cview(), sigma_normal_});
         groups.push_back({depth.cview(), sigma_depth_});
       }
