@@ -34,6 +34,8 @@
 //   reflections      bool   false: R passes through unfiltered
 //   filter_color     bool   true: filter the colour F (guide: its NLM vector, normal, depth)
 //                           instead of the illumination, and no composition
+//   device           string cpu, or opencl: the AM core (splat, blur, slice, split, queries)
+//                           as OpenCL kernels (denoisers/adaptive_manifold_cl.h)
 #include <algorithm>
 #include <cmath>
 
@@ -41,6 +43,7 @@
 
 #include "core/errors.h"
 #include "denoisers/adaptive_manifold.h"
+#include "denoisers/adaptive_manifold_cl.h"
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"
 #include "denoisers/nlm_space.h"
@@ -58,7 +61,10 @@ class Proposed final : public Method {
         use_geometry_(p.b("geometry")),
         use_edges_(p.b("edge_subpixels")),
         use_reflections_(p.b("reflections")),
-        filter_color_(p.b("filter_color")) {
+        filter_color_(p.b("filter_color")),
+        opencl_(p.s("device") == "opencl") {
+    std::string why;
+    if (opencl_ && !am_opencl_available(&why)) throw InputError("proposed: device=opencl: " + why);
     am_.sigma_s = p.f("sigma_s");
     am_.sigma_r = p.f("sigma_r");
     am_.tree_height = p.i("tree_height");
@@ -218,7 +224,8 @@ class Proposed final : public Method {
     }
     Filtered out;
     ScopedPhase p(stats, "adaptive_manifolds" + suffix);
-    out.image = am_filter(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr);
+    out.image = opencl_ ? am_filter_opencl(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr)
+                        : am_filter(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr);
     return out;
   }
 
@@ -233,7 +240,7 @@ class Proposed final : public Method {
   AmSettings am_;
   NlmSpaceSettings nlm_;
   float sigma_nlm_, sigma_normal_, sigma_depth_;
-  bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_;
+  bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_, opencl_;
 };
 
 }  // namespace
@@ -262,6 +269,8 @@ MethodInfo proposed_method() {
               {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},
               {"reflections", ParamType::Bool, "true", "ablation: false leaves R unfiltered"},
               {"filter_color", ParamType::Bool, "false", "ablation: filter the colour instead of the illumination"},
+              {"device", ParamType::String, "cpu", "where the adaptive-manifold core runs: cpu, or opencl (kernels, e.g. PoCL or a GPU)", {}, {},
+               {"cpu", "opencl"}},
           },
       .create = [](const Params& p) { return std::make_unique<Proposed>(p); },
   };
