@@ -93,6 +93,17 @@ inline bool sample_finite(const SampleResult& r) {
   return std::isfinite(acc) && is_finite(r.level[0].color());
 }
 
+// Runs f inside an arena of `threads` threads (0: TBB's default, all cores).
+template <typename F>
+void run_in_arena(int threads, F&& f) {
+  if (threads > 0) {
+    tbb::task_arena arena(threads);
+    arena.execute(f);
+  } else {
+    f();
+  }
+}
+
 // Runs f(tile_x0, tile_y0, tile_x1, tile_y1) over all tiles with `threads` threads (0: all).
 template <typename F>
 void for_each_tile(int width, int height, int threads, F&& f) {
@@ -237,25 +248,44 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   PathTracer tracer(scene, tracer_options(settings));
 
   AovFrame frame(W, H);
-  Image& color = frame.add(layer::kColor, 3);
-  Image& var_f = frame.add(layer::kVariance, 3);
-  Image& var_d = frame.add(layer::kDirectVariance, 3);
-  Image& var_i = frame.add(layer::kIndirectVariance, 3);
-  Image& samples = frame.add(layer::kSamples, 1);
-  Image& edge = frame.add(layer::kEdge, 1);
+  {
+    // Every layer, zero-filled in parallel (a 1024x768 frame with two reflection levels holds
+    // ~260 MB: filling it on one thread costs as much as a sample per pixel).
+    std::vector<std::pair<std::string, int>> names = {{layer::kColor, 3},          {layer::kVariance, 3},
+                                                      {layer::kDirectVariance, 3}, {layer::kIndirectVariance, 3},
+                                                      {layer::kSamples, 1},        {layer::kEdge, 1}};
+    for (int k = 0; k <= K; ++k) {
+      for (const char* b : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
+                            layer::kNormal})
+        names.emplace_back(layer::at_level(k, b), 3);
+      names.emplace_back(layer::at_level(k, layer::kDepth), 1);
+      if (k > 0) names.emplace_back(layer::at_level(k, layer::kTint), 3);
+    }
+    std::vector<Image> images(names.size());
+    run_in_arena(settings.threads, [&] {
+      tbb::parallel_for(std::size_t(0), names.size(), [&](std::size_t i) { images[i] = Image(W, H, names[i].second); });
+    });
+    for (std::size_t i = 0; i < names.size(); ++i) frame.set(names[i].first, std::move(images[i]));
+  }
+  Image& color = frame.layer(layer::kColor);
+  Image& var_f = frame.layer(layer::kVariance);
+  Image& var_d = frame.layer(layer::kDirectVariance);
+  Image& var_i = frame.layer(layer::kIndirectVariance);
+  Image& samples = frame.layer(layer::kSamples);
+  Image& edge = frame.layer(layer::kEdge);
   struct LevelImages {
     Image *direct, *indirect, *albedo, *reflection, *emission, *normal, *depth, *tint;
   };
   std::vector<LevelImages> lv(K + 1);
   for (int k = 0; k <= K; ++k) {
-    lv[k].direct = &frame.add(layer::at_level(k, layer::kDirect), 3);
-    lv[k].indirect = &frame.add(layer::at_level(k, layer::kIndirect), 3);
-    lv[k].albedo = &frame.add(layer::at_level(k, layer::kAlbedo), 3);
-    lv[k].reflection = &frame.add(layer::at_level(k, layer::kReflection), 3);
-    lv[k].emission = &frame.add(layer::at_level(k, layer::kEmission), 3);
-    lv[k].normal = &frame.add(layer::at_level(k, layer::kNormal), 3);
-    lv[k].depth = &frame.add(layer::at_level(k, layer::kDepth), 1);
-    lv[k].tint = k > 0 ? &frame.add(layer::at_level(k, layer::kTint), 3) : nullptr;
+    lv[k].direct = &frame.layer(layer::at_level(k, layer::kDirect));
+    lv[k].indirect = &frame.layer(layer::at_level(k, layer::kIndirect));
+    lv[k].albedo = &frame.layer(layer::at_level(k, layer::kAlbedo));
+    lv[k].reflection = &frame.layer(layer::at_level(k, layer::kReflection));
+    lv[k].emission = &frame.layer(layer::at_level(k, layer::kEmission));
+    lv[k].normal = &frame.layer(layer::at_level(k, layer::kNormal));
+    lv[k].depth = &frame.layer(layer::at_level(k, layer::kDepth));
+    lv[k].tint = k > 0 ? &frame.layer(layer::at_level(k, layer::kTint)) : nullptr;
   }
   // Relative depth spread inside each pixel, for the edge test (kept only until G is known).
   Image depth_spread(W, H, 1);
@@ -351,15 +381,19 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     float da = depth.at(xa, ya, 0), db = depth.at(xb, yb, 0);
     return std::fabs(da - db) > kEdgeDepthRel * std::min(da, db);
   };
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x) {
-      Vec3 n = pixel_vec(normal, x, y);
-      float ln = length(n);
-      bool inner = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread;
-      if (inner) edge.at(x, y, 0) = 1;
-      if (x + 1 < W && differ(x, y, x + 1, y)) edge.at(x, y, 0) = edge.at(x + 1, y, 0) = 1;
-      if (y + 1 < H && differ(x, y, x, y + 1)) edge.at(x, y, 0) = edge.at(x, y + 1, 0) = 1;
-    }
+  // Each pixel tests itself and its four neighbours (so rows can run in parallel).
+  run_in_arena(settings.threads, [&] {
+    tbb::parallel_for(0, H, [&](int y) {
+      for (int x = 0; x < W; ++x) {
+        Vec3 n = pixel_vec(normal, x, y);
+        float ln = length(n);
+        bool in_g = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread ||
+                    (x + 1 < W && differ(x, y, x + 1, y)) || (x > 0 && differ(x, y, x - 1, y)) ||
+                    (y + 1 < H && differ(x, y, x, y + 1)) || (y > 0 && differ(x, y, x, y - 1));
+        edge.at(x, y, 0) = in_g ? 1.0f : 0.0f;
+      }
+    });
+  });
   depth_spread = Image();
 
   if (settings.edge_subpixels) {
