@@ -88,6 +88,7 @@ struct SampleResult {
 struct PathRadiance {
   Vec3 first_emission;
   Vec3 rest;
+  float first_distance = 1e30f;  // distance along the ray to its first hit (1e30 on a miss)
   Vec3 total() const { return first_emission + rest; }
 };
 
@@ -128,6 +129,9 @@ class PathTracer {
   // The MIS-weighted light-sample term of direct light at a base (diffuse) lobe chosen with
   // probability lobe_prob, for a white surface.
   Vec3 nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ctx) const;
+  // Whether the light sample is unoccluded from hit (a shadow ray, or for a sphere light a
+  // closest-hit ray that must reach the light).
+  bool visible(const SurfaceHit& hit, const LightSample& ls, PathContext& ctx) const;
   // Continues a path along `ray` whose previous vertex sampled it with solid-angle density
   // prev_pdf (0 for a specular bounce or a camera ray: weight 1 for emission found) from a
   // point of shading normal prev_n; path_weight is the path's weight so far (Russian roulette).
