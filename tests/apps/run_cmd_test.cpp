@@ -49,10 +49,15 @@ group = "ablation"
 set = { sigma_space = 6.0 }
 )";
 
+// The program: $DNB_BINARY, else ./denoisebench (ctest runs in the build folder), as test_util.
+fs::path binary() {
+  const char* bin = std::getenv("DNB_BINARY");
+  return fs::absolute(bin && *bin ? bin : "./denoisebench");
+}
+
 // Runs the program with its own render cache inside the test folder.
 test::CommandResult run_in(const test::TempDir& dir, const std::string& args) {
-  const char* bin = std::getenv("DNB_BINARY");
-  return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + (bin ? bin : "build/denoisebench") + "' " + args);
+  return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
 }
 
 TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
@@ -75,7 +80,9 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
   EXPECT_EQ(methods, (std::set<std::string>{"path_tracing", "input", "bilateral", "bilateral-wide"}));
   EXPECT_TRUE(res.contains("machine") && res.contains("build") && res.contains("git_revision"));
   for (const auto& rec : res["records"]) {
-    if (rec["method"] == "bilateral-wide") EXPECT_EQ(rec["params"]["sigma_space"], "6");
+    if (rec["method"] == "bilateral-wide") {
+      EXPECT_EQ(rec["params"]["sigma_space"], "6");
+    }
   }
   // results.csv: a header and one line per record.
   const std::string csv = slurp(out + "/results.csv");
@@ -129,7 +136,7 @@ TEST(ReportPage, LoadsInHeadlessChromiumWithEveryImage) {
   EXPECT_GE(images, 8);
 
   if (!fs::exists("/usr/bin/chromium")) GTEST_SKIP() << "Debian's chromium is not installed (scripts/setup)";
-  const fs::path shot = fs::path(std::getenv("DNB_BINARY") ? std::getenv("DNB_BINARY") : "build/x").parent_path() / "report_screenshot.png";
+  const fs::path shot = binary().parent_path() / "report_screenshot.png";
   fs::remove(shot);
   const std::string chromium =
       "/usr/bin/chromium --headless --no-sandbox --disable-gpu --disable-background-networking --no-first-run "
