@@ -93,11 +93,12 @@ TEST_P(FilterInvariants, BitIdenticalOutputWhateverTheThreadCount) {
 }
 
 // With its defaults, a filter lowers the error of a noisy frame of a smooth scene against the
-// noise-free frame. The bound (at most 70% of the input's MSE) is loose on purpose: relative
-// noise of 0.3 on a smooth, piecewise-planar scene is what every denoiser here is made for, and
-// each removes far more of it (its own tests hold it to tighter bounds).
+// noise-free frame. The noise (5% relative on direct and indirect) is of the order of a 256-spp
+// render's, the level the defaults are tuned for (docs/method-defaults.md); heavier noise
+// would test the tuning, not the filter. The bound (at most 70% of the input's MSE) is loose on
+// purpose: measured, the built-ins reach 1.7x (atrous) to 36x (guided) lower MSE here.
 TEST_P(FilterInvariants, ReducesNoiseOnASmoothScene) {
-  AovFrame noisy = test::planes_frame(96, 64, 0.3f);
+  AovFrame noisy = test::planes_frame(96, 64, 0.05f);
   const Image truth = test::planes_frame(96, 64, 0.0f).layer(layer::kColor);
   const double before = test::mse(noisy.layer(layer::kColor), truth);
   const double after = test::mse(run(noisy).image, truth);
