@@ -58,7 +58,7 @@ GRIDS = {
         },
     },
     "guided": {
-        "start": {"radius": "4", "eps": "0.0001", "albedo_weight": "0.3", "normal_weight": "0.3", "depth_weight": "3",
+        "start": {"radius": "4", "eps": "0.0003", "albedo_weight": "0.3", "normal_weight": "1", "depth_weight": "3",
                   "filter_reflection": "false"},
         "grid": {
             "radius": ["2", "4", "6", "8", "12", "16", "24"],
