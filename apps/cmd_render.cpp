@@ -53,7 +53,7 @@ void add_render(CLI::App& app, Action& action) {
       lo.scenes_dir = args->scenes_dir;
       auto scene = load_scene(args->scene, lo);
       Progress progress(fmt::format("render {} {}x{} {} spp", scene_name(*scene), s.width, s.height, s.spp),
-                        std::int64_t(s.width) * s.height * s.spp, "samples");
+                        std::int64_t(s.width) * s.height * s.spp, "samples", 5.0);
       s.on_progress = [&progress](std::int64_t n) { progress.add(n); };
       AovFrame frame = render_frame(*scene, s);
       progress.finish();

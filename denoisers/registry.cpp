@@ -7,10 +7,13 @@
 namespace dnb {
 
 void register_builtin_methods(MethodRegistry& r) {
+  extern MethodInfo am_method(); r.add(am_method());                // denoisers/am.cpp
+  extern MethodInfo am_opencv_method(); r.add(am_opencv_method());  // denoisers/am_opencv.cpp
   extern MethodInfo atrous_method(); r.add(atrous_method());        // denoisers/atrous.cpp
   extern MethodInfo bilateral_method(); r.add(bilateral_method());  // denoisers/bilateral.cpp
   extern MethodInfo guided_method(); r.add(guided_method());        // denoisers/guided.cpp
   extern MethodInfo nlmeans_method(); r.add(nlmeans_method());      // denoisers/nlmeans.cpp
+  extern MethodInfo proposed_method(); r.add(proposed_method());    // denoisers/proposed.cpp
 }
 
 // Defined here, not in method.cpp, so that linking anything that uses the global registry pulls

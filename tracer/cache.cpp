@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -64,6 +65,20 @@ void sync_path(const fs::path& p, bool directory) {
 
 std::string unique_sibling(const fs::path& dir, const std::string& prefix, const std::string& digest) {
   return (dir / fmt::format(".{}-{}-{}-{}", prefix, digest.substr(0, 16), ::getpid(), g_staging_counter++)).string();
+}
+
+// Staging and trash folders left by a process killed while storing: removed once a day old (a
+// younger one may belong to a store in progress in another process).
+void remove_stale_staging(const fs::path& kind_dir) {
+  std::error_code ec;
+  const auto now = fs::file_time_type::clock::now();
+  for (auto it = fs::directory_iterator(kind_dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(".staging-", 0) != 0 && name.rfind(".trash-", 0) != 0) continue;
+    std::error_code e;
+    auto t = fs::last_write_time(it->path(), e);
+    if (!e && now - t > std::chrono::hours(24)) fs::remove_all(it->path(), e);
+  }
 }
 
 }  // namespace
@@ -213,6 +228,7 @@ CacheEntry Cache::store(const CacheKey& key, const std::function<void(const std:
   std::error_code ec;
   fs::create_directories(kind_dir, ec);
   if (ec) throw WorkError(fmt::format("cannot create cache folder '{}': {}", kind_dir.string(), ec.message()));
+  remove_stale_staging(kind_dir);
   std::string digest = key.digest();
   fs::path staging = unique_sibling(kind_dir, "staging", digest);
   fs::create_directory(staging, ec);

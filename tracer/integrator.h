@@ -39,6 +39,23 @@
 // reflection at level k - 1 = refl(k).tint * ((D + I) * T + R + E at level k), up to the
 // product-of-means error where the tint varies inside a pixel (Fresnel weights on curved coats).
 // A path reaching max_depth at x stops there: D = I = R = 0 (E and T still set).
+//
+// ---- Use from a renderer-type method (irradiance cache) -----------------------------------
+//   auto scene = load_scene("cornell-box");                  // tracer/render.h
+//   rt::PathTracer tracer(*scene, {});                        // max_depth 8
+//   rt::Sampler rng(seed, pixel_or_record_id, sample_index);  // counter-based: deterministic
+//   rt::PathContext ctx{rng};
+//   rt::Ray ray = scene->camera.generate_ray(x + 0.5f, y + 0.5f, width, height);
+//   rt::SurfaceHit hit;
+//   if (scene->intersect(ray, hit) && !hit.material->is_specular()) {
+//     rt::Vec3 direct = tracer.direct_white(hit, ctx);        // E_direct / pi, white surface
+//     // Hemisphere gather: cosine-distributed directions about hit.ns, each
+//     rt::Ray g{hit.spawn_origin(dir), dir, 1e30f};
+//     rt::Vec3 L = tracer.incoming(g, ctx, /*depth=*/2).rest;   // indirect only (no emission at
+//     // the gathered hit: that light is direct and counted by direct_white)
+//     // outgoing radiance = hit.albedo * (direct + mean of L)   (cosine-weighted mean = E / pi)
+//   }
+// Scene, Camera, SurfaceHit, Material and the light queries are documented in tracer/scene.h.
 #pragma once
 
 #include <cstdint>

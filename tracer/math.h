@@ -4,6 +4,9 @@
 // would be a new dependency for a dozen inline functions.)
 #pragma once
 
+#include <pmmintrin.h>
+#include <xmmintrin.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -85,6 +88,14 @@ inline Vec3 sample_sphere(float u1, float u2) {
   float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
   float phi = 2.0f * kPi * u2;
   return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+// Flush denormals to zero on the calling thread (Embree's recommendation, and it keeps every
+// rendering thread computing the same bits). The tracer calls it on each of its tasks; a
+// renderer that calls the tracer from its own threads should call it on them too.
+inline void enable_flush_to_zero() {
+  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
 }
 
 // ---- Counter-based random numbers ------------------------------------------------------------

@@ -334,8 +334,12 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
       row.seconds = seconds_before + clock.seconds();
       result.convergence.push_back(row);
       done = pass_end;
-      if (!job.checkpoint_path.empty())
+      if (!job.checkpoint_path.empty()) {
+        Stopwatch write_clock;
         write_checkpoint(job.checkpoint_path, {job.identity, done, total, result.convergence, row.seconds});
+        result.checkpoint_seconds += write_clock.seconds();
+        ++result.checkpoints_written;
+      }
       spdlog::debug("{}: {} spp, relative error {:.4g}", job.what, row.spp, row.rel_error);
     } else {
       if (my_block < pass_end) {

@@ -72,6 +72,8 @@ struct Reference {
   bool cache_hit = false;    // true: nothing was rendered
   int blocks_rendered = 0;   // blocks rendered in this call (all ranks)
   int blocks_resumed = 0;    // blocks taken from a checkpoint
+  double render_seconds = 0;       // this call's wall time in the block driver
+  double checkpoint_seconds = 0;   // of which writing checkpoints
 };
 
 // Everything that determines a reference image: scene content (scene_content_hash: the scene
@@ -119,6 +121,8 @@ struct BlockResult {
   std::vector<ConvergenceRow> convergence;
   int blocks_rendered = 0, blocks_resumed = 0;
   double seconds = 0;            // render time, all sessions
+  int checkpoints_written = 0;   // in this call, rank 0
+  double checkpoint_seconds = 0; // time spent writing them (included in `seconds`)
 };
 
 // Collective under MPI (every rank calls it with the same job).

@@ -1,5 +1,7 @@
 // reference_image: the cache lookup, the render through the block driver with the tracer's
 // render_color_sums, and storing the result (tracer/reference.h).
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -8,6 +10,7 @@
 #include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "core/timer.h"
 #include "core/version.h"
 #include "tracer/mpi_context.h"
 #include "tracer/reference.h"
@@ -112,6 +115,7 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
   rs.seed = settings.seed;
   rs.threads = settings.threads;
   rs.max_depth = settings.max_depth;
+  Stopwatch clock;
   BlockResult blocks = accumulate_blocks(job, [&](int begin, int end, const std::function<void(std::int64_t)>& on_progress) {
     RenderSettings block_settings = rs;
     block_settings.on_progress = on_progress;
@@ -120,6 +124,8 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
   if (!root) return {};
 
   Reference ref;
+  ref.render_seconds = clock.seconds();
+  ref.checkpoint_seconds = blocks.checkpoint_seconds;
   ref.color = blocks.sums.mean();
   ref.variance = blocks.sums.variance_of_mean();
   ref.convergence = blocks.convergence;
@@ -152,9 +158,13 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
     fs::remove(job.checkpoint_path, ec);
     if (options.checkpoint_dir.empty()) fs::remove(fs::path(job.checkpoint_path).parent_path(), ec);
   }
-  spdlog::info("{}: rendered {} blocks ({} resumed from a checkpoint), relative error {:.3g}, stored in cache", label,
-               ref.blocks_rendered, ref.blocks_resumed,
+  spdlog::info("{}: rendered {} blocks ({} resumed from a checkpoint) in {:.2f} s, relative error {:.3g}, stored in cache",
+               label, ref.blocks_rendered, ref.blocks_resumed, ref.render_seconds,
                ref.convergence.empty() ? NAN : ref.convergence.back().rel_error);
+  if (blocks.checkpoints_written > 0)
+    spdlog::info("{}: {} checkpoints written in {:.3f} s ({:.2f}% of the render time)", label,
+                 blocks.checkpoints_written, blocks.checkpoint_seconds,
+                 100.0 * blocks.checkpoint_seconds / std::max(1e-9, ref.render_seconds));
   return ref;
 }
 

@@ -28,9 +28,6 @@
 // For a pixel of constant albedo both definitions coincide. direct_variance and
 // indirect_variance are the variances of these means (of D T / mean T: the ratio estimator's
 // first-order variance). Edge sub-pixels use the same definition over their stratum's samples.
-#include <xmmintrin.h>
-#include <pmmintrin.h>
-
 #include <atomic>
 #include <cmath>
 
@@ -57,12 +54,9 @@ constexpr float kEdgeDepthRel = 0.05f;      // relative depth jump between neigh
 constexpr float kEdgeDepthSpread = 0.02f;   // relative std. deviation of depth inside a pixel
 constexpr int kTile = 16;
 
-void set_ftz_daz() {
-  // Embree and the integrator want denormals flushed (speed); set on every rendering thread,
-  // so every thread computes the same bits.
-  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-}
+// Embree and the integrator want denormals flushed (speed); set on every rendering task, so
+// every thread computes the same bits.
+void set_ftz_daz() { enable_flush_to_zero(); }
 
 void check_settings(const RenderSettings& s) {
   Image::check_size(s.width, s.height, 3, "render size");
@@ -99,6 +93,17 @@ inline bool sample_finite(const SampleResult& r) {
   return std::isfinite(acc) && is_finite(r.level[0].color());
 }
 
+// Runs f inside an arena of `threads` threads (0: TBB's default, all cores).
+template <typename F>
+void run_in_arena(int threads, F&& f) {
+  if (threads > 0) {
+    tbb::task_arena arena(threads);
+    arena.execute(f);
+  } else {
+    f();
+  }
+}
+
 // Runs f(tile_x0, tile_y0, tile_x1, tile_y1) over all tiles with `threads` threads (0: all).
 template <typename F>
 void for_each_tile(int width, int height, int threads, F&& f) {
@@ -125,75 +130,96 @@ struct D3 {
     v[1] += a.y;
     v[2] += a.z;
   }
-  void add_sq(Vec3 a) {
-    v[0] += double(a.x) * a.x;
-    v[1] += double(a.y) * a.y;
-    v[2] += double(a.z) * a.z;
-  }
 };
 
-// Per-pixel sums of one level's layers over the samples that reached the level.
+// Per-pixel sums of one level's layers over the samples that reached the level, kept as one
+// flat array so that adding a sample is a single loop the compiler vectorises (float -> double
+// conversions and adds four at a time); the per-sample bookkeeping of all layers otherwise
+// costs as much as tracing the camera ray.
+namespace acc {
+enum : int {
+  kDirect = 0, kIndirect = 3, kAlbedo = 6, kReflection = 9, kEmission = 12, kNormal = 15, kTint = 18,
+  kDirectT = 21, kIndirectT = 24, kDepth = 27, kDepthSq = 28,
+  kLevelSize = 32,  // padded to a multiple of 4
+  // Level 0 only: colour and the squares for the variance layers.
+  kColor = 0, kColorSq = 3, kDirectSq = 6, kIndirectSq = 9, kDirectTSq = 12, kIndirectTSq = 15,
+  kExtraSize = 20,
+};
+}  // namespace acc
+
 struct LevelSums {
   std::int64_t n = 0;
-  D3 direct, indirect, albedo, reflection, emission, normal, tint;
-  D3 direct_t, indirect_t;  // sums of D * T and I * T
-  double depth = 0, depth_sq = 0;
-  void add(const LevelSample& l) {
-    ++n;
-    direct.add(l.direct);
-    indirect.add(l.indirect);
-    albedo.add(l.albedo);
-    direct_t.add(l.direct * l.albedo);
-    indirect_t.add(l.indirect * l.albedo);
-    reflection.add(l.reflection);
-    emission.add(l.emission);
-    normal.add(l.normal);
-    tint.add(l.tint);
-    depth += l.depth;
-    depth_sq += double(l.depth) * l.depth;
-  }
+  alignas(32) double v[acc::kLevelSize] = {};
+  const double* at(int off) const { return v + off; }
 };
 
-void store(Image& img, int x, int y, const D3& s, double inv) {
-  float* p = img.pixel(x, y);
-  for (int c = 0; c < 3; ++c) p[c] = float(s.v[c] * inv);
+inline void put3(float* o, Vec3 a) {
+  o[0] = a.x;
+  o[1] = a.y;
+  o[2] = a.z;
 }
 
-void store_var(Image& img, int x, int y, const D3& sum, const D3& sq, std::int64_t n) {
+inline void pack_level(const LevelSample& l, float* o) {
+  put3(o + acc::kDirect, l.direct);
+  put3(o + acc::kIndirect, l.indirect);
+  put3(o + acc::kAlbedo, l.albedo);
+  put3(o + acc::kReflection, l.reflection);
+  put3(o + acc::kEmission, l.emission);
+  put3(o + acc::kNormal, l.normal);
+  put3(o + acc::kTint, l.tint);
+  put3(o + acc::kDirectT, l.direct * l.albedo);
+  put3(o + acc::kIndirectT, l.indirect * l.albedo);
+  o[acc::kDepth] = l.depth;
+  o[acc::kDepthSq] = l.depth * l.depth;
+  o[29] = o[30] = o[31] = 0;
+}
+
+template <int N>
+inline void add_values(double* __restrict a, const float* __restrict v) {
+  for (int i = 0; i < N; ++i) a[i] += double(v[i]);
+}
+
+// Mean of three sums.
+void store(Image& img, int x, int y, const double* s, double inv) {
+  float* p = img.pixel(x, y);
+  for (int c = 0; c < 3; ++c) p[c] = float(s[c] * inv);
+}
+
+void store_var(Image& img, int x, int y, const double* sum, const double* sq, std::int64_t n) {
   float* p = img.pixel(x, y);
   for (int c = 0; c < 3; ++c) {
     if (n < 2) {
       p[c] = 0;
       continue;
     }
-    double mean = sum.v[c] / n;
-    double var = std::max(0.0, (sq.v[c] - mean * sum.v[c]) / double(n - 1));
+    double mean = sum[c] / n;
+    double var = std::max(0.0, (sq[c] - mean * sum[c]) / double(n - 1));
     p[c] = float(var / n);
   }
 }
 
 // The albedo-weighted mean of an illumination layer (see top of file) into out[0..2].
-void demodulated(const D3& sum_t, const D3& sum, const D3& albedo, std::int64_t n, float* out) {
+void demodulated(const double* sum_t, const double* sum, const double* albedo, std::int64_t n, float* out) {
   for (int c = 0; c < 3; ++c) {
-    if (albedo.v[c] > 1e-12 * double(n)) out[c] = float(sum_t.v[c] / albedo.v[c]);
-    else out[c] = n > 0 ? float(sum.v[c] / double(n)) : 0.0f;
+    if (albedo[c] > 1e-12 * double(n)) out[c] = float(sum_t[c] / albedo[c]);
+    else out[c] = n > 0 ? float(sum[c] / double(n)) : 0.0f;
   }
 }
 
 // Variance of that mean: of the samples X T / mean(T), or of X where the albedo sums to 0.
-void demodulated_var(const D3& sum_t, const D3& sq_t, const D3& sum, const D3& sq, const D3& albedo,
-                     std::int64_t n, float* out) {
+void demodulated_var(const double* sum_t, const double* sq_t, const double* sum, const double* sq,
+                     const double* albedo, std::int64_t n, float* out) {
   for (int c = 0; c < 3; ++c) {
     if (n < 2) {
       out[c] = 0;
       continue;
     }
-    const bool weighted = albedo.v[c] > 1e-12 * double(n);
-    const double s1 = weighted ? sum_t.v[c] : sum.v[c], s2 = weighted ? sq_t.v[c] : sq.v[c];
+    const bool weighted = albedo[c] > 1e-12 * double(n);
+    const double s1 = weighted ? sum_t[c] : sum[c], s2 = weighted ? sq_t[c] : sq[c];
     const double mean = s1 / n;
     double var = std::max(0.0, (s2 - mean * s1) / double(n - 1)) / n;
     if (weighted) {
-      const double t = albedo.v[c] / n;
+      const double t = albedo[c] / n;
       var /= t * t;
     }
     out[c] = float(var);
@@ -222,88 +248,124 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   PathTracer tracer(scene, tracer_options(settings));
 
   AovFrame frame(W, H);
-  Image& color = frame.add(layer::kColor, 3);
-  Image& var_f = frame.add(layer::kVariance, 3);
-  Image& var_d = frame.add(layer::kDirectVariance, 3);
-  Image& var_i = frame.add(layer::kIndirectVariance, 3);
-  Image& samples = frame.add(layer::kSamples, 1);
-  Image& edge = frame.add(layer::kEdge, 1);
+  {
+    // Every layer, zero-filled in parallel (a 1024x768 frame with two reflection levels holds
+    // ~260 MB: filling it on one thread costs as much as a sample per pixel).
+    std::vector<std::pair<std::string, int>> names = {{layer::kColor, 3},          {layer::kVariance, 3},
+                                                      {layer::kDirectVariance, 3}, {layer::kIndirectVariance, 3},
+                                                      {layer::kSamples, 1},        {layer::kEdge, 1}};
+    for (int k = 0; k <= K; ++k) {
+      for (const char* b : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
+                            layer::kNormal})
+        names.emplace_back(layer::at_level(k, b), 3);
+      names.emplace_back(layer::at_level(k, layer::kDepth), 1);
+      if (k > 0) names.emplace_back(layer::at_level(k, layer::kTint), 3);
+    }
+    std::vector<Image> images(names.size());
+    run_in_arena(settings.threads, [&] {
+      tbb::parallel_for(std::size_t(0), names.size(), [&](std::size_t i) { images[i] = Image(W, H, names[i].second); });
+    });
+    for (std::size_t i = 0; i < names.size(); ++i) frame.set(names[i].first, std::move(images[i]));
+  }
+  Image& color = frame.layer(layer::kColor);
+  Image& var_f = frame.layer(layer::kVariance);
+  Image& var_d = frame.layer(layer::kDirectVariance);
+  Image& var_i = frame.layer(layer::kIndirectVariance);
+  Image& samples = frame.layer(layer::kSamples);
+  Image& edge = frame.layer(layer::kEdge);
   struct LevelImages {
     Image *direct, *indirect, *albedo, *reflection, *emission, *normal, *depth, *tint;
   };
   std::vector<LevelImages> lv(K + 1);
   for (int k = 0; k <= K; ++k) {
-    lv[k].direct = &frame.add(layer::at_level(k, layer::kDirect), 3);
-    lv[k].indirect = &frame.add(layer::at_level(k, layer::kIndirect), 3);
-    lv[k].albedo = &frame.add(layer::at_level(k, layer::kAlbedo), 3);
-    lv[k].reflection = &frame.add(layer::at_level(k, layer::kReflection), 3);
-    lv[k].emission = &frame.add(layer::at_level(k, layer::kEmission), 3);
-    lv[k].normal = &frame.add(layer::at_level(k, layer::kNormal), 3);
-    lv[k].depth = &frame.add(layer::at_level(k, layer::kDepth), 1);
-    lv[k].tint = k > 0 ? &frame.add(layer::at_level(k, layer::kTint), 3) : nullptr;
+    lv[k].direct = &frame.layer(layer::at_level(k, layer::kDirect));
+    lv[k].indirect = &frame.layer(layer::at_level(k, layer::kIndirect));
+    lv[k].albedo = &frame.layer(layer::at_level(k, layer::kAlbedo));
+    lv[k].reflection = &frame.layer(layer::at_level(k, layer::kReflection));
+    lv[k].emission = &frame.layer(layer::at_level(k, layer::kEmission));
+    lv[k].normal = &frame.layer(layer::at_level(k, layer::kNormal));
+    lv[k].depth = &frame.layer(layer::at_level(k, layer::kDepth));
+    lv[k].tint = k > 0 ? &frame.layer(layer::at_level(k, layer::kTint)) : nullptr;
   }
   // Relative depth spread inside each pixel, for the edge test (kept only until G is known).
   Image depth_spread(W, H, 1);
 
   std::atomic<std::int64_t> dropped{0};
+  std::atomic<std::uint64_t> rays{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
     SampleResult r;
     std::int64_t tile_dropped = 0;
+    std::uint64_t tile_rays = 0;
     std::vector<LevelSums> sums(K + 1);
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
         const std::uint64_t pixel = std::uint64_t(y) * W + x;
         for (auto& s : sums) s = LevelSums{};
-        D3 f_sum, f_sq, d_sq, i_sq, dt_sq, it_sq;
+        alignas(32) double extra[acc::kExtraSize] = {};
+        alignas(32) float vals[acc::kLevelSize];
+        alignas(32) float xvals[acc::kExtraSize];
         for (int s = 0; s < spp; ++s) {
           Sampler rng(settings.seed, pixel, std::uint64_t(s));
           float fx, fy;
           sample_position(s, grid, rng, fx, fy);
           PathContext ctx{rng};
           tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
+          tile_rays += ctx.rays;
           if (!sample_finite(r)) {
             ++tile_dropped;
             continue;
           }
-          Vec3 f = r.level[0].color();
-          f_sum.add(f);
-          f_sq.add_sq(f);
-          d_sq.add_sq(r.level[0].direct);
-          i_sq.add_sq(r.level[0].indirect);
-          dt_sq.add_sq(r.level[0].direct * r.level[0].albedo);
-          it_sq.add_sq(r.level[0].indirect * r.level[0].albedo);
-          for (int k = 0; k < r.levels && k <= K; ++k) sums[k].add(r.level[k]);
+          const LevelSample& l0 = r.level[0];
+          const Vec3 f = l0.color(), dt = l0.direct * l0.albedo, it = l0.indirect * l0.albedo;
+          put3(xvals + acc::kColor, f);
+          put3(xvals + acc::kColorSq, f * f);
+          put3(xvals + acc::kDirectSq, l0.direct * l0.direct);
+          put3(xvals + acc::kIndirectSq, l0.indirect * l0.indirect);
+          put3(xvals + acc::kDirectTSq, dt * dt);
+          put3(xvals + acc::kIndirectTSq, it * it);
+          xvals[18] = xvals[19] = 0;
+          add_values<acc::kExtraSize>(extra, xvals);
+          for (int k = 0; k < r.levels && k <= K; ++k) {
+            pack_level(r.level[k], vals);
+            ++sums[k].n;
+            add_values<acc::kLevelSize>(sums[k].v, vals);
+          }
         }
         const std::int64_t n = sums[0].n;
         const double inv = n > 0 ? 1.0 / n : 0.0;
-        store(color, x, y, f_sum, inv);
-        store_var(var_f, x, y, f_sum, f_sq, n);
-        demodulated_var(sums[0].direct_t, dt_sq, sums[0].direct, d_sq, sums[0].albedo, n, var_d.pixel(x, y));
-        demodulated_var(sums[0].indirect_t, it_sq, sums[0].indirect, i_sq, sums[0].albedo, n, var_i.pixel(x, y));
+        const LevelSums& L0 = sums[0];
+        store(color, x, y, extra + acc::kColor, inv);
+        store_var(var_f, x, y, extra + acc::kColor, extra + acc::kColorSq, n);
+        demodulated_var(L0.at(acc::kDirectT), extra + acc::kDirectTSq, L0.at(acc::kDirect), extra + acc::kDirectSq,
+                        L0.at(acc::kAlbedo), n, var_d.pixel(x, y));
+        demodulated_var(L0.at(acc::kIndirectT), extra + acc::kIndirectTSq, L0.at(acc::kIndirect),
+                        extra + acc::kIndirectSq, L0.at(acc::kAlbedo), n, var_i.pixel(x, y));
         samples.at(x, y, 0) = float(n);
         for (int k = 0; k <= K; ++k) {
           const LevelSums& L = sums[k];
           const double li = L.n > 0 ? 1.0 / L.n : 0.0;
-          demodulated(L.direct_t, L.direct, L.albedo, L.n, lv[k].direct->pixel(x, y));
-          demodulated(L.indirect_t, L.indirect, L.albedo, L.n, lv[k].indirect->pixel(x, y));
-          store(*lv[k].albedo, x, y, L.albedo, li);
-          store(*lv[k].reflection, x, y, L.reflection, li);
-          store(*lv[k].emission, x, y, L.emission, li);
-          store(*lv[k].normal, x, y, L.normal, li);
-          lv[k].depth->at(x, y, 0) = float(L.depth * li);
+          demodulated(L.at(acc::kDirectT), L.at(acc::kDirect), L.at(acc::kAlbedo), L.n, lv[k].direct->pixel(x, y));
+          demodulated(L.at(acc::kIndirectT), L.at(acc::kIndirect), L.at(acc::kAlbedo), L.n,
+                      lv[k].indirect->pixel(x, y));
+          store(*lv[k].albedo, x, y, L.at(acc::kAlbedo), li);
+          store(*lv[k].reflection, x, y, L.at(acc::kReflection), li);
+          store(*lv[k].emission, x, y, L.at(acc::kEmission), li);
+          store(*lv[k].normal, x, y, L.at(acc::kNormal), li);
+          lv[k].depth->at(x, y, 0) = float(L.v[acc::kDepth] * li);
           // refl(k).tint: mean over the samples of level k-1 of the bounce weight into level k.
           if (k > 0) {
             const LevelSums& P = sums[k - 1];
-            store(*lv[k].tint, x, y, P.tint, P.n > 0 ? 1.0 / P.n : 0.0);
+            store(*lv[k].tint, x, y, P.at(acc::kTint), P.n > 0 ? 1.0 / P.n : 0.0);
           }
         }
         if (n > 1) {
-          double m = sums[0].depth * inv;
-          double var = std::max(0.0, sums[0].depth_sq * inv - m * m);
+          double m = L0.v[acc::kDepth] * inv;
+          double var = std::max(0.0, L0.v[acc::kDepthSq] * inv - m * m);
           depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
         }
       }
     dropped += tile_dropped;
+    rays += tile_rays;
     if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * spp);
   });
 
@@ -319,15 +381,19 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     float da = depth.at(xa, ya, 0), db = depth.at(xb, yb, 0);
     return std::fabs(da - db) > kEdgeDepthRel * std::min(da, db);
   };
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x) {
-      Vec3 n = pixel_vec(normal, x, y);
-      float ln = length(n);
-      bool inner = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread;
-      if (inner) edge.at(x, y, 0) = 1;
-      if (x + 1 < W && differ(x, y, x + 1, y)) edge.at(x, y, 0) = edge.at(x + 1, y, 0) = 1;
-      if (y + 1 < H && differ(x, y, x, y + 1)) edge.at(x, y, 0) = edge.at(x, y + 1, 0) = 1;
-    }
+  // Each pixel tests itself and its four neighbours (so rows can run in parallel).
+  run_in_arena(settings.threads, [&] {
+    tbb::parallel_for(0, H, [&](int y) {
+      for (int x = 0; x < W; ++x) {
+        Vec3 n = pixel_vec(normal, x, y);
+        float ln = length(n);
+        bool in_g = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread ||
+                    (x + 1 < W && differ(x, y, x + 1, y)) || (x > 0 && differ(x, y, x - 1, y)) ||
+                    (y + 1 < H && differ(x, y, x, y + 1)) || (y > 0 && differ(x, y, x, y - 1));
+        edge.at(x, y, 0) = in_g ? 1.0f : 0.0f;
+      }
+    });
+  });
   depth_spread = Image();
 
   if (settings.edge_subpixels) {
@@ -387,8 +453,8 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
 
             }
             e.depth = float(sub[k].depth * inv);
-            demodulated(sub[k].direct_t, sub[k].direct, sub[k].albedo, sub[k].n, e.direct);
-            demodulated(sub[k].indirect_t, sub[k].indirect, sub[k].albedo, sub[k].n, e.indirect);
+            demodulated(sub[k].direct_t.v, sub[k].direct.v, sub[k].albedo.v, sub[k].n, e.direct);
+            demodulated(sub[k].indirect_t.v, sub[k].indirect.v, sub[k].albedo.v, sub[k].n, e.indirect);
           }
         }
       });
@@ -411,6 +477,8 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   frame.meta.reflection_levels = K;
   frame.meta.extra["max_depth"] = std::to_string(settings.max_depth);
   frame.meta.extra["scene_hash"] = scene_content_hash(scene);
+  // Rays of the main pass (closest-hit and shadow rays; the edge pass re-traces G's samples).
+  frame.meta.extra["rays"] = std::to_string(rays.load());
   frame.meta.render_seconds = clock.seconds();
   return frame;
 }

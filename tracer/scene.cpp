@@ -13,15 +13,11 @@ Vec3 SurfaceHit::spawn_origin(Vec3 dir) const {
   return p + ng * (dot(dir, ng) >= 0 ? offset : -offset);
 }
 
-Ray Camera::generate_ray(float fx, float fy, int width, int height) const {
-  Vec3 forward = normalize(look_at - eye);
-  Vec3 right = normalize(cross(forward, up));
-  Vec3 true_up = cross(right, forward);
-  float tan_half = std::tan(vfov_degrees * kPi / 360.0f);
-  float aspect = float(width) / float(height);
-  float sx = (2.0f * fx / width - 1.0f) * tan_half * aspect;
-  float sy = (1.0f - 2.0f * fy / height) * tan_half;
-  return Ray{eye, normalize(forward + right * sx + true_up * sy), 1e30f};
+void Camera::prepare() {
+  forward_ = normalize(look_at - eye);
+  right_ = normalize(cross(forward_, up));
+  up_ = cross(right_, forward_);
+  tan_half_ = std::tan(vfov_degrees * kPi / 360.0f);
 }
 
 Vec3 Sky::radiance(Vec3 dir) const {
@@ -55,6 +51,7 @@ std::size_t Scene::triangle_count() const {
 }
 
 void Scene::commit() {
+  camera.prepare();
   rtc_ = rtcNewScene(device_);
   rtcSetSceneBuildQuality(rtc_, RTC_BUILD_QUALITY_HIGH);
   bmin_ = Vec3(1e30f);
@@ -111,7 +108,7 @@ void Scene::commit() {
         g = int(group_power.size());
         group_power.push_back(0);
       }
-      emitters_.push_back({unsigned(gi), unsigned(t), area});
+      emitters_.push_back({unsigned(gi), unsigned(t), area, a, b - a, c - a, normalize(cross(b - a, c - a)), &mat});
       power.push_back(w);
       group.push_back(g);
       group_power[g] += w;
@@ -255,20 +252,17 @@ bool Scene::sample_light(Vec3 p, Vec3 n, float u0, float u1, float u2, LightSamp
   }
   if (idx < ntri) {
     const EmissiveTriangle& e = emitters_[idx];
-    const Mesh& m = meshes[e.mesh];
-    Vec3 a = m.positions[3 * e.prim], b = m.positions[3 * e.prim + 1], c = m.positions[3 * e.prim + 2];
     // Uniform point on the triangle.
     float su = std::sqrt(u1);
-    float b0 = 1 - su, b1 = u2 * su;
-    Vec3 q = a * b0 + b * b1 + c * (1 - b0 - b1);
+    float b1 = 1 - su, b2 = u2 * su;
+    Vec3 q = e.p0 + e.e1 * b1 + e.e2 * b2;
     Vec3 d = q - p;
     float dist2 = dot(d, d);
     if (!(dist2 > 0)) return false;
     float dist = std::sqrt(dist2);
     Vec3 wi = d / dist;
-    Vec3 n = normalize(cross(b - a, c - a));
-    float cos_l = -dot(n, wi);
-    const Material& mat = materials[m.material[e.prim]];
+    float cos_l = -dot(e.normal, wi);
+    const Material& mat = *e.material;
     if (cos_l <= 0) {
       if (!mat.two_sided) return false;
       cos_l = -cos_l;

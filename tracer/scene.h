@@ -103,8 +103,18 @@ struct Camera {
   Vec3 up{0, 1, 0};
   float vfov_degrees = 45.0f;
   // A pinhole camera ray through film position (fx, fy) in pixels, (0, 0) being the top-left
-  // corner of the image and (width, height) the bottom-right one.
-  Ray generate_ray(float fx, float fy, int width, int height) const;
+  // corner of the image and (width, height) the bottom-right one. Call prepare() after
+  // changing eye, look_at, up or vfov (Scene::commit does).
+  Ray generate_ray(float fx, float fy, int width, int height) const {
+    float sx = (2.0f * fx / width - 1.0f) * tan_half_ * (float(width) / float(height));
+    float sy = (1.0f - 2.0f * fy / height) * tan_half_;
+    return Ray{eye, normalize(forward_ + right_ * sx + up_ * sy), 1e30f};
+  }
+  void prepare();
+
+ private:
+  Vec3 forward_{0, 0, -1}, right_{1, 0, 0}, up_{0, 1, 0};
+  float tan_half_ = 0.41421356f;
 };
 
 // The sky: radiance arriving from directions no surface blocks.
@@ -149,6 +159,7 @@ class Scene {
   std::string name;                 // built-in name or file stem
   std::string source_file;          // the scene TOML
   std::vector<std::string> files;   // every file read (TOML, meshes, textures) for the content hash
+  std::string content_hash;         // scene_content_hash, computed by load_scene
   rt::Camera camera;
   std::vector<rt::Material> materials;
   std::vector<std::unique_ptr<rt::Texture>> textures;
@@ -192,6 +203,8 @@ class Scene {
   struct EmissiveTriangle {
     unsigned mesh, prim;
     float area;
+    rt::Vec3 p0, e1, e2, normal;  // corner, edges, unit normal (winding side)
+    const rt::Material* material;
   };
   std::vector<EmissiveTriangle> emitters_;
   std::vector<float> emitter_cdf_;   // over emitters_, then sun, then sky (sums to 1)

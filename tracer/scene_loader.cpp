@@ -274,6 +274,8 @@ class Loader {
       throw InputError(fmt::format("{}: expected a field of view in (0, 179) degrees", c->where("vfov")));
     if (length(scene_.camera.look_at - scene_.camera.eye) <= 0)
       throw InputError(fmt::format("{}: eye and look_at coincide", c->where("look_at")));
+    if (length(cross(normalize(scene_.camera.look_at - scene_.camera.eye), normalize(scene_.camera.up))) < 1e-4f)
+      throw InputError(fmt::format("{}: up is parallel to the viewing direction", c->where("up")));
     c->finish();
   }
 
@@ -639,10 +641,12 @@ std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const S
   scene->name = name;
   Loader(*scene, options).load(path.string());
   scene->commit();
+  scene->content_hash = scene_content_hash(*scene);  // once: the OBJ files can be large
   return scene;
 }
 
 std::string scene_content_hash(const Scene& scene) {
+  if (!scene.content_hash.empty()) return scene.content_hash;
   // FNV-1a over the bytes of every file the scene read, in the order read, each preceded by its
   // file name (not its folder: moving a scene collection keeps its caches valid).
   std::uint64_t h = 0xcbf29ce484222325ULL;

@@ -33,7 +33,8 @@ AovFrame constant_frame(int width, int height) {
       fill(f.add(layer::kEdge, 1), {0});
       fill(f.add(layer::kSamples, 1), {64});
     } else {
-      fill(f.add(n(layer::kTint), 3), {0.5f, 0.5f, 0.5f});
+      // R = tint * F at level 1 (the tracer's contract, tracer/integrator.h): 0.05 = tint * 0.3.
+      fill(f.add(n(layer::kTint), 3), {kConstantTint, kConstantTint, kConstantTint});
     }
   }
   f.meta.scene = "synthetic-constant";
@@ -73,6 +74,7 @@ AovFrame planes_frame(int width, int height, float noise_sigma, std::uint64_t se
         indirect.at(x, y, c) = in;
         albedo.at(x, y, c) = tex;
         reflection.at(x, y, c) = 0.02f;
+        f.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = 0.02f / kConstantColor;  // R = tint * F1
         color.at(x, y, c) = (dn + in) * tex + 0.02f;
       }
     }

@@ -11,13 +11,16 @@ namespace dnb::test {
 // Every layer of the frame contract (DESIGN.md) at levels 0 and 1, each filled with a constant:
 // direct 0.3, indirect 0.2, albedo 0.5, reflection 0.05, emission 0, colour 0.3 (= formula 1),
 // normal (0, 0, 1), depth 2, variances 0.01, edge 0, samples 64, refl1.* the same as level 0
-// with tint 0.5. A filter must return this colour everywhere.
+// with tint 1/6, so that R = tint * F1 holds as in a tracer's frame (0.05 = 0.3 / 6). A filter
+// must return this colour everywhere.
 AovFrame constant_frame(int width, int height);
 inline constexpr float kConstantColor = 0.3f;
+inline constexpr float kConstantTint = 0.05f / 0.3f;
 
 // A smooth scene: two planes meeting at a vertical line x = width / 2 (different normals and
 // depths), a smooth illumination gradient that jumps at the crease, an 8-pixel checkerboard
-// albedo (0.25 / 0.75), small constant reflection and no emission. With noise_sigma > 0,
+// albedo (0.25 / 0.75), small constant reflection (0.02, with refl1.tint = 0.02 / 0.3 so that
+// R = tint * F1 holds) and no emission. With noise_sigma > 0,
 // Gaussian noise of that standard deviation (relative to the local illumination) is added to
 // direct and indirect, and the colour is composed from the noisy layers, as a path tracer's
 // would be. The same seed gives the same frame.

@@ -1,6 +1,7 @@
 // The content-keyed cache: hits, misses, and damaged entries detected by checksum and never used.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 
@@ -155,6 +156,18 @@ TEST(Cache, FailedWriterStoresNothing) {
                WorkError);
   EXPECT_FALSE(cache.lookup(example_key()));
   EXPECT_TRUE(fs::is_empty(tmp.file("cache") + "/frame")) << "staging folder left behind";
+}
+
+TEST(Cache, StaleStagingFoldersOfKilledStoresAreRemoved) {
+  test::TempDir tmp;
+  Cache cache(tmp.file("cache"));
+  const fs::path kind = fs::path(tmp.file("cache")) / "frame";
+  fs::create_directories(kind / ".staging-old");
+  fs::create_directories(kind / ".staging-recent");
+  fs::last_write_time(kind / ".staging-old", fs::file_time_type::clock::now() - std::chrono::hours(48));
+  cache.store(example_key(), [](const std::string& d) { write_file(d + "/v.txt", "v"); });
+  EXPECT_FALSE(fs::exists(kind / ".staging-old"));
+  EXPECT_TRUE(fs::exists(kind / ".staging-recent")) << "may belong to a store in progress";
 }
 
 TEST(Cache, DefaultDirFollowsEnvironment) {

@@ -213,6 +213,39 @@ TEST(Decomposition, PixelMeansHoldOnEveryPixel) {
   }
 }
 
+TEST(Decomposition, ReflectionLevelComposesTheMirrorPixels) {
+  // Inside the mirror sphere (not on G) every sample bounces once off the mirror with the same
+  // tint, so reflection = refl1.tint * ((D1 + I1) * T1 + R1 + E1) for the pixel means, with the
+  // level-1 means taken over those samples (and D1, I1 albedo-weighted like level 0).
+  auto scene = load_scene("cornell-box");
+  RenderSettings s;
+  s.width = 64;
+  s.height = 48;
+  s.spp = 16;
+  AovFrame f = render_frame(*scene, s);
+  const Image& R = f.layer(layer::kReflection);
+  const Image& tint = f.layer("refl1.tint");
+  const Image& D1 = f.layer("refl1.direct");
+  const Image& I1 = f.layer("refl1.indirect");
+  const Image& T1 = f.layer("refl1.albedo");
+  const Image& R1 = f.layer("refl1.reflection");
+  const Image& E1 = f.layer("refl1.emission");
+  const Image& G = f.layer(layer::kEdge);
+  int mirror_pixels = 0;
+  for (int y = 0; y < s.height; ++y)
+    for (int x = 0; x < s.width; ++x) {
+      if (G.at(x, y, 0) > 0 || std::fabs(tint.at(x, y, 0) - 0.95f) > 1e-6f) continue;  // the sphere's tint
+      ++mirror_pixels;
+      for (int c = 0; c < 3; ++c) {
+        double composed = tint.at(x, y, c) * ((double(D1.at(x, y, c)) + I1.at(x, y, c)) * T1.at(x, y, c) +
+                                              R1.at(x, y, c) + E1.at(x, y, c));
+        // Float rounding of the stored means only (as for level 0).
+        EXPECT_LE(std::fabs(composed - R.at(x, y, c)), 1e-3 * std::fabs(R.at(x, y, c)) + 1e-6) << x << "," << y;
+      }
+    }
+  EXPECT_GT(mirror_pixels, 20);
+}
+
 TEST(Determinism, BitIdenticalForOneAndTwoThreads) {
   auto scene = load_scene("cornell-box");
   RenderSettings s;

@@ -103,6 +103,39 @@ TEST(ObjLoader, EmittersAreOneSided) {
   EXPECT_TRUE(scene->has_lights());
 }
 
+TEST(SceneFile, ImageAndProceduralTexturesAreLookedUp) {
+  test::TempDir dir;
+  write_png(dir.file("wall.png"), 0.5f, 1.0f, 0.0f);
+  std::string text =
+      "[camera]\neye = [0, 0, 3]\nlook_at = [0, 0, 0]\n"
+      "[textures.img]\ntype = \"image\"\nfile = \"wall.png\"\n"
+      "[textures.chk]\ntype = \"checker\"\nscale = 2\ncolor_a = [1, 0, 0]\ncolor_b = [0, 0, 1]\n"
+      "[materials.a]\ntexture = \"img\"\nalbedo = [0.5, 0.5, 0.5]\n"
+      "[materials.b]\ntexture = \"chk\"\nalbedo = [1, 1, 1]\n"
+      "[[objects]]\ntype = \"quad\"\nmaterial = \"a\"\n"
+      "vertices = [-1, -1, 0,  1, -1, 0,  1, 1, 0,  -1, 1, 0]\n"
+      "[[objects]]\ntype = \"quad\"\nmaterial = \"b\"\n"
+      "vertices = [-1, -1, -1,  1, -1, -1,  1, 1, -1,  -1, 1, -1]\n";
+  auto scene = load_scene(test::write_text(dir.file("t.toml"), text));
+  rt::SurfaceHit hit;
+  ASSERT_TRUE(scene->intersect(rt::Ray{Vec3(0.3f, 0.2f, 3), Vec3(0, 0, -1), 1e30f}, hit));
+  // 8-bit texels are sRGB-decoded: 128/255 -> 0.2158 linear (0.5 of 255 truncates to 127:
+  // 0.2122), times the albedo 0.5; 255 -> 1.
+  EXPECT_NEAR(hit.albedo.x, 0.5 * 0.2122, 2e-3);
+  EXPECT_NEAR(hit.albedo.y, 0.5, 1e-5);
+  EXPECT_NEAR(hit.albedo.z, 0.0, 1e-6);
+  // The checker: uv (0.25, 0.25) -> cell (0, 0) = color_a; uv (0.75, 0.25) -> color_b.
+  ASSERT_TRUE(scene->intersect(rt::Ray{Vec3(-0.5f, -0.5f, -0.5f), Vec3(0, 0, -1), 1e30f}, hit));
+  EXPECT_EQ(hit.albedo.x, 1.0f);
+  ASSERT_TRUE(scene->intersect(rt::Ray{Vec3(0.5f, -0.5f, -0.5f), Vec3(0, 0, -1), 1e30f}, hit));
+  EXPECT_EQ(hit.albedo.z, 1.0f);
+  // A texture file that is missing is named.
+  std::string missing = text;
+  missing.replace(missing.find("wall.png"), 8, "gone.png");
+  std::string msg = error_of([&] { load_scene(test::write_text(dir.file("m.toml"), missing)); });
+  EXPECT_NE(msg.find("gone.png"), std::string::npos) << msg;
+}
+
 TEST(SceneFile, UnknownKeysAreRejectedWithFileAndKey) {
   test::TempDir dir;
   std::string base = test::furnace_scene(0.5, 1.0);

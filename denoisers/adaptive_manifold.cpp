@@ -1,0 +1,606 @@
+// The adaptive-manifold core (see adaptive_manifold.h for the algorithm and its choices).
+//
+// Why hand-written and not OpenCV's ximgproc::AdaptiveManifoldFilter: OpenCV's version cannot
+// answer slice queries with another guide value (paper 3.1 needs that for edge sub-pixels), its
+// power iteration restarts from the random vector every step, and it is about 3x slower here
+// (bench/am_bench.cpp): it splits every image into planes with a separate full-resolution pass
+// per operation. Here every full-resolution pass is fused (distance, weight, splat, covariance
+// in one; slice, split, child splat in the other), rows are planar so the loops vectorise, and
+// the exponentials go through OpenCV's vectorised cv::hal::exp32f.
+#include "denoisers/adaptive_manifold.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include <opencv2/core/hal/hal.hpp>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "core/errors.h"
+
+namespace dnb {
+
+int am_tree_height(double sigma_s, double sigma_r) {
+  const double hs = std::floor(std::log2(sigma_s)) - 1.0;
+  const double lr = 1.0 - sigma_r;
+  return std::max(2, int(std::ceil(hs * lr)));
+}
+
+int am_downsample_factor(double sigma_s, double sigma_r) {
+  const double df = std::min(sigma_s / 4.0, 256.0 * sigma_r);
+  int p = 1;
+  while (p * 2 <= df) p *= 2;
+  return p;
+}
+
+Image make_guide(const std::vector<GuideGroup>& groups, float sigma_r) {
+  if (groups.empty()) throw WorkError("make_guide: no guide group");
+  const int w = groups[0].image.width, h = groups[0].image.height;
+  int d = 0;
+  for (const auto& g : groups) {
+    if (g.image.width != w || g.image.height != h) throw WorkError("make_guide: guide groups differ in size");
+    if (!(g.sigma > 0)) throw WorkError("make_guide: a guide group's sigma must be positive");
+    d += g.image.channels;
+  }
+  Image out(w, h, d);
+  tbb::parallel_for(0, h, [&](int y) {
+    float* o = out.pixel(0, y);
+    for (int x = 0; x < w; ++x) {
+      for (const auto& g : groups) {
+        const float s = sigma_r / g.sigma;
+        const float* p = g.image.pixel(x, y);
+        for (int c = 0; c < g.image.channels; ++c) *o++ = s * p[c];
+      }
+    }
+  });
+  return out;
+}
+
+namespace {
+
+// Independent partial sums of a dot product: float sums only vectorise when their order is
+// fixed by the code (no -ffast-math), and a fixed order also keeps the result bit-identical.
+constexpr int kLanes = 16;
+
+// Planar float images: channel c of pixel (x, y) at data[(c * h + y) * w + x].
+struct Planes {
+  int w = 0, h = 0, n = 0;
+  std::vector<float> data;
+  Planes() = default;
+  Planes(int w_, int h_, int n_) : w(w_), h(h_), n(n_), data(std::size_t(w_) * h_ * n_, 0.0f) {}
+  float* plane(int c) { return data.data() + std::size_t(c) * w * h; }
+  const float* plane(int c) const { return data.data() + std::size_t(c) * w * h; }
+  float* row(int c, int y) { return plane(c) + std::size_t(y) * w; }
+  const float* row(int c, int y) const { return plane(c) + std::size_t(y) * w; }
+};
+
+// Recursive filter, one causal and one anti-causal pass per direction (Gastal and Oliveira
+// 2011, domain transform RF): out[x] += a_x (out[x-1] - out[x]) with a per-edge feedback a_x.
+// `wh(y)` returns the w-1 horizontal edge weights of row y, `wv(y)` the w vertical weights
+// between rows y and y+1. Rows are independent in the horizontal pass and columns in the
+// vertical one, so the parallel split does not change the result.
+template <typename WH, typename WV>
+void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
+  const int w = p.w, h = p.h;
+  // Horizontal: each row is a serial recursion, so up to 4 planes advance together to hide
+  // the latency of the dependency chain.
+  tbb::parallel_for(0, h, [&](int y) {
+    const float* a = wh(y);
+    int c = first;
+    for (; c + 4 <= first + count; c += 4) {
+      float* r0 = p.row(c, y);
+      float* r1 = p.row(c + 1, y);
+      float* r2 = p.row(c + 2, y);
+      float* r3 = p.row(c + 3, y);
+      for (int x = 1; x < w; ++x) {
+        const float k = a[x - 1];
+        r0[x] += k * (r0[x - 1] - r0[x]);
+        r1[x] += k * (r1[x - 1] - r1[x]);
+        r2[x] += k * (r2[x - 1] - r2[x]);
+        r3[x] += k * (r3[x - 1] - r3[x]);
+      }
+      for (int x = w - 2; x >= 0; --x) {
+        const float k = a[x];
+        r0[x] += k * (r0[x + 1] - r0[x]);
+        r1[x] += k * (r1[x + 1] - r1[x]);
+        r2[x] += k * (r2[x + 1] - r2[x]);
+        r3[x] += k * (r3[x + 1] - r3[x]);
+      }
+    }
+    for (; c < first + count; ++c) {
+      float* r = p.row(c, y);
+      for (int x = 1; x < w; ++x) r[x] += a[x - 1] * (r[x - 1] - r[x]);
+      for (int x = w - 2; x >= 0; --x) r[x] += a[x] * (r[x + 1] - r[x]);
+    }
+  });
+  constexpr int kChunk = 64;
+  tbb::parallel_for(0, (w + kChunk - 1) / kChunk, [&](int chunk) {
+    const int x0 = chunk * kChunk, x1 = std::min(w, x0 + kChunk);
+    for (int c = first; c < first + count; ++c) {
+      for (int y = 1; y < h; ++y) {
+        const float* a = wv(y - 1);
+        float* r = p.row(c, y);
+        const float* q = p.row(c, y - 1);
+        for (int x = x0; x < x1; ++x) r[x] += a[x] * (q[x] - r[x]);
+      }
+      for (int y = h - 2; y >= 0; --y) {
+        const float* a = wv(y);
+        float* r = p.row(c, y);
+        const float* q = p.row(c, y + 1);
+        for (int x = x0; x < x1; ++x) r[x] += a[x] * (q[x] - r[x]);
+      }
+    }
+  });
+}
+
+// Their h_filter: the recursive filter with a constant feedback exp(-sqrt 2 / sigma).
+void low_pass(Planes& p, int first, int count, double sigma) {
+  std::vector<float> a(std::max(p.w, 1), float(std::exp(-std::sqrt(2.0) / sigma)));
+  auto same = [&](int) { return a.data(); };
+  recursive_filter(p, first, count, same, same);
+}
+
+std::uint64_t hash_guide(ConstImageView g) {
+  std::uint64_t h = 1469598103934665603ull;
+  auto mix = [&](std::uint64_t v) {
+    h ^= v;
+    h *= 1099511628211ull;
+  };
+  mix(std::uint64_t(g.width));
+  mix(std::uint64_t(g.height));
+  mix(std::uint64_t(g.channels));
+  const std::size_t n = std::size_t(g.width) * g.height * g.channels;
+  for (std::size_t k = 0; k < n; k += 61) {
+    const std::size_t px = k / g.channels, c = k % g.channels;
+    const float v = g.pixel(int(px % g.width), int(px / g.width))[c];
+    std::uint32_t bits;
+    std::memcpy(&bits, &v, 4);
+    mix(bits);
+  }
+  return h;
+}
+
+class AmRun {
+ public:
+  AmRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
+      : s_(s), W_(src.width), H_(src.height), C_(src.channels), D_(guide.channels), queries_(queries) {
+    if (guide.width != W_ || guide.height != H_)
+      throw WorkError("am_filter: guide and source differ in size");
+    if (!(s.sigma_s >= 1.0) || !(s.sigma_r > 0.0)) throw WorkError("am_filter: needs sigma_s >= 1 and sigma_r > 0");
+    height_ = s.tree_height > 0 ? std::min(s.tree_height, 12) : std::min(am_tree_height(s.sigma_s, s.sigma_r), 12);
+    df_ = am_downsample_factor(s.sigma_s, s.sigma_r);
+    sw_ = (W_ + df_ - 1) / df_;
+    sh_ = (H_ + df_ - 1) / df_;
+    inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
+    seed_ = hash_guide(guide);
+
+    guide_ = Planes(W_, H_, D_);
+    src_ = Planes(W_, H_, C_);
+    tbb::parallel_for(0, H_, [&](int y) {
+      for (int x = 0; x < W_; ++x) {
+        const float* g = guide.pixel(x, y);
+        for (int c = 0; c < D_; ++c) guide_.row(c, y)[x] = g[c];
+        const float* f = src.pixel(x, y);
+        for (int c = 0; c < C_; ++c) src_.row(c, y)[x] = f[c];
+      }
+    });
+    acc_ = Planes(W_, H_, C_ + 1);
+    w_.assign(std::size_t(W_) * H_, 0.0f);
+    label_.assign(std::size_t(W_) * H_, 1);
+    if (s.adjust_outliers) min_d2_.assign(std::size_t(W_) * H_, INFINITY);
+
+    // Bilinear upsampling from the reduced grid, pixel centres aligned: full-resolution x
+    // sits at (x + 0.5) / df - 0.5 on the reduced grid.
+    auto table = [&](int n, int small, std::vector<int>& i0, std::vector<int>& i1, std::vector<float>& f) {
+      i0.resize(n), i1.resize(n), f.resize(n);
+      for (int x = 0; x < n; ++x) {
+        const float u = std::clamp((x + 0.5f) / df_ - 0.5f, 0.0f, float(small - 1));
+        i0[x] = std::min(int(u), small - 1);
+        i1[x] = std::min(i0[x] + 1, small - 1);
+        f[x] = u - float(i0[x]);
+      }
+    };
+    table(W_, sw_, x0_, x1_, fx_);
+    table(H_, sh_, y0_, y1_, fy_);
+    frac_.resize(df_);
+    for (int k = 0; k < df_; ++k) frac_[k] = (k + 0.5f) / df_;
+    qacc_.assign(queries_.size() * (C_ + 1), 0.0);
+    qmin_.assign(queries_.size(), INFINITY);
+  }
+
+  Image run(std::vector<float>* query_out) {
+    // The first manifold: the guide low-passed at full resolution.
+    Planes eta_full = guide_;
+    low_pass(eta_full, 0, D_, s_.sigma_s);
+    node(1, 1, &eta_full, Planes());
+
+    Image out(W_, H_, C_);
+    const float alpha_k = float(-0.5 / (s_.sigma_r * s_.sigma_r));
+    tbb::parallel_for(0, H_, [&](int y) {
+      for (int x = 0; x < W_; ++x) {
+        const std::size_t i = std::size_t(y) * W_ + x;
+        const float den = acc_.row(C_, y)[x];
+        const float alpha = s_.adjust_outliers ? std::exp(alpha_k * min_d2_[i]) : 1.0f;
+        float* o = out.pixel(x, y);
+        for (int c = 0; c < C_; ++c) {
+          const float f = src_.row(c, y)[x];
+          // No manifold reached this pixel (all weights underflowed): it is its own estimate.
+          const float g = den > 0 ? acc_.row(c, y)[x] / den : f;
+          o[c] = f + alpha * (g - f);
+        }
+      }
+    });
+    if (query_out) {
+      query_out->assign(queries_.size() * C_, 0.0f);
+      for (std::size_t q = 0; q < queries_.size(); ++q) {
+        const double den = qacc_[q * (C_ + 1) + C_];
+        const float alpha = s_.adjust_outliers ? std::exp(alpha_k * qmin_[q]) : 1.0f;
+        for (int c = 0; c < C_; ++c) {
+          const float f = queries_[q].src ? queries_[q].src[c]
+                                           : src_.row(c, queries_[q].y)[queries_[q].x];
+          const float g = den > 0 ? float(qacc_[q * (C_ + 1) + c] / den) : f;
+          (*query_out)[q * C_ + c] = f + alpha * (g - f);
+        }
+      }
+    }
+    return out;
+  }
+
+ private:
+  struct Scratch {
+    std::vector<float> eta, x, d2, w, tmp, blur;
+    std::vector<float> colsum;  // per-column sums over the rows of one reduced-grid row
+    std::vector<float> cov;     // lane-split covariance sums (kLanes per entry)
+  };
+
+  // Fills rows [0, D) of `eta` (D x W) with manifold eta at full-resolution row y.
+  void eta_row(const Planes* eta_full, const Planes& eta_small, int y, float* eta, float* tmp) const {
+    if (eta_full) {
+      for (int c = 0; c < D_; ++c) std::memcpy(eta + std::size_t(c) * W_, eta_full->row(c, y), sizeof(float) * W_);
+      return;
+    }
+    upsample_rows(eta_small, 0, D_, y, eta, tmp);
+  }
+
+  void upsample_rows(const Planes& p, int first, int count, int y, float* out, float* tmp) const {
+    const int ya = y0_[y], yb = y1_[y];
+    const float fy = fy_[y];
+    for (int c = 0; c < count; ++c) {
+      const float* r0 = p.row(first + c, ya);
+      const float* r1 = p.row(first + c, yb);
+      for (int x = 0; x < sw_; ++x) tmp[x] = r0[x] + fy * (r1[x] - r0[x]);
+      float* o = out + std::size_t(c) * W_;
+      upsample_x(tmp, o);
+    }
+  }
+
+  // Horizontal bilinear upsampling of one reduced row. Inside the image, output pixel
+  // df sx + df/2 + k lies between reduced pixels sx and sx + 1 at fraction (k + 0.5) / df for
+  // every sx, so the interior needs no index tables (and vectorises); the borders use them.
+  void upsample_x(const float* tmp, float* o) const {
+    const int lead = std::min(W_, df_ / 2);
+    for (int x = 0; x < lead; ++x) o[x] = tmp[x0_[x]] + fx_[x] * (tmp[x1_[x]] - tmp[x0_[x]]);
+    int x = lead;
+    for (int sx = 0; sx + 1 < sw_ && x + df_ <= W_; ++sx, x += df_) {
+      const float a = tmp[sx], b = tmp[sx + 1] - tmp[sx];
+      for (int k = 0; k < df_; ++k) o[x + k] = a + frac_[k] * b;
+    }
+    for (; x < W_; ++x) o[x] = tmp[x0_[x]] + fx_[x] * (tmp[x1_[x]] - tmp[x0_[x]]);
+  }
+
+  // Adds the df-wide blocks of `col` (W floats) to the reduced row `out`, scaled by inv_rows.
+  void reduce_columns(const float* col, float* out, float inv_rows) const {
+    for (int sx = 0; sx < sw_; ++sx) {
+      const int xa = sx * df_, xb = std::min(W_, xa + df_);
+      float s = 0;
+      for (int x = xa; x < xb; ++x) s += col[x];
+      out[sx] = s * inv_rows / float(xb - xa);
+    }
+  }
+
+  float sample(const Planes& p, int c, int x, int y) const {
+    const float* r0 = p.row(c, y0_[y]);
+    const float* r1 = p.row(c, y1_[y]);
+    const float a = r0[x0_[x]] + fx_[x] * (r0[x1_[x]] - r0[x0_[x]]);
+    const float b = r1[x0_[x]] + fx_[x] * (r1[x1_[x]] - r1[x0_[x]]);
+    return a + fy_[y] * (b - a);
+  }
+
+  Scratch& scratch() {
+    Scratch& s = scratch_.local();
+    s.eta.resize(std::size_t(D_) * W_);
+    s.x.resize(std::size_t(D_) * W_);
+    s.d2.resize(W_);
+    s.w.resize(W_);
+    s.tmp.resize(sw_);
+    s.blur.resize(std::size_t(C_ + 1) * W_);
+    s.colsum.resize(std::size_t(std::max(C_ + 1, 2 * (D_ + 1))) * W_);
+    s.cov.resize(std::size_t(D_) * D_ * kLanes);
+    return s;
+  }
+
+  // One manifold: splat, blur, slice, and (above the leaves) split into two children.
+  void node(int id, int level, const Planes* eta_full, Planes eta_small) {
+    const bool split = level < height_;
+    const int DD = D_ * D_;
+    Planes splat(sw_, sh_, C_ + 1);
+    std::vector<double> cov_rows(split ? std::size_t(sh_) * DD : 0, 0.0);
+
+    // Pass 1 (full resolution): distance to the manifold, weight, splat, covariance. One task
+    // per reduced-grid row: its df full rows are summed per column first (vectorised), then
+    // per block.
+    tbb::parallel_for(0, sh_, [&](int sy) {
+      Scratch& sc = scratch();
+      const int ya = sy * df_, yb = std::min(H_, ya + df_);
+      float* col = sc.colsum.data();
+      std::fill(col, col + std::size_t(C_ + 1) * W_, 0.0f);
+      if (split) std::fill(sc.cov.begin(), sc.cov.end(), 0.0f);
+      for (int y = ya; y < yb; ++y) {
+        eta_row(eta_full, eta_small, y, sc.eta.data(), sc.tmp.data());
+        std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
+        for (int c = 0; c < D_; ++c) {
+          const float* g = guide_.row(c, y);
+          const float* e = sc.eta.data() + std::size_t(c) * W_;
+          float* X = sc.x.data() + std::size_t(c) * W_;
+          float* d2 = sc.d2.data();
+          for (int x = 0; x < W_; ++x) {
+            X[x] = g[x] - e[x];
+            d2[x] += X[x] * X[x];
+          }
+        }
+        float* wrow = w_.data() + std::size_t(y) * W_;
+        for (int x = 0; x < W_; ++x) sc.w[x] = -sc.d2[x] * inv_sr2_;
+        cv::hal::exp32f(sc.w.data(), wrow, W_);
+        if (s_.adjust_outliers) {
+          float* m = min_d2_.data() + std::size_t(y) * W_;
+          for (int x = 0; x < W_; ++x) m[x] = std::min(m[x], sc.d2[x]);
+        }
+        for (int c = 0; c < C_; ++c) {
+          float* o = col + std::size_t(c) * W_;
+          const float* f = src_.row(c, y);
+          for (int x = 0; x < W_; ++x) o[x] += wrow[x] * f[x];
+        }
+        float* o = col + std::size_t(C_) * W_;
+        for (int x = 0; x < W_; ++x) o[x] += wrow[x];
+        if (split) {
+          // Uncentred covariance of (g - eta) over the node's cluster: X is relative to the
+          // manifold, itself the cluster's weighted mean (their algorithm 1, step 2). Pixels
+          // outside the cluster get X = 0.
+          const std::uint16_t* lab = label_.data() + std::size_t(y) * W_;
+          for (int c = 0; c < D_; ++c) {
+            float* X = sc.x.data() + std::size_t(c) * W_;
+            for (int x = 0; x < W_; ++x) X[x] = lab[x] == id ? X[x] : 0.0f;
+          }
+          const int body = W_ / kLanes * kLanes;
+          for (int i = 0; i < D_; ++i) {
+            const float* Xi = sc.x.data() + std::size_t(i) * W_;
+            for (int j = i; j < D_; ++j) {
+              const float* Xj = sc.x.data() + std::size_t(j) * W_;
+              float* lanes = sc.cov.data() + std::size_t(i * D_ + j) * kLanes;
+              for (int x = 0; x < body; x += kLanes)
+                for (int l = 0; l < kLanes; ++l) lanes[l] += Xi[x + l] * Xj[x + l];
+              for (int x = body; x < W_; ++x) lanes[x - body] += Xi[x] * Xj[x];
+            }
+          }
+        }
+      }
+      const float inv_rows = 1.0f / float(yb - ya);
+      for (int c = 0; c <= C_; ++c) reduce_columns(col + std::size_t(c) * W_, splat.row(c, sy), inv_rows);
+      if (split)
+        for (int k = 0; k < DD; ++k) {
+          double t = 0;
+          for (int l = 0; l < kLanes; ++l) t += sc.cov[std::size_t(k) * kLanes + l];
+          cov_rows[std::size_t(sy) * DD + k] = t;
+        }
+    });
+
+    if (eta_full) eta_small = downsample(*eta_full, D_);
+
+    // Blur along the manifold: domain-transform recursive filter at the reduced resolution.
+    blur(splat, eta_small);
+
+    // Point queries: the same slice with the query's guide value.
+    for (std::size_t q = 0; q < queries_.size(); ++q) {
+      const AmQuery& Q = queries_[q];
+      double d2 = 0;
+      for (int c = 0; c < D_; ++c) {
+        const float e = eta_full ? eta_full->row(c, Q.y)[Q.x] : sample(eta_small, c, Q.x, Q.y);
+        const double d = double(Q.guide[c]) - e;
+        d2 += d * d;
+      }
+      const double wq = std::exp(-d2 * inv_sr2_);
+      for (int c = 0; c <= C_; ++c) qacc_[q * (C_ + 1) + c] += wq * sample(splat, c, Q.x, Q.y);
+      qmin_[q] = std::min(qmin_[q], float(d2));
+    }
+
+    // The split direction: leading eigenvector of the cluster's covariance (power iteration).
+    std::vector<float> v(D_, 0.0f);
+    if (split) {
+      std::vector<double> cov(DD, 0.0);
+      for (int sy = 0; sy < sh_; ++sy)
+        for (int k = 0; k < DD; ++k) cov[k] += cov_rows[std::size_t(sy) * DD + k];
+      for (int i = 0; i < D_; ++i)
+        for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
+      std::mt19937_64 rng(seed_ ^ (0x9E3779B97F4A7C15ull * std::uint64_t(id)));
+      std::uniform_real_distribution<double> uni(-0.5, 0.5);
+      std::vector<double> vd(D_), u(D_);
+      for (auto& e : vd) e = uni(rng);
+      for (int it = 0; it < std::max(1, s_.pca_iterations); ++it) {
+        double n = 0;
+        for (int i = 0; i < D_; ++i) {
+          u[i] = 0;
+          for (int j = 0; j < D_; ++j) u[i] += cov[i * D_ + j] * vd[j];
+          n += u[i] * u[i];
+        }
+        if (!(n > 1e-300)) break;  // the cluster is flat: any direction splits it
+        n = std::sqrt(n);
+        for (int i = 0; i < D_; ++i) vd[i] = u[i] / n;
+      }
+      for (int i = 0; i < D_; ++i) v[i] = float(vd[i]);
+    }
+
+    // Pass 2 (full resolution): slice; above the leaves also split the cluster and splat the
+    // children's (1 - w)-weighted guide (their eqs. 7-8).
+    Planes kids[2];
+    if (split) kids[0] = kids[1] = Planes(sw_, sh_, D_ + 1);
+    const int left = 2 * id, right = 2 * id + 1;
+    tbb::parallel_for(0, sh_, [&](int sy) {
+      Scratch& sc = scratch();
+      const int ya = sy * df_, yb = std::min(H_, ya + df_);
+      float* col = sc.colsum.data();  // 2 (D + 1) column sums: left child, then right
+      if (split) std::fill(col, col + std::size_t(2 * (D_ + 1)) * W_, 0.0f);
+      for (int y = ya; y < yb; ++y) {
+        upsample_rows(splat, 0, C_ + 1, y, sc.blur.data(), sc.tmp.data());
+        const float* wrow = w_.data() + std::size_t(y) * W_;
+        for (int c = 0; c <= C_; ++c) {
+          float* a = acc_.row(c, y);
+          const float* b = sc.blur.data() + std::size_t(c) * W_;
+          for (int x = 0; x < W_; ++x) a[x] += wrow[x] * b[x];
+        }
+        if (!split) continue;
+        eta_row(eta_full, eta_small, y, sc.eta.data(), sc.tmp.data());
+        float* dot = sc.d2.data();
+        std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
+        for (int c = 0; c < D_; ++c) {
+          const float* g = guide_.row(c, y);
+          const float* e = sc.eta.data() + std::size_t(c) * W_;
+          const float vc = v[c];
+          for (int x = 0; x < W_; ++x) dot[x] += vc * (g[x] - e[x]);
+        }
+        std::uint16_t* lab = label_.data() + std::size_t(y) * W_;
+        float* tl = sc.w.data();    // (1 - w) for pixels going left, else 0
+        float* tr = sc.x.data();    // the same for pixels going right
+        for (int x = 0; x < W_; ++x) {
+          const bool mine = lab[x] == id;
+          const bool go_left = dot[x] < 0;
+          const float theta = 1.0f - wrow[x];
+          tl[x] = mine && go_left ? theta : 0.0f;
+          tr[x] = mine && !go_left ? theta : 0.0f;
+          if (mine) lab[x] = std::uint16_t(go_left ? left : right);
+        }
+        for (int c = 0; c <= D_; ++c) {
+          float* ol = col + std::size_t(c) * W_;
+          float* orr = col + std::size_t(D_ + 1 + c) * W_;
+          if (c < D_) {
+            const float* g = guide_.row(c, y);
+            for (int x = 0; x < W_; ++x) {
+              ol[x] += tl[x] * g[x];
+              orr[x] += tr[x] * g[x];
+            }
+          } else {
+            for (int x = 0; x < W_; ++x) {
+              ol[x] += tl[x];
+              orr[x] += tr[x];
+            }
+          }
+        }
+      }
+      if (!split) return;
+      const float inv_rows = 1.0f / float(yb - ya);
+      for (int c = 0; c <= D_; ++c) {
+        reduce_columns(col + std::size_t(c) * W_, kids[0].row(c, sy), inv_rows);
+        reduce_columns(col + std::size_t(D_ + 1 + c) * W_, kids[1].row(c, sy), inv_rows);
+      }
+    });
+    if (!split) return;
+
+    for (int k = 0; k < 2; ++k) {
+      Planes& p = kids[k];
+      low_pass(p, 0, D_ + 1, s_.sigma_s / df_);
+      Planes eta(sw_, sh_, D_);
+      const float* den = p.plane(D_);
+      for (int c = 0; c < D_; ++c) {
+        const float* num = p.plane(c);
+        const float* parent = eta_small.plane(c);
+        float* e = eta.plane(c);
+        // Where the child's cluster left no weight, it keeps its parent's manifold.
+        for (std::size_t i = 0; i < std::size_t(sw_) * sh_; ++i) e[i] = den[i] > 1e-20f ? num[i] / den[i] : parent[i];
+      }
+      p = Planes();
+      node(k == 0 ? left : right, level + 1, nullptr, std::move(eta));
+    }
+  }
+
+  Planes downsample(const Planes& full, int n) const {
+    Planes out(sw_, sh_, n);
+    tbb::parallel_for(0, sh_, [&](int sy) {
+      const int ya = sy * df_, yb = std::min(H_, ya + df_);
+      for (int c = 0; c < n; ++c) {
+        float* o = out.row(c, sy);
+        for (int y = ya; y < yb; ++y) {
+          const float* r = full.row(c, y);
+          for (int sx = 0; sx < sw_; ++sx) {
+            const int xa = sx * df_, xb = std::min(W_, xa + df_);
+            float s = 0;
+            for (int x = xa; x < xb; ++x) s += r[x];
+            o[sx] += s;
+          }
+        }
+        for (int sx = 0; sx < sw_; ++sx) o[sx] /= float((yb - ya) * (std::min(W_, (sx + 1) * df_) - sx * df_));
+      }
+    });
+    return out;
+  }
+
+  void blur(Planes& splat, const Planes& eta) const {
+    const double ss = s_.sigma_s / df_;
+    const double sr = s_.sigma_r / std::sqrt(2.0);
+    const float ratio2 = float((ss / sr) * (ss / sr));
+    const float ln_a = float(-std::sqrt(2.0) / ss);
+    // Edge feedbacks a^(geodesic distance), L2 over the guide channels.
+    std::vector<float> ah(std::size_t(sh_) * std::max(sw_ - 1, 1), 0.0f), av(std::size_t(std::max(sh_ - 1, 1)) * sw_, 0.0f);
+    tbb::parallel_for(0, sh_, [&](int y) {
+      std::vector<float> d(sw_, 0.0f);
+      for (int c = 0; c < D_; ++c) {
+        const float* e = eta.row(c, y);
+        for (int x = 0; x + 1 < sw_; ++x) d[x] += (e[x + 1] - e[x]) * (e[x + 1] - e[x]);
+      }
+      float* a = ah.data() + std::size_t(y) * std::max(sw_ - 1, 1);
+      for (int x = 0; x + 1 < sw_; ++x) a[x] = ln_a * std::sqrt(1.0f + ratio2 * d[x]);
+      cv::hal::exp32f(a, a, std::max(sw_ - 1, 0));
+      if (y + 1 < sh_) {
+        std::fill(d.begin(), d.end(), 0.0f);
+        for (int c = 0; c < D_; ++c) {
+          const float* e0 = eta.row(c, y);
+          const float* e1 = eta.row(c, y + 1);
+          for (int x = 0; x < sw_; ++x) d[x] += (e1[x] - e0[x]) * (e1[x] - e0[x]);
+        }
+        float* b = av.data() + std::size_t(y) * sw_;
+        for (int x = 0; x < sw_; ++x) b[x] = ln_a * std::sqrt(1.0f + ratio2 * d[x]);
+        cv::hal::exp32f(b, b, sw_);
+      }
+    });
+    const int hstride = std::max(sw_ - 1, 1);
+    recursive_filter(
+        splat, 0, C_ + 1, [&](int y) { return ah.data() + std::size_t(y) * hstride; },
+        [&](int y) { return av.data() + std::size_t(y) * sw_; });
+  }
+
+  AmSettings s_;
+  int W_, H_, C_, D_;
+  const std::vector<AmQuery>& queries_;
+  int height_ = 2, df_ = 1, sw_ = 1, sh_ = 1;
+  float inv_sr2_ = 1;
+  std::uint64_t seed_ = 0;
+  Planes guide_, src_, acc_;
+  std::vector<float> w_, min_d2_;
+  std::vector<std::uint16_t> label_;
+  std::vector<int> x0_, x1_, y0_, y1_;
+  std::vector<float> fx_, fy_, frac_;
+  std::vector<double> qacc_;
+  std::vector<float> qmin_;
+  tbb::enumerable_thread_specific<Scratch> scratch_;
+};
+
+}  // namespace
+
+Image am_filter(ConstImageView src, ConstImageView guide, const AmSettings& settings,
+                const std::vector<AmQuery>& queries, std::vector<float>* query_out) {
+  if (src.empty()) return Image(src.width, src.height, src.channels);
+  AmRun run(src, guide, settings, queries);
+  return run.run(query_out);
+}
+
+}  // namespace dnb

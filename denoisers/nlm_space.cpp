@@ -1,0 +1,119 @@
+#include "denoisers/nlm_space.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
+
+#include "core/errors.h"
+
+namespace dnb {
+namespace {
+
+float luminance(const float* p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
+
+float mean_luminance(const Image& img) {
+  double s = 0;
+  for (std::size_t i = 0; i < img.pixel_count(); ++i) s += std::max(0.0f, luminance(img.data() + i * 3));
+  const double m = s / double(std::max<std::size_t>(img.pixel_count(), 1));
+  return m > 1e-12 ? float(m) : 1.0f;  // a black image: any scale
+}
+
+std::uint64_t hash_image(const Image& img) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (std::size_t k = 0; k < img.size(); k += 53) {
+    std::uint32_t bits;
+    std::memcpy(&bits, img.data() + k, 4);
+    h = (h ^ bits) * 1099511628211ull;
+  }
+  return h ^ (std::uint64_t(img.width()) << 32 | std::uint64_t(img.height()));
+}
+
+}  // namespace
+
+float NlmSpace::compress(const float* rgb) const { return std::log1p(std::max(0.0f, luminance(rgb)) / mean_luminance); }
+
+void NlmSpace::vector_with_center(const Image& illumination, int x, int y, const float* rgb, float* out) const {
+  const float delta = compress(rgb) - compress(illumination.pixel(x, y));
+  const float* v = vectors.pixel(x, y);
+  for (int k = 0; k < vectors.channels(); ++k) out[k] = v[k] + center[k] * delta;
+}
+
+float illumination_scale(const Image& illumination) { return mean_luminance(illumination); }
+
+Image compressed_illumination(const Image& illumination, float m) {
+  Image out(illumination.width(), illumination.height(), 3);
+  for (std::size_t k = 0; k < out.size(); ++k) out.data()[k] = std::log1p(std::max(0.0f, illumination.data()[k]) / m);
+  return out;
+}
+
+NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& s) {
+  if (illumination.channels() != 3) throw WorkError("nlm_space: needs an RGB illumination");
+  const int w = illumination.width(), h = illumination.height();
+  const int side = 2 * s.radius + 1, P = side * side;
+  const int dims = std::clamp(s.dims, 1, P);
+  NlmSpace out;
+  out.mean_luminance = mean_luminance(illumination);
+
+  // The compressed luminance, padded by the patch radius (reflected borders).
+  cv::Mat y(h, w, CV_32F);
+  for (int j = 0; j < h; ++j)
+    for (int i = 0; i < w; ++i) y.at<float>(j, i) = out.compress(illumination.pixel(i, j));
+  cv::Mat padded;
+  cv::copyMakeBorder(y, padded, s.radius, s.radius, s.radius, s.radius,
+                     (w > s.radius && h > s.radius) ? cv::BORDER_REFLECT_101 : cv::BORDER_REPLICATE);
+
+  std::vector<float> weight(P);
+  double wsum = 0;
+  for (int dy = -s.radius; dy <= s.radius; ++dy)
+    for (int dx = -s.radius; dx <= s.radius; ++dx) {
+      const double v = std::exp(-(dx * dx + dy * dy) / (2.0 * s.patch_sigma * s.patch_sigma));
+      weight[(dy + s.radius) * side + dx + s.radius] = float(v);
+      wsum += v;
+    }
+  for (auto& v : weight) v = float(v / wsum);
+
+  // PCA of the weighted patches of a deterministic random subset of pixels.
+  const int n = std::min(s.samples, w * h);
+  std::mt19937_64 rng(hash_image(illumination));
+  std::uniform_int_distribution<int> px(0, w * h - 1);
+  cv::Mat patches(n, P, CV_64F);
+  for (int r = 0; r < n; ++r) {
+    const int p = n == w * h ? r : px(rng);
+    const int cx = p % w, cy = p / w;
+    double* row = patches.ptr<double>(r);
+    for (int dy = 0; dy < side; ++dy)
+      for (int dx = 0; dx < side; ++dx) row[dy * side + dx] = weight[dy * side + dx] * padded.at<float>(cy + dy, cx + dx);
+  }
+  cv::Mat covar, mean;
+  cv::calcCovarMatrix(patches, covar, mean, cv::COVAR_NORMAL | cv::COVAR_ROWS | cv::COVAR_SCALE, CV_64F);
+  cv::Mat evals, evecs;
+  cv::eigen(covar, evals, evecs);  // rows of evecs: eigenvectors, eigenvalues descending
+
+  out.vectors = Image(w, h, dims);
+  out.center.resize(dims);
+  std::vector<cv::Mat> comps(dims);
+  tbb::parallel_for(0, dims, [&](int k) {
+    cv::Mat kernel(side, side, CV_32F);
+    double offset = 0;
+    for (int j = 0; j < P; ++j) {
+      const double b = evecs.at<double>(k, j);
+      kernel.at<float>(j / side, j % side) = float(b * weight[j]);
+      offset += b * mean.at<double>(0, j);
+    }
+    out.center[k] = kernel.at<float>(s.radius, s.radius);
+    cv::Mat full;
+    cv::filter2D(padded, full, CV_32F, kernel, cv::Point(-1, -1), -offset, cv::BORDER_CONSTANT);
+    comps[k] = full(cv::Rect(s.radius, s.radius, w, h)).clone();
+  });
+  cv::Mat merged;
+  cv::merge(comps, merged);
+  std::memcpy(out.vectors.data(), merged.ptr<float>(), sizeof(float) * out.vectors.size());
+  return out;
+}
+
+}  // namespace dnb

@@ -1,0 +1,270 @@
+// proposed: the paper's filter (NOTES.md section 3; Gruzdev, Frolov, Ignatenko). Each
+// illumination layer, direct D and indirect I separately, is filtered by the adaptive-manifold
+// filter (denoisers/adaptive_manifold.h) whose guide is the layer's non-local-means vector
+// (denoisers/nlm_space.h), the shading normal and the depth, each group scaled by its own
+// sigma; the image is composed as F = (D' + I') * T + R' + E (formula 1).
+//   - Reflections (paper 3.2): reflection level k (refl<k>.*) is filtered the same way with its
+//     own guides, and composed bottom-up: R'_{k-1} = tint_k * ((D'_k + I'_k) T_k + R'_k + E_k);
+//     the deepest level's R passes through.
+//   - Edges (paper 3.1): for every pixel of G (frame.edges), the slice at that pixel is
+//     evaluated 16 times, once with each sub-pixel's NLM vector (the pixel's patch with the
+//     sub-pixel's illumination at its centre), normal and depth as guide; each result is
+//     multiplied by that sub-pixel's albedo and the 16 are averaged: formula 1 per sub-pixel.
+//     Only the slice depends on the pixel's guide, so the filter runs once (AmQuery).
+//
+// Parameters (defaults: Gastal and Oliveira's for the AM core and NLM space (7x7, 6 PCA
+// dimensions as in their non-NLM demos); the group sigmas are first guesses, to be replaced by
+// the training-scene sweep):
+//   sigma_s          float  spatial standard deviation, pixels
+//   sigma_r          float  AM range sigma; sets the tree height and reduced grid (eq. 10)
+//   tree_height      int    manifold tree height; 0: from sigma_s and sigma_r
+//   pca_iterations   int    power-iteration steps of each manifold split
+//   adjust_outliers  bool   Gastal and Oliveira's eq. 11
+//   sigma_nlm        float  NLM-vector group sigma, log(1 + lum/mean) units (about relative)
+//   sigma_normal     float  normal group sigma (unit vectors)
+//   sigma_depth      float  depth group sigma, in units of the median depth
+//   nlm_dims         int    PCA dimensions of the NLM vector
+//   nlm_radius       int    patch radius (3: 7x7)
+//   nlm_patch_sigma  float  Gaussian weight of the patch pixels, pixels
+//   nlm_samples      int    patches drawn to estimate the PCA
+// Ablation switches (the experiment reports what each part contributes):
+//   nlm_space        bool   false: the guide is the compressed illumination itself
+//   geometry         bool   false: no normal and depth guide groups
+//   edge_subpixels   bool   false: edge pixels are filtered like any other
+//   reflections      bool   false: R passes through unfiltered
+//   filter_color     bool   true: filter the colour F (guide: its NLM vector, normal, depth)
+//                           instead of the illumination, and no composition
+#include <algorithm>
+#include <cmath>
+
+#include <tbb/parallel_for.h>
+
+#include "core/errors.h"
+#include "denoisers/adaptive_manifold.h"
+#include "denoisers/illumination.h"
+#include "denoisers/method.h"
+#include "denoisers/nlm_space.h"
+
+namespace dnb {
+namespace {
+
+class Proposed final : public Method {
+ public:
+  explicit Proposed(const Params& p)
+      : sigma_nlm_(float(p.f("sigma_nlm"))),
+        sigma_normal_(float(p.f("sigma_normal"))),
+        sigma_depth_(float(p.f("sigma_depth"))),
+        use_nlm_(p.b("nlm_space")),
+        use_geometry_(p.b("geometry")),
+        use_edges_(p.b("edge_subpixels")),
+        use_reflections_(p.b("reflections")),
+        filter_color_(p.b("filter_color")) {
+    am_.sigma_s = p.f("sigma_s");
+    am_.sigma_r = p.f("sigma_r");
+    am_.tree_height = p.i("tree_height");
+    am_.pca_iterations = p.i("pca_iterations");
+    am_.adjust_outliers = p.b("adjust_outliers");
+    nlm_.dims = p.i("nlm_dims");
+    nlm_.radius = p.i("nlm_radius");
+    nlm_.patch_sigma = float(p.f("nlm_patch_sigma"));
+    nlm_.samples = p.i("nlm_samples");
+  }
+
+  std::vector<std::string> required_layers() const override {
+    std::vector<std::string> l{layer::kNormal, layer::kDepth};
+    if (filter_color_) {
+      l.push_back(layer::kColor);
+    } else {
+      for (const auto& n : illumination_layers()) l.push_back(n);
+    }
+    return l;
+  }
+
+  MethodResult execute(const MethodInput& in) override {
+    MethodResult r;
+    const AovFrame& f = *in.frame;
+    if (filter_color_) {
+      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), r.stats, nullptr);
+      r.image = std::move(c.image);
+      return r;
+    }
+    // Levels present in the frame, deepest first (paper 3.2).
+    int levels = 0;
+    if (use_reflections_)
+      while (has_level(f, levels + 1)) ++levels;
+    r.stats.counters["reflection_levels_filtered"] = levels;
+
+    Image below;  // F'_{k+1}: the composed, filtered level under the current one
+    for (int k = levels; k >= 0; --k) {
+      const bool edges = k == 0 && use_edges_ && f.edges && !f.edges->pixels.empty();
+      const Image& d = f.layer(layer::at_level(k, layer::kDirect));
+      const Image& i = f.layer(layer::at_level(k, layer::kIndirect));
+      Filtered fd = filter_layer(f, k, d, r.stats, edges ? &EdgeSample::direct : nullptr);
+      Filtered fi = filter_layer(f, k, i, r.stats, edges ? &EdgeSample::indirect : nullptr);
+      ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
+      Image out(f.width(), f.height(), 3);
+      const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
+      const Image& e = f.layer(layer::at_level(k, layer::kEmission));
+      const Image& refl = f.layer(layer::at_level(k, layer::kReflection));
+      const Image* tint = k < levels ? &f.layer(layer::at_level(k + 1, layer::kTint)) : nullptr;
+      tbb::parallel_for(std::size_t(0), out.size(), [&](std::size_t j) {
+        const float rr = tint ? tint->data()[j] * below.data()[j] : refl.data()[j];
+        out.data()[j] = (fd.image.data()[j] + fi.image.data()[j]) * t.data()[j] + rr + e.data()[j];
+      });
+      if (edges) {
+        // Formula 1 per sub-pixel: mean over s of (D'_s + I'_s) T_s, plus the pixel's R' + E.
+        const EdgeSubpixels& g = *f.edges;
+        tbb::parallel_for(std::size_t(0), g.size(), [&](std::size_t n) {
+          const std::size_t px = std::size_t(g.pixels[n]);
+          const EdgeSample* sub = g.of(n);
+          float* o = out.data() + px * 3;
+          for (int c = 0; c < 3; ++c) {
+            float sum = 0;
+            for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
+              const std::size_t q = (n * EdgeSubpixels::kPerPixel + s) * 3 + c;
+              sum += (fd.queries[q] + fi.queries[q]) * sub[s].albedo[c];
+            }
+            const float rr = tint ? tint->data()[px * 3 + c] * below.data()[px * 3 + c] : refl.data()[px * 3 + c];
+            o[c] = sum / EdgeSubpixels::kPerPixel + rr + e.data()[px * 3 + c];
+          }
+        });
+        r.stats.counters["edge_pixels"] = double(g.size());
+      }
+      below = std::move(out);
+    }
+    r.image = std::move(below);
+    return r;
+  }
+
+ private:
+  struct Filtered {
+    Image image;
+    std::vector<float> queries;  // 3 floats per edge sub-pixel, when asked
+  };
+
+  static bool has_level(const AovFrame& f, int k) {
+    for (const char* base : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
+                             layer::kNormal, layer::kDepth, layer::kTint})
+      if (!f.has(layer::at_level(k, base))) return false;
+    return true;
+  }
+
+  // Filters `src` (a layer of level k) guided by [NLM vector, normal, depth] of that level. With
+  // `sub` set (level 0), also answers one slice query per edge sub-pixel, its guide built from
+  // the sub-pixel's value of that layer, normal and depth.
+  Filtered filter_layer(const AovFrame& f, int level, const Image& src, MethodStats& stats,
+                        float (EdgeSample::*sub)[3]) const {
+    const std::string suffix = level == 0 ? "" : "_level" + std::to_string(level);
+    NlmSpace nlm;
+    Image range;
+    float range_scale = 1.0f;
+    Image depth;
+    std::vector<GuideGroup> groups;
+    {
+      ScopedPhase p(stats, "nlm_space" + suffix);
+      if (use_nlm_) {
+        nlm = nlm_space(src, nlm_);
+        groups.push_back({nlm.vectors.cview(), sigma_nlm_});
+      } else {
+        range_scale = illumination_scale(src);
+        range = compressed_illumination(src, range_scale);
+        groups.push_back({range.cview(), sigma_nlm_});
+      }
+      if (use_geometry_) {
+        depth = normalized_depth(f, level);
+        groups.push_back({f.layer(layer::at_level(level, layer::kNormal)).cview(), sigma_normal_});
+        groups.push_back({depth.cview(), sigma_depth_});
+      }
+    }
+    const float sr = float(am_.sigma_r);
+    Image guide = make_guide(groups, sr);
+    stats.counters["guide_channels"] = guide.channels();
+
+    // Edge sub-pixel queries: the guide value each sub-pixel would have, scaled like the guide.
+    std::vector<AmQuery> queries;
+    std::vector<float> qguide, qsrc;
+    if (sub) {
+      ScopedPhase p(stats, "edge_guides");
+      const EdgeSubpixels& g = *f.edges;
+      const int D = guide.channels();
+      const std::size_t nq = g.size() * EdgeSubpixels::kPerPixel;
+      qguide.resize(nq * D);
+      qsrc.resize(nq * 3);
+      queries.resize(nq);
+      const float depth_scale = depth.empty() ? 0.0f : depth_normaliser(f, depth);
+      tbb::parallel_for(std::size_t(0), g.size(), [&](std::size_t n) {
+        const int px = g.pixels[n];
+        const int x = px % f.width(), y = px / f.width();
+        for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
+          const std::size_t q = n * EdgeSubpixels::kPerPixel + s;
+          const EdgeSample& e = g.of(n)[s];
+          float* gq = qguide.data() + q * D;
+          int c = 0;
+          if (use_nlm_) {
+            nlm.vector_with_center(src, x, y, e.*sub, gq);
+            for (int k = 0; k < nlm.vectors.channels(); ++k) gq[k] *= sr / sigma_nlm_;
+            c = nlm.vectors.channels();
+          } else {
+            for (int k = 0; k < 3; ++k) gq[c++] = std::log1p(std::max(0.0f, (e.*sub)[k]) / range_scale) * sr / sigma_nlm_;
+          }
+          if (use_geometry_) {
+            for (int k = 0; k < 3; ++k) gq[c++] = e.normal[k] * sr / sigma_normal_;
+            gq[c++] = (e.depth > 0 && std::isfinite(e.depth) ? e.depth * depth_scale : 0.0f) * sr / sigma_depth_;
+          }
+          for (int k = 0; k < 3; ++k) qsrc[q * 3 + k] = (e.*sub)[k];
+          queries[q] = {x, y, gq, qsrc.data() + q * 3};
+        }
+      });
+    }
+    Filtered out;
+    ScopedPhase p(stats, "adaptive_manifolds" + suffix);
+    out.image = am_filter(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr);
+    return out;
+  }
+
+  // 1 / median depth, as normalized_depth() applied it.
+  static float depth_normaliser(const AovFrame& f, const Image& normalized) {
+    const Image& z = f.layer(layer::kDepth);
+    for (std::size_t k = 0; k < z.size(); ++k)
+      if (normalized.data()[k] > 0 && z.data()[k] > 0) return normalized.data()[k] / z.data()[k];
+    return 1.0f;
+  }
+
+  AmSettings am_;
+  NlmSpaceSettings nlm_;
+  float sigma_nlm_, sigma_normal_, sigma_depth_;
+  bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_;
+};
+
+}  // namespace
+
+MethodInfo proposed_method() {
+  return {
+      .name = "proposed",
+      .description = "the paper's filter: D and I in NLM space, adaptive manifolds guided by normal and depth, edge sub-pixels, reflection levels",
+      .kind = MethodKind::Filter,
+      .params =
+          {
+              {"sigma_s", ParamType::Float, "16", "spatial standard deviation, pixels", 1.0, 512.0},
+              {"sigma_r", ParamType::Float, "0.25", "AM range sigma (tree height, reduced grid); groups scale to it", 1e-3, 1.0},
+              {"tree_height", ParamType::Int, "0", "manifold tree height; 0: from sigma_s and sigma_r", 0.0, 12.0},
+              {"pca_iterations", ParamType::Int, "2", "power-iteration steps of each manifold split", 1.0, 100.0},
+              {"adjust_outliers", ParamType::Bool, "false", "Gastal and Oliveira's outlier adjustment (eq. 11)"},
+              {"sigma_nlm", ParamType::Float, "0.15", "NLM-vector group sigma, log(1 + lum/mean) units", 1e-4, 1e3},
+              {"sigma_normal", ParamType::Float, "0.3", "normal group sigma (unit vectors)", 1e-4, 1e3},
+              {"sigma_depth", ParamType::Float, "0.05", "depth group sigma, units of the median depth", 1e-4, 1e3},
+              {"nlm_dims", ParamType::Int, "6", "PCA dimensions of the NLM vector", 1.0, 49.0},
+              {"nlm_radius", ParamType::Int, "3", "NLM patch radius (3: 7x7)", 1.0, 3.0},
+              {"nlm_patch_sigma", ParamType::Float, "2", "Gaussian weight of the patch pixels, pixels", 0.1, 100.0},
+              {"nlm_samples", ParamType::Int, "4096", "patches drawn to estimate the PCA", 16.0, 1e6},
+              {"nlm_space", ParamType::Bool, "true", "ablation: false guides by the compressed illumination itself"},
+              {"geometry", ParamType::Bool, "true", "ablation: false drops the normal and depth guides"},
+              {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},
+              {"reflections", ParamType::Bool, "true", "ablation: false leaves R unfiltered"},
+              {"filter_color", ParamType::Bool, "false", "ablation: filter the colour instead of the illumination"},
+          },
+      .create = [](const Params& p) { return std::make_unique<Proposed>(p); },
+  };
+}
+
+}  // namespace dnb

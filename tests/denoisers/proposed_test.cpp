@@ -1,0 +1,244 @@
+// The paper's method `proposed` (denoisers/proposed.cpp) on synthetic frames whose noise-free
+// answer is known: texture kept, edge sub-pixel resolve, reflection levels, ablation switches.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "denoisers/method.h"
+#include "denoisers/synthetic_frame.h"
+
+namespace dnb {
+namespace {
+
+// A textured plane under smooth illumination: albedo a fine pattern (stripes of 3 pixels times
+// an 8-pixel checkerboard, values 0.1 .. 0.9), direct light a smooth gradient, indirect light
+// constant; 30% relative Gaussian noise on direct and indirect (about a 16-spp render). Level 1
+// (a mirror seen nowhere: tint 0) is present but contributes nothing. `clean` gets the
+// noise-free colour.
+AovFrame textured_plane(int w, int h, float noise, Image* clean, std::uint64_t seed = 3) {
+  AovFrame f = test::constant_frame(w, h);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  Image& color = f.layer(layer::kColor);
+  Image& d = f.layer(layer::kDirect);
+  Image& i = f.layer(layer::kIndirect);
+  Image& t = f.layer(layer::kAlbedo);
+  Image& z = f.layer(layer::kDepth);
+  Image& r = f.layer(layer::kReflection);
+  Image& tint = f.layer(layer::at_level(1, layer::kTint));
+  if (clean) *clean = Image(w, h, 3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float stripe = (x / 3) % 2 ? 1.0f : 0.35f;
+      const float check = ((x / 8 + y / 8) % 2) ? 0.9f : 0.4f;
+      z.at(x, y, 0) = 2.0f + 0.5f * float(y) / h;
+      for (int c = 0; c < 3; ++c) {
+        const float albedo = stripe * check * (c == 1 ? 0.8f : 1.0f);
+        const float dl = 0.5f + 0.5f * float(x) / w + 0.2f * float(y) / h;
+        const float il = 0.25f;
+        t.at(x, y, c) = albedo;
+        d.at(x, y, c) = std::max(0.0f, dl * (1 + noise * g(rng)));
+        i.at(x, y, c) = std::max(0.0f, il * (1 + noise * g(rng)));
+        r.at(x, y, c) = 0;
+        tint.at(x, y, c) = 0;
+        color.at(x, y, c) = (d.at(x, y, c) + i.at(x, y, c)) * albedo;
+        if (clean) clean->at(x, y, c) = (dl + il) * albedo;
+      }
+    }
+  return f;
+}
+
+Image run(const std::string& method, const AovFrame& f, const std::map<std::string, std::string>& set = {}) {
+  auto m = MethodRegistry::global().create(method, set);
+  return run_method(*m, {.frame = &f}).image;
+}
+
+// The texture survives: the error of `proposed` against the noise-free image is at most 0.1x
+// that of `am` on the colour (measured 0.02x: MSE 4.6e-5 against 2.3e-3; am blurs the 3-pixel
+// stripes with the noise, proposed never sees them since it filters the untextured
+// illumination), and at most 0.02x the input's (measured 0.003x of 1.7e-2).
+TEST(Proposed, KeepsTextureWhileRemovingNoise) {
+  Image clean;
+  const AovFrame f = textured_plane(128, 96, 0.3f, &clean);
+  const double input = test::mse(f.layer(layer::kColor), clean);
+  const double am = test::mse(run("am", f), clean);
+  const double ours = test::mse(run("proposed", f), clean);
+  RecordProperty("mse_input", std::to_string(input));
+  RecordProperty("mse_am", std::to_string(am));
+  RecordProperty("mse_proposed", std::to_string(ours));
+  EXPECT_LT(ours, 0.1 * am) << "input " << input << " am " << am;
+  EXPECT_LT(ours, 0.02 * input) << "input " << input << " am " << am;
+}
+
+// A high-contrast edge (paper 3.1): a bright, light-coloured surface (left) and a dark, dim one
+// (right) meeting along a slanted line, so edge pixels are covered partly by each. The tracer's
+// convention for edge pixels: T is the mean sub-pixel albedo, D and I are albedo-weighted means
+// (so (D + I) T is the mean of the sub-pixels' (D_s + I_s) T_s), normal and depth are means.
+// The 16 sub-pixels carry each side's own values; D and I carry noise, sub-pixel values more
+// (a sixteenth of the samples each).
+AovFrame edge_frame(int w, int h, float noise, Image* clean, std::vector<char>* is_edge) {
+  AovFrame f = test::constant_frame(w, h);
+  std::mt19937_64 rng(11);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  Image& color = f.layer(layer::kColor);
+  Image& d = f.layer(layer::kDirect);
+  Image& i = f.layer(layer::kIndirect);
+  Image& t = f.layer(layer::kAlbedo);
+  Image& n = f.layer(layer::kNormal);
+  Image& z = f.layer(layer::kDepth);
+  Image& r = f.layer(layer::kReflection);
+  Image& e = f.layer(layer::kEdge);
+  for (int c = 0; c < 3; ++c) f.layer(layer::at_level(1, layer::kTint)).data()[c] = 0;
+  for (std::size_t k = 0; k < r.size(); ++k) r.data()[k] = 0, f.layer(layer::at_level(1, layer::kTint)).data()[k] = 0;
+  *clean = Image(w, h, 3);
+  is_edge->assign(std::size_t(w) * h, 0);
+  EdgeSubpixels edges;
+  struct Side {
+    float n[3], depth, albedo[3], direct, indirect;
+  };
+  const Side left{{0, 0, 1}, 2.0f, {0.9f, 0.8f, 0.7f}, 1.0f, 0.3f};
+  const Side right{{1, 0, 0}, 4.0f, {0.1f, 0.15f, 0.1f}, 0.1f, 0.05f};
+  // The boundary: x = 0.45 w + 0.15 y (in pixels), a slope that gives every coverage.
+  auto side_of = [&](float px, float py) { return px < 0.45f * w + 0.15f * py ? &left : &right; };
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      EdgeSample sub[16];
+      int on_left = 0;
+      for (int s = 0; s < 16; ++s) {
+        const Side* sd = side_of(x + (s % 4 + 0.5f) / 4, y + (s / 4 + 0.5f) / 4);
+        on_left += sd == &left;
+        EdgeSample& es = sub[s];
+        for (int c = 0; c < 3; ++c) {
+          es.normal[c] = sd->n[c];
+          es.albedo[c] = sd->albedo[c];
+          es.direct[c] = std::max(0.0f, sd->direct * (1 + 4 * noise * g(rng)));
+          es.indirect[c] = std::max(0.0f, sd->indirect * (1 + 4 * noise * g(rng)));
+        }
+        es.depth = sd->depth;
+      }
+      const bool edge = on_left != 0 && on_left != 16;
+      (*is_edge)[std::size_t(y) * w + x] = edge;
+      e.at(x, y, 0) = edge;
+      for (int c = 0; c < 3; ++c) {
+        float ts = 0, dts = 0, its = 0, ns = 0, truth = 0;
+        for (int s = 0; s < 16; ++s) {
+          const Side* sd = side_of(x + (s % 4 + 0.5f) / 4, y + (s / 4 + 0.5f) / 4);
+          ts += sub[s].albedo[c];
+          ns += sub[s].normal[c];
+          truth += (sd->direct + sd->indirect) * sd->albedo[c];
+        }
+        const Side* mid = side_of(x + 0.5f, y + 0.5f);
+        if (edge) {
+          // Pixel means from the (noisy) sub-pixels, as a tracer accumulates them.
+          for (int s = 0; s < 16; ++s) dts += sub[s].direct[c] * sub[s].albedo[c], its += sub[s].indirect[c] * sub[s].albedo[c];
+          d.at(x, y, c) = dts / ts;
+          i.at(x, y, c) = its / ts;
+        } else {
+          d.at(x, y, c) = std::max(0.0f, mid->direct * (1 + noise * g(rng)));
+          i.at(x, y, c) = std::max(0.0f, mid->indirect * (1 + noise * g(rng)));
+        }
+        t.at(x, y, c) = ts / 16;
+        n.at(x, y, c) = ns / 16;
+        color.at(x, y, c) = (d.at(x, y, c) + i.at(x, y, c)) * t.at(x, y, c);
+        clean->at(x, y, c) = truth / 16;
+      }
+      float zs = 0;
+      for (int s = 0; s < 16; ++s) zs += sub[s].depth;
+      z.at(x, y, 0) = zs / 16;
+      if (edge) {
+        edges.pixels.push_back(y * w + x);
+        for (int s = 0; s < 16; ++s) edges.samples.push_back(sub[s]);
+      }
+    }
+  f.edges = edges;
+  return f;
+}
+
+double mse_on(const Image& a, const Image& b, const std::vector<char>& mask) {
+  double s = 0;
+  std::size_t n = 0;
+  for (std::size_t p = 0; p < mask.size(); ++p)
+    if (mask[p])
+      for (int c = 0; c < 3; ++c) {
+        const double d = double(a.data()[p * 3 + c]) - b.data()[p * 3 + c];
+        s += d * d, ++n;
+      }
+  return s / double(std::max<std::size_t>(n, 1));
+}
+
+// The sub-pixel resolve lowers the error on the pixels of G: measured MSE 6e-6 with it, 3.7e-3
+// without (the mixed pixels' blended guide pulls in both sides' illumination, and the product
+// of pixel means is not the mean of products). Bound: 0.1x.
+TEST(Proposed, EdgeSubpixelResolveLowersErrorOnEdgePixels) {
+  Image clean;
+  std::vector<char> g;
+  const AovFrame f = edge_frame(96, 64, 0.2f, &clean, &g);
+  ASSERT_GT(f.edges->size(), 50u);
+  const double with = mse_on(run("proposed", f), clean, g);
+  const double without = mse_on(run("proposed", f, {{"edge_subpixels", "false"}}), clean, g);
+  RecordProperty("mse_edge_with_resolve", std::to_string(with));
+  RecordProperty("mse_edge_without_resolve", std::to_string(without));
+  EXPECT_LT(with, 0.1 * without) << "with " << with << " without " << without;
+}
+
+// Reflection level (paper 3.2): the right half is a mirror (T = D = I = 0 at level 0, tint 0.9)
+// showing a noisy lit surface at level 1; filtering level 1 and composing it through the tint
+// beats passing the noisy R through: measured MSE 1.4e-3 against 1.1e-2 on the mirror pixels.
+TEST(Proposed, ReflectionLevelIsFiltered) {
+  Image clean;
+  AovFrame f = textured_plane(96, 64, 0.3f, &clean);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  const int w = f.width(), h = f.height();
+  std::vector<char> mirror(std::size_t(w) * h, 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = w / 2; x < w; ++x) {
+      mirror[std::size_t(y) * w + x] = 1;
+      for (int c = 0; c < 3; ++c) {
+        const float d1 = 0.6f + 0.3f * float(y) / h, i1 = 0.2f, t1 = 0.5f, tint = 0.9f;
+        const float dn = std::max(0.0f, d1 * (1 + 0.3f * g(rng))), in = std::max(0.0f, i1 * (1 + 0.3f * g(rng)));
+        f.layer(layer::at_level(1, layer::kDirect)).at(x, y, c) = dn;
+        f.layer(layer::at_level(1, layer::kIndirect)).at(x, y, c) = in;
+        f.layer(layer::at_level(1, layer::kAlbedo)).at(x, y, c) = t1;
+        f.layer(layer::at_level(1, layer::kReflection)).at(x, y, c) = 0;
+        f.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = tint;
+        f.layer(layer::kDirect).at(x, y, c) = 0;
+        f.layer(layer::kIndirect).at(x, y, c) = 0;
+        f.layer(layer::kAlbedo).at(x, y, c) = 0;
+        f.layer(layer::kReflection).at(x, y, c) = tint * (dn + in) * t1;
+        f.layer(layer::kColor).at(x, y, c) = tint * (dn + in) * t1;
+        clean.at(x, y, c) = tint * (d1 + i1) * t1;
+      }
+      f.layer(layer::kNormal).at(x, y, 0) = 1;
+      f.layer(layer::kNormal).at(x, y, 2) = 0;
+    }
+  const double with = mse_on(run("proposed", f), clean, mirror);
+  const double without = mse_on(run("proposed", f, {{"reflections", "false"}}), clean, mirror);
+  RecordProperty("mse_mirror_with_levels", std::to_string(with));
+  RecordProperty("mse_mirror_without_levels", std::to_string(without));
+  EXPECT_LT(with, 0.3 * without) << "with " << with << " without " << without;
+}
+
+// Every ablation switch changes the output (each part is wired in).
+TEST(Proposed, AblationSwitchesChangeTheOutput) {
+  Image clean;
+  std::vector<char> g;
+  AovFrame f = edge_frame(64, 48, 0.2f, &clean, &g);
+  for (int y = 0; y < 48; ++y)  // some reflection, so that the reflection switch matters
+    for (int x = 0; x < 64; ++x)
+      for (int c = 0; c < 3; ++c) {
+        f.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = 0.2f;
+        f.layer(layer::at_level(1, layer::kDirect)).at(x, y, c) = 0.5f + 0.1f * float((x * 7 + y * 3) % 5);
+      }
+  const Image base = run("proposed", f);
+  for (const auto& [key, value] : std::vector<std::pair<std::string, std::string>>{
+           {"nlm_space", "false"}, {"geometry", "false"}, {"edge_subpixels", "false"},
+           {"reflections", "false"}, {"filter_color", "true"}}) {
+    const Image other = run("proposed", f, {{key, value}});
+    EXPECT_GT(test::mse(base, other), 1e-8) << key << "=" << value << " changed nothing";
+  }
+}
+
+}  // namespace
+}  // namespace dnb

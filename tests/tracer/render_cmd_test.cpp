@@ -1,0 +1,53 @@
+// `denoisebench render`: a frame with every channel and its edge file, and exit status 2 with a
+// message naming the problem for bad input.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "core/exr_io.h"
+#include "test_util.h"
+#include "tracer/render.h"
+
+namespace dnb {
+namespace {
+
+// The program run_denoisebench runs: $DNB_BINARY, else ./denoisebench (tests run in build/).
+bool have_binary() {
+  const char* b = std::getenv("DNB_BINARY");
+  return std::filesystem::exists(b ? b : "./denoisebench");
+}
+
+TEST(RenderCommand, WritesAFrameWithEveryLayerAndItsEdgeFile) {
+  if (!have_binary()) GTEST_SKIP() << "build/denoisebench not built";
+  test::TempDir dir;
+  const std::string out = dir.file("f.exr");
+  auto r = test::run_denoisebench("render cornell-box --spp 4 --size 48x36 --seed 3 --threads 2 -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  AovFrame f = read_frame(out, {layer::kColor, layer::kDirect, layer::kIndirect, layer::kAlbedo,
+                                layer::kReflection, layer::kEmission, layer::kNormal, layer::kDepth,
+                                layer::kVariance, layer::kDirectVariance, layer::kIndirectVariance,
+                                layer::kEdge, layer::kSamples, "refl1.direct", "refl1.tint", "refl2.albedo"});
+  EXPECT_EQ(f.width(), 48);
+  EXPECT_EQ(f.meta.spp, 4);
+  EXPECT_EQ(f.meta.seed, 3u);
+  EXPECT_EQ(f.meta.tracer_version, kTracerVersion);
+  ASSERT_TRUE(f.edges.has_value());
+  EXPECT_GT(f.edges->size(), 0u);
+  EXPECT_TRUE(std::filesystem::exists(edges_path(out)));
+}
+
+TEST(RenderCommand, BadInputExitsWithTwoAndSaysWhy) {
+  if (!have_binary()) GTEST_SKIP() << "build/denoisebench not built";
+  test::TempDir dir;
+  auto r = test::run_denoisebench("render no-such-scene -o " + dir.file("f.exr"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("no-such-scene"), std::string::npos) << r.output;
+  r = test::run_denoisebench("render cornell-box --size 12by8 -o " + dir.file("f.exr"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("12by8"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("f.exr")));
+}
+
+}  // namespace
+}  // namespace dnb
