@@ -10,6 +10,9 @@
 // Each case reports wall-clock ms per image, median of 5 repetitions after a warm-up run.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <cmath>
+#include <map>
 #include <random>
 
 #include <opencv2/core.hpp>
@@ -19,6 +22,7 @@
 
 #include "denoisers/adaptive_manifold.h"
 #include "denoisers/hdr_mapping.h"
+#include "denoisers/method.h"
 
 namespace dnb {
 namespace {
@@ -95,6 +99,105 @@ void BM_am_opencv(benchmark::State& state) {
   BENCHMARK(fn)->Name(name "/cpu")->Arg(1)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->MinTime(0.5)->Repetitions(5)->ReportAggregatesOnly(true)
 DNB_AM_CASE(BM_am_ours, "am/ours/1024x768/guide8");
 DNB_AM_CASE(BM_am_opencv, "am/opencv/1024x768/guide8");
+
+}  // namespace
+}  // namespace dnb
+
+namespace dnb {
+namespace {
+
+// A 1024x768 frame for the whole method: stripes of two surfaces (different normals, depths,
+// albedos, lighting) separated by slanted boundaries every 48 pixels (about 3% edge pixels,
+// each with 16 sub-pixels), 30% noise on D and I, and one reflection level (a mirror tint of
+// 0.5 on the right third, its level-1 layers a noisy lit surface).
+const AovFrame& proposed_frame() {
+  static const AovFrame f = [] {
+    const int w = 1024, h = 768;
+    AovFrame fr(w, h);
+    for (int k = 0; k <= 1; ++k)
+      for (const char* base : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
+                               layer::kNormal})
+        fr.add(layer::at_level(k, base), 3);
+    fr.add(layer::kDepth, 1);
+    fr.add(layer::at_level(1, layer::kDepth), 1);
+    fr.add(layer::at_level(1, layer::kTint), 3);
+    fr.add(layer::kColor, 3);
+    fr.add(layer::kEdge, 1);
+    std::mt19937_64 rng(9);
+    std::normal_distribution<float> g(0.0f, 1.0f);
+    auto side = [](float x, float y) { return int(std::floor((x + 0.3f * y) / 48.0f)) & 1; };
+    EdgeSubpixels edges;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        int ones = 0;
+        EdgeSample sub[16];
+        for (int s = 0; s < 16; ++s) {
+          const int sd = side(x + (s % 4 + 0.5f) / 4, y + (s / 4 + 0.5f) / 4);
+          ones += sd;
+          sub[s].normal[sd ? 0 : 2] = 1;
+          sub[s].depth = sd ? 4.0f : 2.0f;
+          for (int c = 0; c < 3; ++c) {
+            sub[s].albedo[c] = sd ? 0.2f : 0.8f;
+            sub[s].direct[c] = std::max(0.0f, (sd ? 0.2f : 1.0f) * (1 + 0.6f * g(rng)));
+            sub[s].indirect[c] = std::max(0.0f, 0.2f * (1 + 0.6f * g(rng)));
+          }
+        }
+        const int sd = side(x + 0.5f, y + 0.5f);
+        const bool mirror = x > 2 * w / 3;
+        for (int c = 0; c < 3; ++c) {
+          fr.layer(layer::kNormal).at(x, y, sd ? 0 : 2) = 1;
+          fr.layer(layer::kAlbedo).at(x, y, c) = mirror ? 0.0f : (sd ? 0.2f : 0.8f);
+          fr.layer(layer::kDirect).at(x, y, c) = mirror ? 0.0f : std::max(0.0f, (sd ? 0.2f : 1.0f) * (1 + 0.3f * g(rng)));
+          fr.layer(layer::kIndirect).at(x, y, c) = mirror ? 0.0f : std::max(0.0f, 0.2f * (1 + 0.3f * g(rng)));
+          fr.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = mirror ? 0.5f : 0.0f;
+          fr.layer(layer::at_level(1, layer::kDirect)).at(x, y, c) = std::max(0.0f, (0.5f + 0.3f * y / h) * (1 + 0.3f * g(rng)));
+          fr.layer(layer::at_level(1, layer::kIndirect)).at(x, y, c) = std::max(0.0f, 0.1f * (1 + 0.3f * g(rng)));
+          fr.layer(layer::at_level(1, layer::kAlbedo)).at(x, y, c) = 0.6f;
+          fr.layer(layer::at_level(1, layer::kNormal)).at(x, y, 1) = 1;
+        }
+        fr.layer(layer::kDepth).at(x, y, 0) = sd ? 4.0f : 2.0f;
+        fr.layer(layer::at_level(1, layer::kDepth)).at(x, y, 0) = 3.0f + float(x) / w;
+        if (ones != 0 && ones != 16 && !(x > 2 * w / 3)) {
+          fr.layer(layer::kEdge).at(x, y, 0) = 1;
+          edges.pixels.push_back(y * w + x);
+          for (auto& s : sub) edges.samples.push_back(s);
+        }
+      }
+    fr.edges = edges;
+    return fr;
+  }();
+  return f;
+}
+
+void BM_proposed(benchmark::State& state, const std::string& device) {
+  Threads threads(int(state.range(0)));
+  const AovFrame& f = proposed_frame();
+  std::map<std::string, std::string> set;
+  if (device != "cpu") set["device"] = device;
+  auto m = MethodRegistry::global().create("proposed", set);
+  MethodResult warm = run_method(*m, {.frame = &f});  // warm-up (and OpenCL kernel build)
+  for (auto _ : state) {
+    MethodResult r = run_method(*m, {.frame = &f});
+    benchmark::DoNotOptimize(r.image.data());
+  }
+  state.counters["edge_pixels"] = double(f.edges->size());
+  for (const auto& [name, seconds] : warm.stats.phases) state.counters[name + "_ms"] = seconds * 1e3;
+}
+
+const bool proposed_registered = [] {
+  std::vector<std::string> devices{"cpu"};
+  if (MethodRegistry::global().info("proposed").params.size() &&
+      std::any_of(MethodRegistry::global().info("proposed").params.begin(), MethodRegistry::global().info("proposed").params.end(),
+                  [](const ParamSpec& p) { return p.name == "device"; }))
+    devices.push_back("opencl");
+  for (const auto& d : devices) {
+    benchmark::RegisterBenchmark(("proposed/" + d + "/1024x768").c_str(), [d](benchmark::State& s) { BM_proposed(s, d); })
+        ->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(0.5)->Repetitions(5)->ReportAggregatesOnly(true);
+    benchmark::RegisterBenchmark(("proposed/" + d + "/1024x768/cpu").c_str(), [d](benchmark::State& s) { BM_proposed(s, d); })
+        ->Arg(1)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->MinTime(0.5)->Repetitions(5)->ReportAggregatesOnly(true);
+  }
+  return true;
+}();
 
 }  // namespace
 }  // namespace dnb

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <mutex>
 #include <random>
 
 #include <opencv2/core/hal/hal.hpp>
@@ -65,11 +66,63 @@ namespace {
 constexpr int kLanes = 16;
 
 // Planar float images: channel c of pixel (x, y) at data[(c * h + y) * w + x].
+// Full-resolution buffers are recycled between runs: a fresh 100 MB per call (1024x768 with a
+// 10-channel guide) costs more in page faults than a pass over it. At most kPoolBytes are kept.
+class BufferPool {
+ public:
+  static BufferPool& get() {
+    static BufferPool pool;
+    return pool;
+  }
+  std::vector<float> take(std::size_t n) {
+    std::lock_guard<std::mutex> lock(m_);
+    std::size_t best = free_.size();
+    for (std::size_t i = 0; i < free_.size(); ++i)
+      if (free_[i].capacity() >= n && (best == free_.size() || free_[i].capacity() < free_[best].capacity())) best = i;
+    if (best == free_.size()) return {};
+    std::vector<float> v = std::move(free_[best]);
+    free_.erase(free_.begin() + std::ptrdiff_t(best));
+    bytes_ -= v.capacity() * sizeof(float);
+    return v;
+  }
+  void give(std::vector<float>&& v) {
+    const std::size_t b = v.capacity() * sizeof(float);
+    if (b < (std::size_t(1) << 20)) return;  // small buffers: malloc recycles them anyway
+    std::lock_guard<std::mutex> lock(m_);
+    if (bytes_ + b > kPoolBytes) return;
+    bytes_ += b;
+    free_.push_back(std::move(v));
+  }
+
+ private:
+  static constexpr std::size_t kPoolBytes = std::size_t(512) << 20;
+  std::mutex m_;
+  std::vector<std::vector<float>> free_;
+  std::size_t bytes_ = 0;
+};
+
+std::vector<float> pooled(std::size_t n, float fill) {
+  std::vector<float> v = BufferPool::get().take(n);
+  v.assign(n, fill);
+  return v;
+}
+
 struct Planes {
   int w = 0, h = 0, n = 0;
   std::vector<float> data;
   Planes() = default;
-  Planes(int w_, int h_, int n_) : w(w_), h(h_), n(n_), data(std::size_t(w_) * h_ * n_, 0.0f) {}
+  Planes(int w_, int h_, int n_) : w(w_), h(h_), n(n_), data(pooled(std::size_t(w_) * h_ * n_, 0.0f)) {}
+  Planes(const Planes& o) : w(o.w), h(o.h), n(o.n), data(BufferPool::get().take(o.data.size())) {
+    data.assign(o.data.begin(), o.data.end());
+  }
+  Planes(Planes&&) = default;
+  Planes& operator=(Planes&& o) {
+    BufferPool::get().give(std::move(data));
+    w = o.w, h = o.h, n = o.n, data = std::move(o.data);
+    return *this;
+  }
+  Planes& operator=(const Planes&) = delete;
+  ~Planes() { BufferPool::get().give(std::move(data)); }
   float* plane(int c) { return data.data() + std::size_t(c) * w * h; }
   const float* plane(int c) const { return data.data() + std::size_t(c) * w * h; }
   float* row(int c, int y) { return plane(c) + std::size_t(y) * w; }
@@ -174,7 +227,7 @@ class AmRun {
     sw_ = (W_ + df_ - 1) / df_;
     sh_ = (H_ + df_ - 1) / df_;
     inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
-    seed_ = hash_guide(guide);
+    seed_ = am_detail::guide_seed(guide);
 
     guide_ = Planes(W_, H_, D_);
     src_ = Planes(W_, H_, C_);
@@ -187,9 +240,9 @@ class AmRun {
       }
     });
     acc_ = Planes(W_, H_, C_ + 1);
-    w_.assign(std::size_t(W_) * H_, 0.0f);
+    w_ = pooled(std::size_t(W_) * H_, 0.0f);
     label_.assign(std::size_t(W_) * H_, 1);
-    if (s.adjust_outliers) min_d2_.assign(std::size_t(W_) * H_, INFINITY);
+    if (s.adjust_outliers) min_d2_ = pooled(std::size_t(W_) * H_, INFINITY);
 
     // Bilinear upsampling from the reduced grid, pixel centres aligned: full-resolution x
     // sits at (x + 0.5) / df - 0.5 on the reduced grid.
@@ -209,6 +262,13 @@ class AmRun {
     qacc_.assign(queries_.size() * (C_ + 1), 0.0);
     qmin_.assign(queries_.size(), INFINITY);
   }
+
+  ~AmRun() {
+    BufferPool::get().give(std::move(w_));
+    BufferPool::get().give(std::move(min_d2_));
+  }
+  AmRun(const AmRun&) = delete;
+  AmRun& operator=(const AmRun&) = delete;
 
   Image run(std::vector<float>* query_out) {
     // The first manifold: the guide low-passed at full resolution.
@@ -280,12 +340,31 @@ class AmRun {
   // df sx + df/2 + k lies between reduced pixels sx and sx + 1 at fraction (k + 0.5) / df for
   // every sx, so the interior needs no index tables (and vectorises); the borders use them.
   void upsample_x(const float* tmp, float* o) const {
-    const int lead = std::min(W_, df_ / 2);
+    switch (df_) {  // the block width as a constant, so the interior unrolls into vector code
+      case 2: return upsample_x<2>(tmp, o);
+      case 4: return upsample_x<4>(tmp, o);
+      case 8: return upsample_x<8>(tmp, o);
+      case 16: return upsample_x<16>(tmp, o);
+      default: return upsample_x<0>(tmp, o);
+    }
+  }
+  template <int DF>
+  void upsample_x(const float* tmp, float* o) const {
+    const int df = DF > 0 ? DF : df_;
+    const int lead = std::min(W_, df / 2);
     for (int x = 0; x < lead; ++x) o[x] = tmp[x0_[x]] + fx_[x] * (tmp[x1_[x]] - tmp[x0_[x]]);
     int x = lead;
-    for (int sx = 0; sx + 1 < sw_ && x + df_ <= W_; ++sx, x += df_) {
+    float frac[DF > 0 ? DF : 1];
+    if constexpr (DF > 0)
+      for (int k = 0; k < DF; ++k) frac[k] = (k + 0.5f) / DF;
+    const int n = std::min(sw_ - 1, (W_ - lead) / df);
+    for (int sx = 0; sx < n; ++sx, x += df) {
       const float a = tmp[sx], b = tmp[sx + 1] - tmp[sx];
-      for (int k = 0; k < df_; ++k) o[x + k] = a + frac_[k] * b;
+      if constexpr (DF > 0) {
+        for (int k = 0; k < DF; ++k) o[x + k] = a + frac[k] * b;
+      } else {
+        for (int k = 0; k < df; ++k) o[x + k] = a + frac_[k] * b;
+      }
     }
     for (; x < W_; ++x) o[x] = tmp[x0_[x]] + fx_[x] * (tmp[x1_[x]] - tmp[x0_[x]]);
   }
@@ -368,7 +447,7 @@ class AmRun {
           // Uncentred covariance of (g - eta) over the node's cluster: X is relative to the
           // manifold, itself the cluster's weighted mean (their algorithm 1, step 2). Pixels
           // outside the cluster get X = 0.
-          const std::uint16_t* lab = label_.data() + std::size_t(y) * W_;
+          const std::int32_t* lab = label_.data() + std::size_t(y) * W_;
           for (int c = 0; c < D_; ++c) {
             float* X = sc.x.data() + std::size_t(c) * W_;
             for (int x = 0; x < W_; ++x) X[x] = lab[x] == id ? X[x] : 0.0f;
@@ -423,28 +502,16 @@ class AmRun {
         for (int k = 0; k < DD; ++k) cov[k] += cov_rows[std::size_t(sy) * DD + k];
       for (int i = 0; i < D_; ++i)
         for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
-      std::mt19937_64 rng(seed_ ^ (0x9E3779B97F4A7C15ull * std::uint64_t(id)));
-      std::uniform_real_distribution<double> uni(-0.5, 0.5);
-      std::vector<double> vd(D_), u(D_);
-      for (auto& e : vd) e = uni(rng);
-      for (int it = 0; it < std::max(1, s_.pca_iterations); ++it) {
-        double n = 0;
-        for (int i = 0; i < D_; ++i) {
-          u[i] = 0;
-          for (int j = 0; j < D_; ++j) u[i] += cov[i * D_ + j] * vd[j];
-          n += u[i] * u[i];
-        }
-        if (!(n > 1e-300)) break;  // the cluster is flat: any direction splits it
-        n = std::sqrt(n);
-        for (int i = 0; i < D_; ++i) vd[i] = u[i] / n;
-      }
-      for (int i = 0; i < D_; ++i) v[i] = float(vd[i]);
+      v = am_detail::split_direction(cov, D_, seed_, id, s_.pca_iterations);
     }
 
     // Pass 2 (full resolution): slice; above the leaves also split the cluster and splat the
     // children's (1 - w)-weighted guide (their eqs. 7-8).
     Planes kids[2];
-    if (split) kids[0] = kids[1] = Planes(sw_, sh_, D_ + 1);
+    if (split) {
+      kids[0] = Planes(sw_, sh_, D_ + 1);
+      kids[1] = Planes(sw_, sh_, D_ + 1);
+    }
     const int left = 2 * id, right = 2 * id + 1;
     tbb::parallel_for(0, sh_, [&](int sy) {
       Scratch& sc = scratch();
@@ -469,16 +536,17 @@ class AmRun {
           const float vc = v[c];
           for (int x = 0; x < W_; ++x) dot[x] += vc * (g[x] - e[x]);
         }
-        std::uint16_t* lab = label_.data() + std::size_t(y) * W_;
+        std::int32_t* lab = label_.data() + std::size_t(y) * W_;
         float* tl = sc.w.data();    // (1 - w) for pixels going left, else 0
         float* tr = sc.x.data();    // the same for pixels going right
+        // Branch-free and of one element width (32-bit labels), so the loop vectorises.
         for (int x = 0; x < W_; ++x) {
-          const bool mine = lab[x] == id;
-          const bool go_left = dot[x] < 0;
+          const std::int32_t mine = lab[x] == id;
+          const std::int32_t go_left = dot[x] < 0;
           const float theta = 1.0f - wrow[x];
-          tl[x] = mine && go_left ? theta : 0.0f;
-          tr[x] = mine && !go_left ? theta : 0.0f;
-          if (mine) lab[x] = std::uint16_t(go_left ? left : right);
+          tl[x] = (mine & go_left) ? theta : 0.0f;
+          tr[x] = (mine & (go_left ^ 1)) ? theta : 0.0f;
+          lab[x] = mine ? (go_left ? left : right) : lab[x];
         }
         for (int c = 0; c <= D_; ++c) {
           float* ol = col + std::size_t(c) * W_;
@@ -586,7 +654,7 @@ class AmRun {
   std::uint64_t seed_ = 0;
   Planes guide_, src_, acc_;
   std::vector<float> w_, min_d2_;
-  std::vector<std::uint16_t> label_;
+  std::vector<std::int32_t> label_;
   std::vector<int> x0_, x1_, y0_, y1_;
   std::vector<float> fx_, fy_, frac_;
   std::vector<double> qacc_;
@@ -595,6 +663,33 @@ class AmRun {
 };
 
 }  // namespace
+
+namespace am_detail {
+
+std::uint64_t guide_seed(ConstImageView guide) { return hash_guide(guide); }
+
+std::vector<float> split_direction(const std::vector<double>& cov, int D, std::uint64_t seed, int id, int iterations) {
+  std::mt19937_64 rng(seed ^ (0x9E3779B97F4A7C15ull * std::uint64_t(id)));
+  std::uniform_real_distribution<double> uni(-0.5, 0.5);
+  std::vector<double> vd(D), u(D);
+  for (auto& e : vd) e = uni(rng);
+  for (int it = 0; it < std::max(1, iterations); ++it) {
+    double n = 0;
+    for (int i = 0; i < D; ++i) {
+      u[i] = 0;
+      for (int j = 0; j < D; ++j) u[i] += cov[i * D + j] * vd[j];
+      n += u[i] * u[i];
+    }
+    if (!(n > 1e-300)) break;  // the cluster is flat: any direction splits it
+    n = std::sqrt(n);
+    for (int i = 0; i < D; ++i) vd[i] = u[i] / n;
+  }
+  std::vector<float> v(D);
+  for (int i = 0; i < D; ++i) v[i] = float(vd[i]);
+  return v;
+}
+
+}  // namespace am_detail
 
 Image am_filter(ConstImageView src, ConstImageView guide, const AmSettings& settings,
                 const std::vector<AmQuery>& queries, std::vector<float>* query_out) {

@@ -81,4 +81,13 @@ int am_downsample_factor(double sigma_s, double sigma_r);
 Image am_filter(ConstImageView src, ConstImageView guide, const AmSettings& settings,
                 const std::vector<AmQuery>& queries = {}, std::vector<float>* query_out = nullptr);
 
+// Pieces shared by the CPU and OpenCL paths, so both split the same way.
+namespace am_detail {
+// Hash of the guide's samples (every 61st float) and shape: the seed of the split vectors.
+std::uint64_t guide_seed(ConstImageView guide);
+// Leading eigenvector of the D x D covariance `cov` (row-major, symmetric) by `iterations`
+// power-iteration steps from a start vector drawn from seed and tree node `id`.
+std::vector<float> split_direction(const std::vector<double>& cov, int D, std::uint64_t seed, int id, int iterations);
+}  // namespace am_detail
+
 }  // namespace dnb

@@ -34,6 +34,8 @@
 //   reflections      bool   false: R passes through unfiltered
 //   filter_color     bool   true: filter the colour F (guide: its NLM vector, normal, depth)
 //                           instead of the illumination, and no composition
+//   device           string cpu, or opencl: the AM core (splat, blur, slice, split, queries)
+//                           as OpenCL kernels (denoisers/adaptive_manifold_cl.h)
 #include <algorithm>
 #include <cmath>
 
@@ -41,6 +43,7 @@
 
 #include "core/errors.h"
 #include "denoisers/adaptive_manifold.h"
+#include "denoisers/adaptive_manifold_cl.h"
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"
 #include "denoisers/nlm_space.h"
@@ -58,7 +61,10 @@ class Proposed final : public Method {
         use_geometry_(p.b("geometry")),
         use_edges_(p.b("edge_subpixels")),
         use_reflections_(p.b("reflections")),
-        filter_color_(p.b("filter_color")) {
+        filter_color_(p.b("filter_color")),
+        opencl_(p.s("device") == "opencl") {
+    std::string why;
+    if (opencl_ && !am_opencl_available(&why)) throw InputError("proposed: device=opencl: " + why);
     am_.sigma_s = p.f("sigma_s");
     am_.sigma_r = p.f("sigma_r");
     am_.tree_height = p.i("tree_height");
@@ -84,7 +90,8 @@ class Proposed final : public Method {
     MethodResult r;
     const AovFrame& f = *in.frame;
     if (filter_color_) {
-      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), r.stats, nullptr);
+      const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
+      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), depth, r.stats, nullptr);
       r.image = std::move(c.image);
       return r;
     }
@@ -99,8 +106,13 @@ class Proposed final : public Method {
       const bool edges = k == 0 && use_edges_ && f.edges && !f.edges->pixels.empty();
       const Image& d = f.layer(layer::at_level(k, layer::kDirect));
       const Image& i = f.layer(layer::at_level(k, layer::kIndirect));
-      Filtered fd = filter_layer(f, k, d, r.stats, edges ? &EdgeSample::direct : nullptr);
-      Filtered fi = filter_layer(f, k, i, r.stats, edges ? &EdgeSample::indirect : nullptr);
+      Image depth;  // the level's depth over its median, shared by the D and I guides
+      if (use_geometry_) {
+        ScopedPhase p(r.stats, k == 0 ? "depth" : "depth_level" + std::to_string(k));
+        depth = normalized_depth(f, k);
+      }
+      Filtered fd = filter_layer(f, k, d, depth, r.stats, edges ? &EdgeSample::direct : nullptr);
+      Filtered fi = filter_layer(f, k, i, depth, r.stats, edges ? &EdgeSample::indirect : nullptr);
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
       Image out(f.width(), f.height(), 3);
       const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
@@ -152,13 +164,12 @@ class Proposed final : public Method {
   // Filters `src` (a layer of level k) guided by [NLM vector, normal, depth] of that level. With
   // `sub` set (level 0), also answers one slice query per edge sub-pixel, its guide built from
   // the sub-pixel's value of that layer, normal and depth.
-  Filtered filter_layer(const AovFrame& f, int level, const Image& src, MethodStats& stats,
+  Filtered filter_layer(const AovFrame& f, int level, const Image& src, const Image& depth, MethodStats& stats,
                         float (EdgeSample::*sub)[3]) const {
     const std::string suffix = level == 0 ? "" : "_level" + std::to_string(level);
     NlmSpace nlm;
     Image range;
     float range_scale = 1.0f;
-    Image depth;
     std::vector<GuideGroup> groups;
     {
       ScopedPhase p(stats, "nlm_space" + suffix);
@@ -171,7 +182,6 @@ class Proposed final : public Method {
         groups.push_back({range.cview(), sigma_nlm_});
       }
       if (use_geometry_) {
-        depth = normalized_depth(f, level);
         groups.push_back({f.layer(layer::at_level(level, layer::kNormal)).cview(), sigma_normal_});
         groups.push_back({depth.cview(), sigma_depth_});
       }
@@ -218,7 +228,8 @@ class Proposed final : public Method {
     }
     Filtered out;
     ScopedPhase p(stats, "adaptive_manifolds" + suffix);
-    out.image = am_filter(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr);
+    out.image = opencl_ ? am_filter_opencl(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr)
+                        : am_filter(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr);
     return out;
   }
 
@@ -233,7 +244,7 @@ class Proposed final : public Method {
   AmSettings am_;
   NlmSpaceSettings nlm_;
   float sigma_nlm_, sigma_normal_, sigma_depth_;
-  bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_;
+  bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_, opencl_;
 };
 
 }  // namespace
@@ -262,6 +273,8 @@ MethodInfo proposed_method() {
               {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},
               {"reflections", ParamType::Bool, "true", "ablation: false leaves R unfiltered"},
               {"filter_color", ParamType::Bool, "false", "ablation: filter the colour instead of the illumination"},
+              {"device", ParamType::String, "cpu", "where the adaptive-manifold core runs: cpu, or opencl (kernels, e.g. PoCL or a GPU)", {}, {},
+               {"cpu", "opencl"}},
           },
       .create = [](const Params& p) { return std::make_unique<Proposed>(p); },
   };

@@ -46,6 +46,18 @@ Lobe choose_lobe(const SurfaceHit& hit, Vec3 wo, Sampler& s) {
 
 }  // namespace
 
+bool PathTracer::visible(const SurfaceHit& hit, const LightSample& ls, PathContext& ctx) const {
+  ++ctx.rays;
+  if (ls.sphere_mesh >= 0) {
+    // A sphere light's direction: lit when the first thing along it is that light's front.
+    SurfaceHit h;
+    Ray r{hit.spawn_origin(ls.wi), ls.wi, 1e30f};
+    return scene_.intersect(r, h) && int(h.geom) == ls.sphere_mesh && !is_black(h.emitted());
+  }
+  Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
+  return !scene_.occluded(shadow);
+}
+
 PathTracer::PathTracer(const Scene& scene, Options options) : scene_(scene), opt_(options) {
   opt_.reflection_levels = std::clamp(opt_.reflection_levels, 0, kMaxReflectionLevels);
   opt_.max_depth = std::max(1, opt_.max_depth);
@@ -58,9 +70,7 @@ Vec3 PathTracer::nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ct
   if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return Vec3(0.0f);
   float cos_s = dot(ls.wi, hit.ns);
   if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return Vec3(0.0f);
-  Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
-  ++ctx.rays;
-  if (scene_.occluded(shadow)) return Vec3(0.0f);
+  if (!visible(hit, ls, ctx)) return Vec3(0.0f);
   float bsdf_pdf = lobe_prob * cos_s * kInvPi;
   float w = power_heuristic(ls.pdf, bsdf_pdf);
   return ls.radiance * (kInvPi * cos_s * w / ls.pdf);
@@ -73,9 +83,7 @@ Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx) const {
   if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return Vec3(0.0f);
   float cos_s = dot(ls.wi, hit.ns);
   if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return Vec3(0.0f);
-  Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
-  ++ctx.rays;
-  if (scene_.occluded(shadow)) return Vec3(0.0f);
+  if (!visible(hit, ls, ctx)) return Vec3(0.0f);
   return ls.radiance * (kInvPi * cos_s / ls.pdf);
 }
 

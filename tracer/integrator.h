@@ -128,6 +128,9 @@ class PathTracer {
   // The MIS-weighted light-sample term of direct light at a base (diffuse) lobe chosen with
   // probability lobe_prob, for a white surface.
   Vec3 nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ctx) const;
+  // Whether the light sample is unoccluded from hit (a shadow ray, or for a sphere light a
+  // closest-hit ray that must reach the light).
+  bool visible(const SurfaceHit& hit, const LightSample& ls, PathContext& ctx) const;
   // Continues a path along `ray` whose previous vertex sampled it with solid-angle density
   // prev_pdf (0 for a specular bounce or a camera ray: weight 1 for emission found) from a
   // point of shading normal prev_n; path_weight is the path's weight so far (Russian roulette).

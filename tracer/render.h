@@ -34,7 +34,7 @@ std::string scene_content_hash(const Scene& scene);
 const std::string& scene_name(const Scene& scene);
 
 // Bumped whenever a change to the tracer changes its images (part of every cache key).
-inline constexpr const char* kTracerVersion = "dnb-tracer-2";
+inline constexpr const char* kTracerVersion = "dnb-tracer-3";
 
 struct RenderSettings {
   int width = 1024;

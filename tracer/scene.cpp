@@ -93,6 +93,9 @@ void Scene::commit() {
   std::vector<float> power;                  // per emitter, then sun, then sky
   std::vector<int> group;                    // group of each entry
   std::vector<double> group_power;
+  sphere_of_mesh_.assign(meshes.size(), -1);
+  for (std::size_t i = 0; i < sphere_lights.size(); ++i) sphere_of_mesh_[sphere_lights[i].mesh] = int(i);
+  std::vector<float> sphere_power(sphere_lights.size(), 0.0f);
   for (std::size_t gi = 0; gi < meshes.size(); ++gi) {
     const Mesh& m = meshes[gi];
     int g = -1;
@@ -104,6 +107,10 @@ void Scene::commit() {
       if (!(area > 0)) continue;
       float w = luminance(mat.emission) * area * kPi * (mat.two_sided ? 2.0f : 1.0f);
       if (!(w > 0)) continue;
+      if (sphere_of_mesh_[gi] >= 0) {  // sampled as a whole sphere, below
+        sphere_power[sphere_of_mesh_[gi]] += w;
+        continue;
+      }
       if (g < 0) {
         g = int(group_power.size());
         group_power.push_back(0);
@@ -119,6 +126,11 @@ void Scene::commit() {
   float disc = kPi * radius * radius;
   float sun_w = sun.enabled ? luminance(sun.radiance) * sun.solid_angle() * disc : 0.0f;
   float sky_w = sky.enabled ? luminance(sky.average) * kPi * disc : 0.0f;
+  for (float w : sphere_power) {
+    power.push_back(w);
+    group.push_back(w > 0 ? int(group_power.size()) : -1);
+    if (w > 0) group_power.push_back(w);
+  }
   for (float w : {sun_w, sky_w}) {
     power.push_back(w);
     if (w > 0) {
@@ -147,8 +159,10 @@ void Scene::commit() {
     if (v.empty()) v.assign(meshes[emitters_[i].mesh].triangles(), 0.0f);
     v[emitters_[i].prim] = tri_select_[i];
   }
-  sun_select_ = prob[emitters_.size()];
-  sky_select_ = prob[emitters_.size() + 1];
+  const std::size_t ns = sphere_lights.size();
+  sphere_select_.assign(prob.begin() + emitters_.size(), prob.begin() + emitters_.size() + ns);
+  sun_select_ = prob[emitters_.size() + ns];
+  sky_select_ = prob[emitters_.size() + ns + 1];
 }
 
 void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const {
@@ -274,7 +288,22 @@ bool Scene::sample_light(Vec3 p, Vec3 n, float u0, float u1, float u2, LightSamp
     out.pdf = tri_select_[idx] * dist2 / (cos_l * e.area);
     return true;
   }
-  if (idx == ntri) {
+  const std::size_t nsph = sphere_lights.size();
+  if (idx < ntri + nsph) {
+    const SphereLight& l = sphere_lights[idx - ntri];
+    float pdf = sphere_pdf(l, p);
+    if (!(pdf > 0)) return false;
+    Vec3 d = l.center - p;
+    float dist = length(d);
+    float cos_max = std::sqrt(std::max(0.0f, 1 - (l.radius * l.radius) / (dist * dist)));
+    out.wi = Frame(d / dist).to_world(sample_cone(u1, u2, cos_max));
+    out.dist = 1e30f;
+    out.radiance = materials[meshes[l.mesh].material[0]].emission;
+    out.pdf = sphere_select_[idx - ntri] * pdf;
+    out.sphere_mesh = int(l.mesh);
+    return true;
+  }
+  if (idx == ntri + nsph) {
     Frame f(sun.direction);
     out.wi = f.to_world(sample_cone(u1, u2, sun.cos_max));
     out.dist = 1e30f;
@@ -289,7 +318,21 @@ bool Scene::sample_light(Vec3 p, Vec3 n, float u0, float u1, float u2, LightSamp
   return out.pdf > 0;
 }
 
+float Scene::sphere_pdf(const SphereLight& l, Vec3 from) const {
+  // Uniform in the cone of the bounding sphere; from inside it there is no cone (such points
+  // get no light sample from this sphere, only BSDF hits, weighted 1 by MIS).
+  Vec3 d = l.center - from;
+  float d2 = dot(d, d), r2 = l.radius * l.radius;
+  if (d2 <= r2 * 1.0001f) return 0;
+  float cos_max = std::sqrt(1 - r2 / d2);
+  return 1.0f / (2 * kPi * (1 - cos_max));
+}
+
 float Scene::light_pdf(Vec3 from, const SurfaceHit& hit) const {
+  if (int si = sphere_of_mesh_[hit.geom]; si >= 0) {
+    if (!hit.front && !hit.material->two_sided) return 0;
+    return sphere_select_[si] * sphere_pdf(sphere_lights[si], from);
+  }
   const auto& v = select_prob_[hit.geom];
   if (v.empty()) return 0;
   float sel = v[hit.prim];

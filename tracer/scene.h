@@ -144,6 +144,20 @@ struct LightSample {
   float dist = 0;     // distance to the light point (1e30 for sun and sky)
   Vec3 radiance;      // emitted radiance arriving along -wi (before visibility)
   float pdf = 0;      // solid-angle density of choosing wi, light selection included
+  // A sphere light's sample is a direction in the cone of its bounding sphere: the emitter is
+  // whatever the ray hits first, which must be a front face of mesh `sphere_mesh` (then its
+  // emission is `radiance`); dist is 1e30 and visibility is a closest-hit query.
+  int sphere_mesh = -1;
+};
+
+// A spherical area light ([[lights]] type = "sphere"): its tessellated mesh, and the sphere
+// through the mesh's vertices (which contains the mesh). Sampled by the cone of directions the
+// sphere subtends, which is far better than sampling its triangles by area (half of which face
+// away from any shading point).
+struct SphereLight {
+  unsigned mesh = 0;
+  Vec3 center;
+  float radius = 0;
 };
 
 }  // namespace rt
@@ -166,6 +180,7 @@ class Scene {
   std::vector<rt::Mesh> meshes;
   rt::Sky sky;
   rt::Sun sun;
+  std::vector<rt::SphereLight> sphere_lights;
 
   // Builds the Embree scene and the emitter distribution. Called once by the loader.
   void commit();
@@ -212,6 +227,9 @@ class Scene {
   // Selection probability of emissive triangle (mesh, prim), looked up on BSDF hits.
   std::vector<std::vector<float>> select_prob_;
   float sun_select_ = 0, sky_select_ = 0;
+  std::vector<float> sphere_select_;   // per sphere light: selection probability
+  std::vector<int> sphere_of_mesh_;    // per mesh: index into sphere_lights, or -1
+  float sphere_pdf(const rt::SphereLight& l, rt::Vec3 from) const;  // cone density, no selection
   float total_light_weight_ = 0;
 };
 

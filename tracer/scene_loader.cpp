@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 
 #include <fmt/format.h>
 #include <tiny_obj_loader.h>
@@ -427,7 +428,9 @@ class Loader {
       int seg = t.get("segments", 48);
       if (seg < 3) throw InputError(fmt::format("{}: expected at least 3 segments", t.where("segments")));
       bool inward = t.get("inward", false);
-      build_sphere(b, vec3(t.get("center", Arr3{0, 0, 0})), r, seg, x, su, sv, mat, inward, t.get("smooth", true));
+      Vec3 center = vec3(t.get("center", Arr3{0, 0, 0}));
+      build_sphere(b, center, r, seg, x, su, sv, mat, inward, t.get("smooth", true));
+      if (light && !inward) sphere_light_ = SphereLight{unsigned(scene_.meshes.size()), x.point(center), r * x.scale};
     } else if (type == "arch") {
       float r = float(t.require_double("radius"));
       float h = float(t.require_double("height"));
@@ -465,6 +468,9 @@ class Loader {
       }
     }
     t.finish();
+    // A repeated sphere light is several spheres: those stay triangle emitters.
+    if (sphere_light_ && repeat == 1) scene_.sphere_lights.push_back(*sphere_light_);
+    sphere_light_.reset();
     scene_.meshes.push_back(std::move(b.mesh));
   }
 
@@ -610,6 +616,7 @@ class Loader {
   std::string dir_;
   std::map<std::string, int> texture_index_;
   std::map<std::string, unsigned> material_index_;
+  std::optional<SphereLight> sphere_light_;  // of the object being read
 };
 
 }  // namespace

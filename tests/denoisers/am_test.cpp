@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include <opencv2/ximgproc/edge_filter.hpp>
@@ -14,6 +15,13 @@
 
 namespace dnb {
 namespace {
+
+// Measured figures for the test report, in scientific notation.
+std::string sci(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
 
 double rel_rms(const Image& a, const Image& b) {
   double num = 0, den = 0;
@@ -84,9 +92,9 @@ TEST(AdaptiveManifold, AgreesWithOpenCv) {
   const double one = compare(in.src, in.guide, 8, 1);
   const double tree = compare(in.src, in.guide, 8, 0);
   const double coarse = compare(in.src, in.guide, 16, 0);
-  RecordProperty("rel_rms_one_manifold", std::to_string(one));
-  RecordProperty("rel_rms_tree", std::to_string(tree));
-  RecordProperty("rel_rms_sigma_s_16", std::to_string(coarse));
+  RecordProperty("rel_rms_one_manifold", sci(one));
+  RecordProperty("rel_rms_tree", sci(tree));
+  RecordProperty("rel_rms_sigma_s_16", sci(coarse));
   EXPECT_LT(one, 1e-5);
   EXPECT_LT(tree, 5e-3);
   EXPECT_LT(coarse, 5e-2);
@@ -101,7 +109,7 @@ TEST(AdaptiveManifold, MethodsAgreeOnAFrame) {
     auto am = MethodRegistry::global().create("am", {{"sigma_s", sigma_s}});
     auto amcv = MethodRegistry::global().create("am_opencv", {{"sigma_s", sigma_s}});
     const double d = rel_rms(run_method(*am, {.frame = &f}).image, run_method(*amcv, {.frame = &f}).image);
-    RecordProperty(std::string("rel_rms_color_sigma_s_") + sigma_s, std::to_string(d));
+    RecordProperty(std::string("rel_rms_color_sigma_s_") + sigma_s, sci(d));
     EXPECT_LT(d, sigma_s[0] == '8' ? 5e-3 : 5e-2) << "sigma_s " << sigma_s;
   }
 }

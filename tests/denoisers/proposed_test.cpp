@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "denoisers/method.h"
@@ -10,6 +11,13 @@
 
 namespace dnb {
 namespace {
+
+// Measured figures for the test report, in scientific notation.
+std::string sci(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
 
 // A textured plane under smooth illumination: albedo a fine pattern (stripes of 3 pixels times
 // an 8-pixel checkerboard, values 0.1 .. 0.9), direct light a smooth gradient, indirect light
@@ -64,9 +72,9 @@ TEST(Proposed, KeepsTextureWhileRemovingNoise) {
   const double input = test::mse(f.layer(layer::kColor), clean);
   const double am = test::mse(run("am", f), clean);
   const double ours = test::mse(run("proposed", f), clean);
-  RecordProperty("mse_input", std::to_string(input));
-  RecordProperty("mse_am", std::to_string(am));
-  RecordProperty("mse_proposed", std::to_string(ours));
+  RecordProperty("mse_input", sci(input));
+  RecordProperty("mse_am", sci(am));
+  RecordProperty("mse_proposed", sci(ours));
   EXPECT_LT(ours, 0.1 * am) << "input " << input << " am " << am;
   EXPECT_LT(ours, 0.02 * input) << "input " << input << " am " << am;
 }
@@ -177,8 +185,8 @@ TEST(Proposed, EdgeSubpixelResolveLowersErrorOnEdgePixels) {
   ASSERT_GT(f.edges->size(), 50u);
   const double with = mse_on(run("proposed", f), clean, g);
   const double without = mse_on(run("proposed", f, {{"edge_subpixels", "false"}}), clean, g);
-  RecordProperty("mse_edge_with_resolve", std::to_string(with));
-  RecordProperty("mse_edge_without_resolve", std::to_string(without));
+  RecordProperty("mse_edge_with_resolve", sci(with));
+  RecordProperty("mse_edge_without_resolve", sci(without));
   EXPECT_LT(with, 0.1 * without) << "with " << with << " without " << without;
 }
 
@@ -215,8 +223,8 @@ TEST(Proposed, ReflectionLevelIsFiltered) {
     }
   const double with = mse_on(run("proposed", f), clean, mirror);
   const double without = mse_on(run("proposed", f, {{"reflections", "false"}}), clean, mirror);
-  RecordProperty("mse_mirror_with_levels", std::to_string(with));
-  RecordProperty("mse_mirror_without_levels", std::to_string(without));
+  RecordProperty("mse_mirror_with_levels", sci(with));
+  RecordProperty("mse_mirror_without_levels", sci(without));
   EXPECT_LT(with, 0.3 * without) << "with " << with << " without " << without;
 }
 

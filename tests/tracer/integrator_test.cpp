@@ -98,6 +98,44 @@ TEST(LitPlane, DirectLightMatchesClosedFormIrradiance) {
   EXPECT_NEAR(f.layer(layer::kColor).at(3, 3, 0), 0.5f * direct.at(3, 3, 0), 1e-6);
 }
 
+TEST(LitPlane, SphereLightMatchesClosedFormIrradiance) {
+  // A sphere of radiance L and radius r whose centre is at distance d from a point, fully above
+  // its horizon, gives irradiance pi L (r / d)^2 cos(theta) (theta: angle of the centre from
+  // the normal). Sphere lights are sampled by their cone, so this checks that sampling and its
+  // density; the 96-segment tessellation lies inside the sphere and subtends ~0.1% less.
+  test::TempDir dir;
+  const double r = 0.1, h = 0.5, le = 3.0;
+  std::string text =
+      "[camera]\neye = [0.6, 0.25, 0.0]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 2.0\n"
+      "[materials.plane]\nalbedo = [0.5, 0.5, 0.5]\n"
+      "[[objects]]\ntype = \"quad\"\nmaterial = \"plane\"\nsize = [20.0, 20.0]\n"
+      "[[lights]]\ntype = \"sphere\"\ncenter = [0.0, 0.5, 0.0]\nradius = 0.1\nsegments = 96\n"
+      "emission = [3.0, 3.0, 3.0]\n";
+  auto scene = load_scene(test::write_text(dir.file("sphere.toml"), text));
+  ASSERT_EQ(scene->sphere_lights.size(), 1u);
+  RenderSettings s;
+  s.width = 16;
+  s.height = 16;
+  s.spp = 64;
+  AovFrame f = render_frame(*scene, s);
+  const Image& depth = f.layer(layer::kDepth);
+  double expected = 0;
+  for (int y = 0; y < s.height; ++y)
+    for (int x = 0; x < s.width; ++x) {
+      rt::Ray ray = scene->camera.generate_ray(x + 0.5f, y + 0.5f, s.width, s.height);
+      Vec3 p = ray.origin + ray.dir * depth.at(x, y, 0);
+      double dx = -p.x, dy = h - p.y, dz = -p.z;
+      double d2 = dx * dx + dy * dy + dz * dz;
+      expected += M_PI * le * r * r / d2 * (dy / std::sqrt(d2)) / M_PI;
+    }
+  expected /= s.width * s.height;
+  double mean, se;
+  image_mean(f.layer(layer::kDirect), f.layer(layer::kDirectVariance), 0, mean, se);
+  // 5 standard errors plus 0.3% for the tessellation (inscribed polygon of 96 sides: -0.07%)
+  // and the pixel footprint.
+  EXPECT_NEAR(mean, expected, 5 * se + 3e-3 * expected);
+}
+
 TEST(SunAndSky, PlaneUnderOpenSkyMatchesClosedForm) {
   // A white-equivalent plane (D is untextured) under a constant sky L and a sun of irradiance E
   // at 45 degrees: every direction of the upper hemisphere escapes, so D = L + E cos(45) / pi

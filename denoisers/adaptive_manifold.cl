@@ -1,0 +1,228 @@
+// OpenCL kernels of the adaptive-manifold core (denoisers/adaptive_manifold_cl.cpp drives them;
+// the algorithm and its choices are documented in denoisers/adaptive_manifold.h). Images are
+// planar: channel c of pixel (x, y) of a w x h image at [(c * h + y) * w + x]. Built with
+// -DDIMS=<guide channels> -DCHANS=<source channels> so private arrays have exact sizes.
+// The arithmetic follows the CPU path operation by operation; only summation order differs.
+
+// Bilinear sample of plane p (sw wide) at full-resolution pixel (x, y): vertical first, as the
+// CPU path's row upsampling.
+inline float upsample(__global const float* p, int sw, int x0, int x1, float fx, int y0, int y1, float fy) {
+  const float a = p[y0 * sw + x0] + fy * (p[y1 * sw + x0] - p[y0 * sw + x0]);
+  const float b = p[y0 * sw + x1] + fy * (p[y1 * sw + x1] - p[y0 * sw + x1]);
+  return a + fx * (b - a);
+}
+
+#define TABLES __global const int* tx0, __global const int* tx1, __global const float* tfx, \
+               __global const int* ty0, __global const int* ty1, __global const float* tfy
+
+// The manifold's value at pixel (x, y): full resolution (first manifold) or upsampled.
+inline void eta_at(__global const float* eta, int eta_full, int W, int H, int sw, int sh, int x, int y,
+                   TABLES, float* e) {
+  for (int c = 0; c < DIMS; ++c) {
+    if (eta_full)
+      e[c] = eta[((size_t)c * H + y) * W + x];
+    else
+      e[c] = upsample(eta + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
+  }
+}
+
+// Splat (pass 1): one work-item per reduced pixel, over its df x df block: weight
+// w = exp(-|g - eta|^2 / sigma_r^2), splat w * (src, 1), outlier distance, and the block's
+// uncentred covariance of (g - eta) over the node's cluster.
+__kernel void splat(int W, int H, int sw, int sh, int df, __global const float* guide, __global const float* src,
+                    __global const float* eta, int eta_full, TABLES, float inv_sr2, __global float* wbuf,
+                    __global float* min_d2, int adjust, __global float* splat_out, int split, int id,
+                    __global const ushort* label, __global float* cov) {
+  const int sx = get_global_id(0), sy = get_global_id(1);
+  if (sx >= sw || sy >= sh) return;
+  const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
+  float acc[CHANS + 1];
+  for (int c = 0; c <= CHANS; ++c) acc[c] = 0;
+  float cv[DIMS * DIMS];
+  for (int k = 0; k < DIMS * DIMS; ++k) cv[k] = 0;
+  for (int y = ya; y < yb; ++y)
+    for (int x = xa; x < xb; ++x) {
+      const size_t i = (size_t)y * W + x;
+      float e[DIMS], X[DIMS];
+      eta_at(eta, eta_full, W, H, sw, sh, x, y, tx0, tx1, tfx, ty0, ty1, tfy, e);
+      float d2 = 0;
+      for (int c = 0; c < DIMS; ++c) {
+        X[c] = guide[(size_t)c * W * H + i] - e[c];
+        d2 += X[c] * X[c];
+      }
+      const float w = exp(-d2 * inv_sr2);
+      wbuf[i] = w;
+      if (adjust) min_d2[i] = min(min_d2[i], d2);
+      for (int c = 0; c < CHANS; ++c) acc[c] += w * src[(size_t)c * W * H + i];
+      acc[CHANS] += w;
+      if (split && label[i] == id)
+        for (int a = 0; a < DIMS; ++a)
+          for (int b = a; b < DIMS; ++b) cv[a * DIMS + b] += X[a] * X[b];
+    }
+  const float inv = 1.0f / (float)((yb - ya) * (xb - xa));
+  for (int c = 0; c <= CHANS; ++c) splat_out[((size_t)c * sh + sy) * sw + sx] = acc[c] * inv;
+  if (split)
+    for (int k = 0; k < DIMS * DIMS; ++k) cov[((size_t)sy * sw + sx) * DIMS * DIMS + k] = cv[k];
+}
+
+// Row sums of the per-block covariances: one work-item per (reduced row, entry).
+__kernel void cov_rows(int sw, int sh, __global const float* cov, __global float* rows) {
+  const int sy = get_global_id(0), k = get_global_id(1);
+  if (sy >= sh || k >= DIMS * DIMS) return;
+  float s = 0;
+  for (int sx = 0; sx < sw; ++sx) s += cov[((size_t)sy * sw + sx) * DIMS * DIMS + k];
+  rows[(size_t)sy * DIMS * DIMS + k] = s;
+}
+
+// Box average of the full-resolution first manifold onto the reduced grid.
+__kernel void downsample(int W, int H, int sw, int sh, int df, __global const float* full, __global float* small) {
+  const int sx = get_global_id(0), sy = get_global_id(1);
+  if (sx >= sw || sy >= sh) return;
+  const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
+  for (int c = 0; c < DIMS; ++c) {
+    float s = 0;
+    for (int y = ya; y < yb; ++y)
+      for (int x = xa; x < xb; ++x) s += full[((size_t)c * H + y) * W + x];
+    small[((size_t)c * sh + sy) * sw + sx] = s / (float)((yb - ya) * (xb - xa));
+  }
+}
+
+// Domain-transform edge feedbacks a^sqrt(1 + ratio2 |d eta|^2) along rows (ah: sw - 1 per row,
+// stride hstride) and columns (av: sw per row pair).
+__kernel void dt_weights(int sw, int sh, int hstride, __global const float* eta, float ratio2, float ln_a,
+                         __global float* ah, __global float* av) {
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x >= sw || y >= sh) return;
+  if (x + 1 < sw) {
+    float d = 0;
+    for (int c = 0; c < DIMS; ++c) {
+      const float t = eta[((size_t)c * sh + y) * sw + x + 1] - eta[((size_t)c * sh + y) * sw + x];
+      d += t * t;
+    }
+    ah[(size_t)y * hstride + x] = exp(ln_a * sqrt(1.0f + ratio2 * d));
+  }
+  if (y + 1 < sh) {
+    float d = 0;
+    for (int c = 0; c < DIMS; ++c) {
+      const float t = eta[((size_t)c * sh + y + 1) * sw + x] - eta[((size_t)c * sh + y) * sw + x];
+      d += t * t;
+    }
+    av[(size_t)y * sw + x] = exp(ln_a * sqrt(1.0f + ratio2 * d));
+  }
+}
+
+// Recursive filter along rows, causal then anti-causal: one work-item per (row, plane). With
+// fixed_a != 0 the feedback is that constant (the low-pass h_filter), else ah.
+__kernel void rf_rows(int w, int h, __global float* p, __global const float* ah, int hstride, float fixed_a) {
+  const int y = get_global_id(0), c = get_global_id(1);
+  if (y >= h) return;
+  __global float* r = p + ((size_t)c * h + y) * w;
+  __global const float* a = ah + (size_t)y * hstride;
+  for (int x = 1; x < w; ++x) r[x] += (fixed_a != 0 ? fixed_a : a[x - 1]) * (r[x - 1] - r[x]);
+  for (int x = w - 2; x >= 0; --x) r[x] += (fixed_a != 0 ? fixed_a : a[x]) * (r[x + 1] - r[x]);
+}
+
+// Recursive filter along columns: one work-item per (column, plane).
+__kernel void rf_cols(int w, int h, __global float* p, __global const float* av, float fixed_a) {
+  const int x = get_global_id(0), c = get_global_id(1);
+  if (x >= w) return;
+  __global float* q = p + (size_t)c * h * w;
+  for (int y = 1; y < h; ++y) {
+    const float k = fixed_a != 0 ? fixed_a : av[(size_t)(y - 1) * w + x];
+    q[(size_t)y * w + x] += k * (q[(size_t)(y - 1) * w + x] - q[(size_t)y * w + x]);
+  }
+  for (int y = h - 2; y >= 0; --y) {
+    const float k = fixed_a != 0 ? fixed_a : av[(size_t)y * w + x];
+    q[(size_t)y * w + x] += k * (q[(size_t)(y + 1) * w + x] - q[(size_t)y * w + x]);
+  }
+}
+
+// Slice: every pixel gathers w * blurred (C + 1 planes) from the manifold.
+__kernel void slice(int W, int H, int sw, int sh, __global const float* blurred, TABLES, __global const float* wbuf,
+                    __global float* acc) {
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x >= W || y >= H) return;
+  const size_t i = (size_t)y * W + x;
+  const float w = wbuf[i];
+  for (int c = 0; c <= CHANS; ++c)
+    acc[(size_t)c * W * H + i] += w * upsample(blurred + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
+}
+
+// Split: one work-item per reduced pixel: the cluster's pixels go left (dot < 0) or right, and
+// each child's block sums of (1 - w) g and (1 - w) are written (D + 1 planes per child).
+__kernel void split(int W, int H, int sw, int sh, int df, __global const float* guide, __global const float* eta,
+                    int eta_full, TABLES, __global const float* v, __global const float* wbuf,
+                    __global ushort* label, int id, __global float* kid_l, __global float* kid_r) {
+  const int sx = get_global_id(0), sy = get_global_id(1);
+  if (sx >= sw || sy >= sh) return;
+  const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
+  float l[DIMS + 1], r[DIMS + 1];
+  for (int c = 0; c <= DIMS; ++c) l[c] = r[c] = 0;
+  for (int y = ya; y < yb; ++y)
+    for (int x = xa; x < xb; ++x) {
+      const size_t i = (size_t)y * W + x;
+      if (label[i] != id) continue;
+      float e[DIMS];
+      eta_at(eta, eta_full, W, H, sw, sh, x, y, tx0, tx1, tfx, ty0, ty1, tfy, e);
+      float dot = 0;
+      for (int c = 0; c < DIMS; ++c) dot += v[c] * (guide[(size_t)c * W * H + i] - e[c]);
+      const float theta = 1.0f - wbuf[i];
+      const int left = dot < 0;
+      label[i] = (ushort)(left ? 2 * id : 2 * id + 1);
+      for (int c = 0; c < DIMS; ++c) {
+        const float t = theta * guide[(size_t)c * W * H + i];
+        if (left) l[c] += t; else r[c] += t;
+      }
+      if (left) l[DIMS] += theta; else r[DIMS] += theta;
+    }
+  const float inv = 1.0f / (float)((yb - ya) * (xb - xa));
+  for (int c = 0; c <= DIMS; ++c) {
+    kid_l[((size_t)c * sh + sy) * sw + sx] = l[c] * inv;
+    kid_r[((size_t)c * sh + sy) * sw + sx] = r[c] * inv;
+  }
+}
+
+// A child's manifold: low-passed weighted guide over low-passed weight; where the child's
+// cluster left no weight it keeps the parent's manifold.
+__kernel void divide_eta(int n, __global const float* kid, __global const float* parent, __global float* eta) {
+  const int i = get_global_id(0);
+  if (i >= n) return;
+  const float den = kid[(size_t)DIMS * n + i];
+  for (int c = 0; c < DIMS; ++c)
+    eta[(size_t)c * n + i] = den > 1e-20f ? kid[(size_t)c * n + i] / den : parent[(size_t)c * n + i];
+}
+
+// Slice queries (paper 3.1): the slice at a pixel with another guide value.
+__kernel void query(int nq, int W, int H, int sw, int sh, __global const int* qxy, __global const float* qguide,
+                    __global const float* eta, int eta_full, __global const float* blurred, TABLES, float inv_sr2,
+                    __global float* qacc, __global float* qmin) {
+  const int q = get_global_id(0);
+  if (q >= nq) return;
+  const int x = qxy[2 * q], y = qxy[2 * q + 1];
+  float e[DIMS];
+  eta_at(eta, eta_full, W, H, sw, sh, x, y, tx0, tx1, tfx, ty0, ty1, tfy, e);
+  float d2 = 0;
+  for (int c = 0; c < DIMS; ++c) {
+    const float d = qguide[(size_t)q * DIMS + c] - e[c];
+    d2 += d * d;
+  }
+  const float wq = exp(-d2 * inv_sr2);
+  for (int c = 0; c <= CHANS; ++c)
+    qacc[(size_t)q * (CHANS + 1) + c] += wq * upsample(blurred + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
+  qmin[q] = min(qmin[q], d2);
+}
+
+// The output: sum(w blur) / sum(w blur_0), with the optional outlier adjustment; interleaved.
+__kernel void finish(int W, int H, __global const float* acc, __global const float* src, __global const float* min_d2,
+                     int adjust, float alpha_k, __global float* out) {
+  const int x = get_global_id(0), y = get_global_id(1);
+  if (x >= W || y >= H) return;
+  const size_t i = (size_t)y * W + x, n = (size_t)W * H;
+  const float den = acc[(size_t)CHANS * n + i];
+  const float alpha = adjust ? exp(alpha_k * min_d2[i]) : 1.0f;
+  for (int c = 0; c < CHANS; ++c) {
+    const float f = src[(size_t)c * n + i];
+    const float g = den > 0 ? acc[(size_t)c * n + i] / den : f;
+    out[i * CHANS + c] = f + alpha * (g - f);
+  }
+}

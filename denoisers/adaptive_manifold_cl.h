@@ -1,0 +1,27 @@
+// The adaptive-manifold core on OpenCL (kernels in denoisers/adaptive_manifold.cl): splat, blur,
+// slice, split and the slice queries run as kernels; the host walks the manifold tree and runs
+// the D x D power iteration (am_detail::split_direction, shared with the CPU path, so both
+// split the same way). Output matches am_filter() up to float summation order (relative RMS
+// difference well below 1e-4, tests/denoisers/opencl_test.cpp).
+//
+// Device: the first device of the first OpenCL platform (PoCL's CPU device here, any GPU
+// elsewhere); DNB_OPENCL_PLATFORM=<index> picks another platform. Programs are built once per
+// process for each (guide channels, source channels) pair and cached; PoCL also caches the
+// binaries in POCL_CACHE_DIR across processes.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "denoisers/adaptive_manifold.h"
+
+namespace dnb {
+
+// True when the build has OpenCL and a device answers; `why` says what is missing otherwise.
+bool am_opencl_available(std::string* why = nullptr);
+
+// am_filter() on the OpenCL device. Throws WorkError when OpenCL is unavailable or fails.
+Image am_filter_opencl(ConstImageView src, ConstImageView guide, const AmSettings& settings,
+                       const std::vector<AmQuery>& queries = {}, std::vector<float>* query_out = nullptr);
+
+}  // namespace dnb
