@@ -1,6 +1,9 @@
 // denoisebench denoise METHOD FRAME.exr -o OUT.exr [--set key=value ...] [--threads T] [--json]
+//                      [--scene SCENE]
 // Creates the method by name (its parameters validated first, so a typo costs no frame read),
 // reads only the layers it needs, runs it through run_method and writes R,G,B atomically.
+// A renderer-type method (irradiance_cache) renders the frame's scene itself: the scene is the
+// one the frame's metadata names (or --scene), at the frame's size, seed and spp budget.
 #include <memory>
 
 #include <fmt/format.h>
@@ -12,13 +15,14 @@
 #include "core/exr_io.h"
 #include "core/version.h"
 #include "denoisers/method.h"
+#include "tracer/render.h"
 
 namespace dnb::app {
 
 void add_denoise(CLI::App& app, Action& action) {
   auto* cmd = app.add_subcommand("denoise", "Run a method on an AOV frame and write the result as an RGB EXR");
   struct Opts {
-    std::string method, frame, output;
+    std::string method, frame, output, scene;
     std::vector<std::string> settings;
     int threads = 0;
     bool json = false;
@@ -30,6 +34,8 @@ void add_denoise(CLI::App& app, Action& action) {
   cmd->add_option("--set", o->settings, "method parameter as key=value (repeatable)");
   cmd->add_option("--threads", o->threads, "worker threads (0: all cores; the image does not depend on it)")
       ->check(CLI::Range(0, 1024));
+  cmd->add_option("--scene", o->scene,
+                  "renderer-type methods: scene to render (default: the scene named in the frame's metadata)");
   cmd->add_flag("--json", o->json, "print the statistics as JSON instead of text");
   cmd->callback([&action, o] {
     action = [o] {
@@ -42,9 +48,22 @@ void add_denoise(CLI::App& app, Action& action) {
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, o->threads);
 
       AovFrame frame = read_frame(o->frame, method->required_layers());
+      MethodInput input{.frame = &frame, .seed = frame.meta.seed};
+      std::shared_ptr<const Scene> scene;
+      if (registry.info(o->method).kind == MethodKind::Renderer) {
+        const std::string name = o->scene.empty() ? frame.meta.scene : o->scene;
+        if (name.empty())
+          throw InputError(fmt::format("'{}' names no scene in its metadata: give --scene for method '{}'", o->frame,
+                                       o->method));
+        scene = load_scene(name);
+        input.scene = scene.get();
+        input.sample_budget = frame.meta.spp;
+        input.width = frame.width();
+        input.height = frame.height();
+      }
       MethodResult r;
       try {
-        r = run_method(*method, MethodInput{.frame = &frame, .seed = frame.meta.seed});
+        r = run_method(*method, input);
       } catch (const InputError& e) {
         throw InputError(fmt::format("'{}': {}", o->frame, e.what()));
       }

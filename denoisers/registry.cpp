@@ -12,6 +12,7 @@ void register_builtin_methods(MethodRegistry& r) {
   extern MethodInfo atrous_method(); r.add(atrous_method());        // denoisers/atrous.cpp
   extern MethodInfo bilateral_method(); r.add(bilateral_method());  // denoisers/bilateral.cpp
   extern MethodInfo guided_method(); r.add(guided_method());        // denoisers/guided.cpp
+  extern MethodInfo irradiance_cache_method(); r.add(irradiance_cache_method());  // irradiance_cache/irradiance_cache.cpp
   extern MethodInfo nlmeans_method(); r.add(nlmeans_method());      // denoisers/nlmeans.cpp
   extern MethodInfo proposed_method(); r.add(proposed_method());    // denoisers/proposed.cpp
 }

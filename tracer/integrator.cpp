@@ -105,6 +105,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
       }
       break;
     }
+    if (sink == &out.first_emission) out.first_distance = hit.t;
     ++depth;
     Vec3 Le = hit.emitted();
     if (!is_black(Le)) {

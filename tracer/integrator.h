@@ -88,6 +88,7 @@ struct SampleResult {
 struct PathRadiance {
   Vec3 first_emission;
   Vec3 rest;
+  float first_distance = 1e30f;  // distance along the ray to its first hit (1e30 on a miss)
   Vec3 total() const { return first_emission + rest; }
 };
 
