@@ -51,7 +51,7 @@ def main():
 
     # Bars: scenes on the x axis, one bar per method (input included for scale).
     cols = ["input"] + methods
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(scenes) * len(cols) / 3), 4))
+    fig, ax = plt.subplots(figsize=(9, 4.5))
     width = 0.8 / len(cols)
     x = np.arange(len(scenes))
     for i, m in enumerate(cols):
@@ -60,7 +60,7 @@ def main():
     ax.set_xticklabels(scenes)
     ax.set_ylabel(metric)
     ax.set_title(f"{metric} per scene and method, {spp} spp input")
-    ax.legend(fontsize="small", ncol=2)
+    ax.legend(fontsize="x-small", ncol=3)
     fig.tight_layout()
     fig.savefig(os.path.join(plots, f"{metric}_bars.png"), dpi=100)
     plt.close(fig)
