@@ -222,7 +222,7 @@ __kernel void finish(int W, int H, __global const float* acc, __global const flo
   const float alpha = adjust ? exp(alpha_k * min_d2[i]) : 1.0f;
   for (int c = 0; c < CHANS; ++c) {
     const float f = src[(size_t)c * n + i];
-    const float g = den > 0 ? acc[(size_t)c * n + i] / den : f;
+    const float g = den > 1e-30f ? acc[(size_t)c * n + i] / den : f;  // kAmMinWeight
     out[i * CHANS + c] = f + alpha * (g - f);
   }
 }

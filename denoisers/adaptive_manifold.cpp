@@ -287,7 +287,7 @@ class AmRun {
         for (int c = 0; c < C_; ++c) {
           const float f = src_.row(c, y)[x];
           // No manifold reached this pixel (all weights underflowed): it is its own estimate.
-          const float g = den > 0 ? acc_.row(c, y)[x] / den : f;
+          const float g = den > kAmMinWeight ? acc_.row(c, y)[x] / den : f;
           o[c] = f + alpha * (g - f);
         }
       }
@@ -300,7 +300,7 @@ class AmRun {
         for (int c = 0; c < C_; ++c) {
           const float f = queries_[q].src ? queries_[q].src[c]
                                            : src_.row(c, queries_[q].y)[queries_[q].x];
-          const float g = den > 0 ? float(qacc_[q * (C_ + 1) + c] / den) : f;
+          const float g = den > kAmMinWeight ? float(qacc_[q * (C_ + 1) + c] / den) : f;
           (*query_out)[q * C_ + c] = f + alpha * (g - f);
         }
       }

@@ -81,6 +81,11 @@ int am_downsample_factor(double sigma_s, double sigma_r);
 Image am_filter(ConstImageView src, ConstImageView guide, const AmSettings& settings,
                 const std::vector<AmQuery>& queries = {}, std::vector<float>* query_out = nullptr);
 
+// A pixel whose summed slice weight is below this is treated as reached by no manifold (it
+// keeps its own value). Not 0: whether a weight of 1e-40 survives depends on the processor's
+// denormal mode (flush-to-zero is on in threads that render), and both paths must agree.
+inline constexpr float kAmMinWeight = 1e-30f;
+
 // Pieces shared by the CPU and OpenCL paths, so both split the same way.
 namespace am_detail {
 // Hash of the guide's samples (every 61st float) and shape: the seed of the split vectors.

@@ -180,7 +180,7 @@ class ClRun {
         const float alpha = s_.adjust_outliers ? std::exp(alpha_k * mn[i]) : 1.0f;
         for (int c = 0; c < C_; ++c) {
           const float f = queries_[i].src ? queries_[i].src[c] : src_value(queries_[i].x, queries_[i].y, c);
-          const float g = den > 0 ? acc[i * (C_ + 1) + c] / den : f;
+          const float g = den > kAmMinWeight ? acc[i * (C_ + 1) + c] / den : f;
           (*query_out)[i * C_ + c] = f + alpha * (g - f);
         }
       }
