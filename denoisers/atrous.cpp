@@ -14,7 +14,7 @@
 // sigma_c,i = 2^-i sigma_c, since each pass has less noise left. n is the shading normal.
 //
 // Deviations, both because of what the frame stores: the colour distance is measured in a
-// range-compressed domain (denoisers/hdr_mapping.h, default log) because a fixed sigma in linear
+// range-compressed domain (denoisers/hdr_mapping.h, default reinhard) because a fixed sigma in linear
 // radiance does not fit both a shadow and a lamp; and the position term compares depths (relative
 // to the depth at p) instead of world positions, which the frame does not hold.
 //
@@ -229,10 +229,10 @@ MethodInfo atrous_method() {
           {
               {"iterations", ParamType::Int, "5", "number of a-trous passes (tap spacing 1, 2, 4, ...)", 1.0, 10.0},
               {"sigma_color", ParamType::Float, "0.5", "colour edge-stopping sigma of the first pass, compressed units", 1e-4, 1e4},
-              {"sigma_normal", ParamType::Float, "0.3", "normal edge-stopping sigma (distance between unit normals)", 1e-4, 1e4},
-              {"sigma_depth", ParamType::Float, "0.1", "depth edge-stopping sigma (relative depth difference)", 1e-4, 1e4},
+              {"sigma_normal", ParamType::Float, "0.1", "normal edge-stopping sigma (distance between unit normals)", 1e-4, 1e4},
+              {"sigma_depth", ParamType::Float, "0.01", "depth edge-stopping sigma (relative depth difference)", 1e-4, 1e4},
               {"halve_color_sigma", ParamType::Bool, "true", "halve sigma_color after every pass (Dammertz et al.)"},
-              {"range_map", ParamType::String, "log", "domain of the colour distance (denoisers/hdr_mapping.h)", {}, {},
+              {"range_map", ParamType::String, "reinhard", "domain of the colour distance (denoisers/hdr_mapping.h)", {}, {},
                range_map_names()},
               {"filter_reflection", ParamType::Bool, "false", "also filter R, stopping on the refl1 normal/depth"},
           },

@@ -5,10 +5,11 @@
 // HDR: the range kernel exp(-|c_p - c_q|^2 / (2 sigma_color^2)) compares colours, and in linear
 // radiance a fixed sigma_color is far too small next to a lamp and far too large in a shadow.
 // The filter therefore runs in a range-compressed domain (denoisers/hdr_mapping.h): by default
-// y = log(1 + x), where sigma_color is about a relative difference, and the result is mapped
-// back with the inverse. Averaging in the log domain is a geometric-style mean, so noisy pixels
-// come back slightly darker than their linear mean (Jensen's inequality); `range_map=linear`
-// avoids that bias at the price of the range problem above.
+// reinhard, y = (x / (1 + x))^(1/2.2), which maps all radiance into [0, 1) with display-like
+// steps (the sweep preferred it to log, y = log(1 + x), where sigma_color would be a relative
+// difference), and the result is mapped back with the inverse. Averaging in a concave domain
+// gives a mean below the linear one, so noisy pixels come back slightly darker (Jensen's
+// inequality); `range_map=linear` avoids that bias at the price of the range problem above.
 //
 // Parameters (defaults from the sweep in docs/method-defaults.md):
 //   sigma_space  float   spatial Gaussian sigma, pixels
@@ -73,10 +74,10 @@ MethodInfo bilateral_method() {
       .kind = MethodKind::Filter,
       .params =
           {
-              {"sigma_space", ParamType::Float, "3", "spatial Gaussian sigma in pixels", 0.1, 100.0},
-              {"sigma_color", ParamType::Float, "0.3", "range Gaussian sigma in the compressed domain", 1e-4, 1e4},
+              {"sigma_space", ParamType::Float, "1.5", "spatial Gaussian sigma in pixels", 0.1, 100.0},
+              {"sigma_color", ParamType::Float, "0.1", "range Gaussian sigma in the compressed domain", 1e-4, 1e4},
               {"diameter", ParamType::Int, "0", "window diameter in pixels; 0: 2*round(1.5*sigma_space)+1", 0.0, 201.0},
-              {"range_map", ParamType::String, "log", "domain of the range kernel (denoisers/hdr_mapping.h)", {}, {},
+              {"range_map", ParamType::String, "reinhard", "domain of the range kernel (denoisers/hdr_mapping.h)", {}, {},
                range_map_names()},
           },
       .create = [](const Params& p) { return std::make_unique<Bilateral>(p); },

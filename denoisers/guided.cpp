@@ -259,11 +259,11 @@ MethodInfo guided_method() {
       .kind = MethodKind::Filter,
       .params =
           {
-              {"radius", ParamType::Int, "8", "window radius in pixels", 1.0, 64.0},
-              {"eps", ParamType::Float, "0.01", "regularisation of the per-window fit, squared guide units", 1e-6, 1e6},
-              {"albedo_weight", ParamType::Float, "1", "scale of the albedo guide channels (0: unused)", 0.0, 1e3},
+              {"radius", ParamType::Int, "4", "window radius in pixels", 1.0, 64.0},
+              {"eps", ParamType::Float, "0.0003", "regularisation of the per-window fit, squared guide units", 1e-6, 1e6},
+              {"albedo_weight", ParamType::Float, "0.3", "scale of the albedo guide channels (0: unused)", 0.0, 1e3},
               {"normal_weight", ParamType::Float, "1", "scale of the normal guide channels (0: unused)", 0.0, 1e3},
-              {"depth_weight", ParamType::Float, "1", "scale of the median-normalised depth guide (0: unused)", 0.0, 1e3},
+              {"depth_weight", ParamType::Float, "3", "scale of the median-normalised depth guide (0: unused)", 0.0, 1e3},
               {"filter_reflection", ParamType::Bool, "false", "also filter R, guided by the refl1 albedo/normal/depth"},
           },
       .create = [](const Params& p) { return std::make_unique<Guided>(p); },

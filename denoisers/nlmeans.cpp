@@ -108,9 +108,9 @@ MethodInfo nlmeans_method() {
       .kind = MethodKind::Filter,
       .params =
           {
-              {"h", ParamType::Float, "10", "filter strength for lightness, 8-bit code units", 0.0, 255.0},
-              {"h_color", ParamType::Float, "10", "filter strength for colour (CIELAB a, b), 8-bit code units", 0.0, 255.0},
-              {"template_window", ParamType::Int, "7", "patch side in pixels (odd)", 1.0, 35.0},
+              {"h", ParamType::Float, "5", "filter strength for lightness, 8-bit code units", 0.0, 255.0},
+              {"h_color", ParamType::Float, "1", "filter strength for colour (CIELAB a, b), 8-bit code units", 0.0, 255.0},
+              {"template_window", ParamType::Int, "5", "patch side in pixels (odd)", 1.0, 35.0},
               {"search_window", ParamType::Int, "21", "search window side in pixels (odd)", 1.0, 101.0},
               {"range_map", ParamType::String, "srgb", "domain of the 8-bit mapping (denoisers/hdr_mapping.h)", {}, {},
                {"reinhard", "srgb"}},

@@ -36,8 +36,9 @@ import numpy as np
 
 EVALUATION_SCENES = {"cornell-box", "conference", "bedroom", "sponza"}
 
-# Parameter grids. The first entry of each method is its current default (as in its source
-# file); values are strings exactly as passed to --set.
+# Parameter grids. "start" is each method's current default (as in its source file, i.e. the
+# result of the last sweep); values are strings exactly as passed to --set. A best value at the
+# end of its grid means the grid should be widened there and the sweep run again.
 GRIDS = {
     "am": {
         "start": {"sigma_s": "16", "sigma_r": "0.1", "adjust_outliers": "false", "range_map": "reinhard"},
@@ -63,7 +64,7 @@ GRIDS = {
         },
     },
     "bilateral": {
-        "start": {"sigma_space": "3", "sigma_color": "0.3", "range_map": "log"},
+        "start": {"sigma_space": "1.5", "sigma_color": "0.1", "range_map": "reinhard"},
         "grid": {
             "sigma_space": ["1", "1.5", "2", "3", "4", "6", "8", "12"],
             "sigma_color": ["0.05", "0.1", "0.2", "0.3", "0.5", "0.8", "1.2", "2", "4"],
@@ -71,20 +72,20 @@ GRIDS = {
         },
     },
     "nlmeans": {
-        "start": {"h": "10", "h_color": "10", "template_window": "7", "range_map": "srgb"},
+        "start": {"h": "5", "h_color": "1", "template_window": "5", "range_map": "srgb"},
         "grid": {
             "h": ["2", "3", "5", "8", "10", "15", "20", "30", "40"],
-            "h_color": ["3", "5", "10", "15", "20", "30"],
+            "h_color": ["0", "0.5", "1", "2", "3", "5", "10", "15", "20", "30"],
             "template_window": ["5", "7", "9"],
             "range_map": ["srgb", "reinhard"],
         },
     },
     "guided": {
-        "start": {"radius": "8", "eps": "0.01", "albedo_weight": "1", "normal_weight": "1", "depth_weight": "1",
+        "start": {"radius": "4", "eps": "0.0003", "albedo_weight": "0.3", "normal_weight": "1", "depth_weight": "3",
                   "filter_reflection": "false"},
         "grid": {
             "radius": ["2", "4", "6", "8", "12", "16", "24"],
-            "eps": ["0.0001", "0.001", "0.003", "0.01", "0.03", "0.1", "0.3"],
+            "eps": ["0.00001", "0.00003", "0.0001", "0.0003", "0.001", "0.003", "0.01", "0.03", "0.1", "0.3"],
             "albedo_weight": ["0", "0.3", "1", "3"],
             "normal_weight": ["0", "0.3", "1", "3", "10"],
             "depth_weight": ["0", "0.3", "1", "3", "10", "30"],
@@ -92,8 +93,8 @@ GRIDS = {
         },
     },
     "atrous": {
-        "start": {"sigma_color": "0.5", "sigma_normal": "0.3", "sigma_depth": "0.1", "halve_color_sigma": "true",
-                  "range_map": "log", "filter_reflection": "false"},
+        "start": {"sigma_color": "0.5", "sigma_normal": "0.1", "sigma_depth": "0.01", "halve_color_sigma": "true",
+                  "range_map": "reinhard", "filter_reflection": "false"},
         "grid": {
             "sigma_color": ["0.05", "0.1", "0.2", "0.5", "1", "2", "5", "10"],
             "sigma_normal": ["0.03", "0.1", "0.3", "1", "3"],
@@ -164,7 +165,7 @@ class Evaluator:
         return err
 
 
-def descend(evaluate, method, spec, rounds):
+def descend(evaluate, method, spec, rounds, only=()):
     best = dict(spec["start"])
     best_err = evaluate(method, best)
     start_err = best_err
@@ -172,6 +173,8 @@ def descend(evaluate, method, spec, rounds):
     for r in range(rounds):
         changed = False
         for name, values in spec["grid"].items():
+            if only and name not in only:
+                continue
             for v in values:
                 trial = dict(best, **{name: v})
                 err = evaluate(method, trial)
@@ -194,6 +197,7 @@ def main():
     ap.add_argument("--reference", help="use this reference instead of rendering one")
     ap.add_argument("--methods", default=",".join(GRIDS), help="comma-separated subset of " + ",".join(GRIDS))
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--only", default="", help="comma-separated parameters to sweep (default: all in the grid)")
     ap.add_argument("--binary", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build",
                                                      "denoisebench"))
     ap.add_argument("--out", default="results/sweep")
@@ -229,7 +233,7 @@ def main():
         input_err = ev.metrics(frame)
         results = {}
         for m in methods:
-            best, best_err, start_err = descend(ev, m, GRIDS[m], a.rounds)
+            best, best_err, start_err = descend(ev, m, GRIDS[m], a.rounds, [p for p in a.only.split(",") if p])
             results[m] = {"best": best, ev.metric: best_err, "previous_defaults": GRIDS[m]["start"],
                           "previous_" + ev.metric: start_err}
 

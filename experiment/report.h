@@ -1,0 +1,59 @@
+// `denoisebench report RESULTS_DIR`: everything is derived from results.json (and the images it
+// names), never typed by hand (STYLE.md 10).
+//
+//   table1_<metric>.{md,csv,tex}   rows scenes, columns methods (the paper's Table 1 layout;
+//                                  table1_mse is Table 1 itself)
+//   table2_time.{md,csv,tex}       input render, filter CPU, total CPU, filter OpenCL, total
+//                                  OpenCL, irradiance cache, reference (Table 2's layout)
+//   speedup.md                     plain path tracing's fitted error-vs-time curve, and for each
+//                                  method the spp and time it needs to reach the method's error
+//   ablation.md                    the ablation variants against the full method
+//   plots/*.png                    by reports/plots.py (matplotlib)
+//   images/**.png, index.html      the static page (vendored img-comparison-slider)
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace dnb::experiment {
+
+struct Table {
+  std::string title;
+  std::vector<std::string> header;             // first column is the row label
+  std::vector<std::vector<std::string>> rows;
+  std::string note;                            // a line under the table
+  std::string markdown() const;
+  std::string csv() const;
+  std::string latex() const;
+};
+
+// Power-law fit error = a * t^-b in log-log (least squares), and time = c * spp^d likewise.
+struct PowerFit {
+  double a = 0, b = 0;
+  bool ok = false;
+  double at(double t) const;          // a * t^-b
+  double inverse(double err) const;   // t with at(t) == err
+};
+PowerFit fit_power_law(const std::vector<double>& x, const std::vector<double>& y);
+
+// The tables of a results document (pure: used by the report and by the tests).
+Table table1(const nlohmann::json& results, const std::string& metric);
+Table table2(const nlohmann::json& results);
+Table speedup_table(const nlohmann::json& results, const std::string& metric = "mse");
+Table ablation_table(const nlohmann::json& results, const std::string& metric = "mse");
+
+struct ReportOptions {
+  bool plots = true;   // run reports/plots.py
+  bool images = true;  // PNGs, crops, error maps for the page
+};
+
+// Writes every file above into `dir` (which holds results.json).
+void write_report(const std::string& dir, const ReportOptions& options = {});
+
+// The folder holding reports/ (plots.py, the page template, the vendored component):
+// $DNB_SOURCE_DIR/reports, else the source tree this program was built from.
+std::string reports_dir();
+
+}  // namespace dnb::experiment

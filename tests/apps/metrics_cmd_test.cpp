@@ -1,0 +1,54 @@
+// `denoisebench metrics` from the outside: every metric, --json, and the refusals (exit 2 with
+// a message naming the file and the channel or the sizes).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "core/exr_io.h"
+#include "test_util.h"
+
+namespace dnb {
+namespace {
+using ::testing::HasSubstr;
+
+TEST(MetricsCommand, PrintsEveryMetricAsJson) {
+  test::TempDir dir;
+  write_rgb(Image(8, 6, 3, 0.0f), dir.file("a.exr"));
+  write_rgb(Image(8, 6, 3, 1.0f), dir.file("b.exr"));
+  auto r = test::run_denoisebench("metrics --json " + dir.file("a.exr") + " " + dir.file("b.exr") + " 2>/dev/null");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto j = nlohmann::json::parse(r.output);
+  for (const char* m : {"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip"}) EXPECT_TRUE(j.contains(m)) << m;
+  EXPECT_DOUBLE_EQ(j["mse"].get<double>(), 255.0 * 255.0);  // black against white, 8-bit
+  EXPECT_DOUBLE_EQ(j["mse_hdr"].get<double>(), 1.0);
+  // Identical images: psnr is infinite, written as null.
+  auto same = test::run_denoisebench("metrics --json " + dir.file("a.exr") + " " + dir.file("a.exr") + " 2>/dev/null");
+  ASSERT_EQ(same.exit_code, 0) << same.output;
+  EXPECT_TRUE(nlohmann::json::parse(same.output)["psnr"].is_null());
+}
+
+TEST(MetricsCommand, RefusesUnequalSizesNamingTheFiles) {
+  test::TempDir dir;
+  write_rgb(Image(8, 6, 3, 0.5f), dir.file("a.exr"));
+  write_rgb(Image(8, 5, 3, 0.5f), dir.file("small.exr"));
+  auto r = test::run_denoisebench("metrics " + dir.file("a.exr") + " " + dir.file("small.exr"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("small.exr"));
+  EXPECT_THAT(r.output, HasSubstr("8x5"));
+}
+
+TEST(MetricsCommand, RefusesAMissingChannelNamingFileAndChannel) {
+  test::TempDir dir;
+  write_rgb(Image(8, 6, 3, 0.5f), dir.file("a.exr"));
+  AovFrame f(8, 6);
+  f.add("depth", 1);
+  write_frame(f, dir.file("depth_only.exr"));
+  auto r = test::run_denoisebench("metrics " + dir.file("depth_only.exr") + " " + dir.file("a.exr"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("depth_only.exr"));
+  EXPECT_THAT(r.output, ::testing::ContainsRegex("\\bR\\b"));
+}
+
+}  // namespace
+}  // namespace dnb

@@ -1,0 +1,157 @@
+// `denoisebench run` and `report` end to end on a tiny config (one scene, a few samples), and
+// the report page in headless Chromium: it loads without console errors, every image it
+// references exists, and a screenshot is taken (build/report_screenshot.png).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+
+namespace dnb {
+namespace {
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void write(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+
+const char* kTinyConfig = R"(name = "tiny"
+width = 32
+height = 24
+scenes = ["cornell-box"]
+spp = [2]
+methods = ["bilateral"]
+[reference]
+spp = 16
+block_spp = 8
+[speedup]
+spp = [1, 4]
+[timing]
+repeats = 2
+[[variant]]
+name = "bilateral-wide"
+method = "bilateral"
+group = "ablation"
+set = { sigma_space = 6.0 }
+)";
+
+// The program: $DNB_BINARY, else ./denoisebench (ctest runs in the build folder), as test_util.
+fs::path binary() {
+  const char* bin = std::getenv("DNB_BINARY");
+  return fs::absolute(bin && *bin ? bin : "./denoisebench");
+}
+
+// Runs the program with its own render cache inside the test folder.
+test::CommandResult run_in(const test::TempDir& dir, const std::string& args) {
+  return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
+}
+
+TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
+  test::TempDir dir;
+  write(dir.path() / "tiny.toml", kTinyConfig);
+  const std::string out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto res = nlohmann::json::parse(slurp(out + "/results.json"));
+  // 2 plain path tracing renders + the input + bilateral + its variant.
+  ASSERT_EQ(res["records"].size(), 5u);
+  std::set<std::string> methods;
+  for (const auto& rec : res["records"]) {
+    methods.insert(rec["method"].get<std::string>());
+    for (const char* m : {"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip"}) EXPECT_TRUE(rec["metrics"].contains(m)) << m;
+    for (const char* t : {"input_render", "filter", "total", "reference"}) EXPECT_TRUE(rec["times"].contains(t)) << t;
+    EXPECT_TRUE(fs::exists(out + "/" + rec["files"]["image"].get<std::string>()));
+    EXPECT_GT(rec["metrics"]["mse"].get<double>(), 0.0);
+  }
+  EXPECT_EQ(methods, (std::set<std::string>{"path_tracing", "input", "bilateral", "bilateral-wide"}));
+  EXPECT_TRUE(res.contains("machine") && res.contains("build") && res.contains("git_revision"));
+  for (const auto& rec : res["records"]) {
+    if (rec["method"] == "bilateral-wide") {
+      EXPECT_EQ(rec["params"]["sigma_space"], "6");
+    }
+  }
+  // results.csv: a header and one line per record.
+  const std::string csv = slurp(out + "/results.csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 6);
+
+  // A second run finds every cell finished: no output image is written again.
+  const auto before = fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr");
+  auto again = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_THAT(again.output, HasSubstr("cache hit"));
+  EXPECT_EQ(fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr"), before);
+  EXPECT_EQ(nlohmann::json::parse(slurp(out + "/results.json"))["records"].size(), 5u);
+}
+
+TEST(RunCommand, RefusesUnknownMethodsAndKeys) {
+  test::TempDir dir;
+  write(dir.path() / "bad_method.toml", std::regex_replace(kTinyConfig, std::regex("\"bilateral\"\\]"), "\"bilateral\", \"no_such_filter\"]"));
+  auto r = run_in(dir, "run " + dir.file("bad_method.toml") + " -o " + dir.file("o1"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("no_such_filter"));
+  EXPECT_THAT(r.output, HasSubstr("bad_method.toml"));
+  write(dir.path() / "bad_key.toml", std::string(kTinyConfig) + "colour_space = \"srgb\"\n");
+  r = run_in(dir, "run " + dir.file("bad_key.toml") + " -o " + dir.file("o2"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("colour_space"));
+  EXPECT_FALSE(fs::exists(dir.file("o2") + "/results.json"));
+}
+
+TEST(ReportPage, LoadsInHeadlessChromiumWithEveryImage) {
+  test::TempDir dir;
+  write(dir.path() / "tiny.toml", kTinyConfig);
+  const std::string out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_in(dir, "report " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* f : {"table1_mse.md", "table2_time.md", "speedup.md", "ablation.md", "plots/mse_bars.png",
+                        "plots/error_time_cornell-box.png", "web/vendor/index.js", "index.html"})
+    EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
+
+  // Every src/href of the page exists beside it (the page is opened from disk).
+  const std::string html = slurp(out + "/index.html");
+  std::regex ref_re(R"((?:src|href|value|data-err)=\"([^\"]+)\")");
+  int images = 0;
+  for (auto it = std::sregex_iterator(html.begin(), html.end(), ref_re); it != std::sregex_iterator(); ++it) {
+    const std::string ref = (*it)[1];
+    if (ref.rfind("data:", 0) == 0 || ref.find('.') == std::string::npos) continue;
+    EXPECT_TRUE(fs::exists(out + "/" + ref)) << ref;
+    if (ref.size() > 4 && ref.substr(ref.size() - 4) == ".png") ++images;
+  }
+  EXPECT_GE(images, 8);
+
+  if (!fs::exists("/usr/bin/chromium")) GTEST_SKIP() << "Debian's chromium is not installed (scripts/setup)";
+  const fs::path shot = binary().parent_path() / "report_screenshot.png";
+  fs::remove(shot);
+  const std::string chromium =
+      "/usr/bin/chromium --headless --no-sandbox --disable-gpu --disable-background-networking --no-first-run "
+      "--disable-component-update --disable-sync --user-data-dir='" + dir.file("profile") +
+      "' --enable-logging=stderr --v=0 --virtual-time-budget=5000 --window-size=1400,2400 --screenshot='" + shot.string() +
+      "' 'file://" + out + "/index.html' 2>&1";
+  auto c = test::run_command("timeout 120 " + chromium);
+  ASSERT_EQ(c.exit_code, 0) << c.output;
+  // Any console message is a failure: the page logs nothing unless something is wrong (a
+  // script error, a missing file, the comparison component not defined).
+  EXPECT_THAT(c.output, ::testing::Not(HasSubstr(":CONSOLE"))) << c.output;
+  EXPECT_THAT(c.output, ::testing::Not(HasSubstr("ERR_FILE_NOT_FOUND"))) << c.output;
+  ASSERT_TRUE(fs::exists(shot));
+  EXPECT_GT(fs::file_size(shot), 10000u);
+}
+
+}  // namespace
+}  // namespace dnb
