@@ -258,7 +258,8 @@ class AmRun {
     table(W_, sw_, x0_, x1_, fx_);
     table(H_, sh_, y0_, y1_, fy_);
     frac_.resize(df_);
-    for (int k = 0; k < df_; ++k) frac_[k] = (k + 0.5f) / df_;
+    // Output pixel df sx + df/2 + k sits at sx + (df/2 + k + 0.5) / df - 0.5 on the reduced grid.
+    for (int k = 0; k < df_; ++k) frac_[k] = (df_ / 2 + k + 0.5f) / df_ - 0.5f;
     qacc_.assign(queries_.size() * (C_ + 1), 0.0);
     qmin_.assign(queries_.size(), INFINITY);
   }
@@ -296,7 +297,7 @@ class AmRun {
       query_out->assign(queries_.size() * C_, 0.0f);
       for (std::size_t q = 0; q < queries_.size(); ++q) {
         const double den = qacc_[q * (C_ + 1) + C_];
-        const float alpha = s_.adjust_outliers ? std::exp(alpha_k * qmin_[q]) : 1.0f;
+        const float alpha = s_.adjust_outliers && queries_[q].adjust_outliers ? std::exp(alpha_k * qmin_[q]) : 1.0f;
         for (int c = 0; c < C_; ++c) {
           const float f = queries_[q].src ? queries_[q].src[c]
                                            : src_.row(c, queries_[q].y)[queries_[q].x];
@@ -337,8 +338,8 @@ class AmRun {
   }
 
   // Horizontal bilinear upsampling of one reduced row. Inside the image, output pixel
-  // df sx + df/2 + k lies between reduced pixels sx and sx + 1 at fraction (k + 0.5) / df for
-  // every sx, so the interior needs no index tables (and vectorises); the borders use them.
+  // df sx + df/2 + k lies between reduced pixels sx and sx + 1 at fraction
+  // (df/2 + k + 0.5) / df - 0.5 for every sx ((k + 0.5) / df for even df, 0 for df = 1), so the interior needs no index tables (and vectorises); the borders use them.
   void upsample_x(const float* tmp, float* o) const {
     switch (df_) {  // the block width as a constant, so the interior unrolls into vector code
       case 2: return upsample_x<2>(tmp, o);
@@ -356,7 +357,7 @@ class AmRun {
     int x = lead;
     float frac[DF > 0 ? DF : 1];
     if constexpr (DF > 0)
-      for (int k = 0; k < DF; ++k) frac[k] = (k + 0.5f) / DF;
+      for (int k = 0; k < DF; ++k) frac[k] = (DF / 2 + k + 0.5f) / DF - 0.5f;
     const int n = std::min(sw_ - 1, (W_ - lead) / df);
     for (int sx = 0; sx < n; ++sx, x += df) {
       const float a = tmp[sx], b = tmp[sx + 1] - tmp[sx];

@@ -90,11 +90,11 @@ MethodInfo am_opencv_method() {
       .kind = MethodKind::Filter,
       .params =
           {
-              {"sigma_s", ParamType::Float, "16", "spatial standard deviation, pixels", 1.0, 512.0},
-              {"sigma_r", ParamType::Float, "0.1", "range standard deviation, compressed-colour units", 1e-3, 1.0},
+              {"sigma_s", ParamType::Float, "4", "spatial standard deviation, pixels", 1.0, 512.0},
+              {"sigma_r", ParamType::Float, "0.05", "range standard deviation, compressed-colour units", 1e-3, 1.0},
               {"tree_height", ParamType::Int, "0", "manifold tree height; 0: from sigma_s and sigma_r", 0.0, 12.0},
               {"pca_iterations", ParamType::Int, "1", "PCA iterations (OpenCV restarts each from its random vector)", 1.0, 100.0},
-              {"adjust_outliers", ParamType::Bool, "false", "Gastal and Oliveira's outlier adjustment (eq. 11)"},
+              {"adjust_outliers", ParamType::Bool, "true", "Gastal and Oliveira's outlier adjustment (eq. 11)"},
               {"range_map", ParamType::String, "reinhard", "domain of the guide (denoisers/hdr_mapping.h)", {}, {},
                range_map_names()},
           },

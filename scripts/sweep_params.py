@@ -40,6 +40,29 @@ EVALUATION_SCENES = {"cornell-box", "conference", "bedroom", "sponza"}
 # result of the last sweep); values are strings exactly as passed to --set. A best value at the
 # end of its grid means the grid should be widened there and the sweep run again.
 GRIDS = {
+    "am": {
+        "start": {"sigma_s": "16", "sigma_r": "0.1", "adjust_outliers": "false", "range_map": "reinhard"},
+        "grid": {
+            "sigma_s": ["4", "8", "16", "32"],
+            "sigma_r": ["0.03", "0.05", "0.1", "0.2", "0.4"],
+            "adjust_outliers": ["false", "true"],
+            "range_map": ["reinhard", "log"],
+        },
+    },
+    "proposed": {
+        "start": {"sigma_s": "16", "sigma_r": "0.25", "tree_height": "0", "adjust_outliers": "false",
+                  "sigma_nlm": "0.15", "sigma_normal": "0.3", "sigma_depth": "0.05", "nlm_dims": "6"},
+        "grid": {
+            "sigma_s": ["4", "8", "16", "32"],
+            "sigma_r": ["0.15", "0.25", "0.4"],
+            "tree_height": ["0", "4", "5"],
+            "adjust_outliers": ["false", "true"],
+            "sigma_nlm": ["0.05", "0.1", "0.15", "0.3", "0.6"],
+            "sigma_normal": ["0.1", "0.3", "0.6", "1"],
+            "sigma_depth": ["0.02", "0.05", "0.1", "0.3"],
+            "nlm_dims": ["3", "6", "10"],
+        },
+    },
     "bilateral": {
         "start": {"sigma_space": "1.5", "sigma_color": "0.1", "range_map": "reinhard"},
         "grid": {
