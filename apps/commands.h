@@ -19,6 +19,7 @@ void add_metrics(CLI::App& app, Action& action);
 void add_run(CLI::App& app, Action& action);
 void add_report(CLI::App& app, Action& action);
 void add_list(CLI::App& app, Action& action);
+void add_nightly(CLI::App& app, Action& action);
 
 // A sub-command whose issue has not landed: it parses anything, says it is not available and
 // exits 2. No fake output.

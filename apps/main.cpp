@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   dnb::app::add_run(app, action);
   dnb::app::add_report(app, action);
   dnb::app::add_list(app, action);
+  dnb::app::add_nightly(app, action);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

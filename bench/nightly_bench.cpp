@@ -1,0 +1,149 @@
+// The cases the nightly performance gate reads (.ci/nightly, experiment/nightly.h): every
+// method on a rendered frame, timed as a multiple of a fixed reference workload run in the
+// same process, interleaved with it, so that the machine's speed and its momentary load
+// cancel out of the ratio (issue 9: "ratios, not absolute times").
+//
+//   build/bench/denoisebench_bench --benchmark_filter='^nightly/' --benchmark_repetitions=5
+//       --benchmark_enable_random_interleaving=true --benchmark_min_time=0.2
+//       --benchmark_out=bench.json --benchmark_out_format=json
+//
+// Cases are named nightly/<method>/<W>x<H>/threads:<1|all>, and nightly/proposed:opencl/...
+// for the OpenCL path of `proposed` (PoCL's CPU device here) when the build has OpenCL and a
+// device answers. The frame is the built-in cornell-box at 16 spp (renderer-type methods
+// render that scene with a 16-spp budget); --dnb_nightly_size=WxH (main.cpp) picks another
+// size, for CI's short run. Preparing the frame, creating the method and one warm-up run of
+// the method and of the workload happen outside the timed loop.
+//
+// Each iteration times the reference workload (repeated so that it lasts about as long as the
+// method) and the method, in alternating order; the iteration's ratio is method time / workload
+// time. A repetition reports the median ratio of its iterations as the counter `ratio`, and
+// the method and workload times (ms) beside it; the gate takes the median over repetitions.
+// threads:1 cases limit TBB and OpenCV to one thread and measure process CPU time (which
+// another job on the machine disturbs far less than wall time); threads:all cases measure
+// wall time with every core, so they also see a loss of parallelism.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <mutex>
+
+#include "bench/bench_util.h"
+#include "denoisers/method.h"
+
+namespace dnb::bench {
+
+namespace {
+
+constexpr const char* kNightlyScene = "cornell-box";
+constexpr int kNightlySpp = 16;
+
+struct NightlyCase {
+  std::string method;                         // registry name
+  std::map<std::string, std::string> params;  // e.g. device=opencl
+  int threads = 0;                            // 1, or 0 for all cores
+  int width = 256, height = 192;
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n == 0 ? 0.0 : n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// How many runs of the workload last about as long as one run of the method, found at the
+// case's first call (the warm-up) and kept for the rest of the process, so that every
+// repetition of a case times the same amount of reference work.
+int& workload_units(const std::string& case_name) {
+  static std::map<std::string, int> units;
+  return units[case_name];
+}
+
+void run_nightly_case(benchmark::State& state, const std::string& case_name, const NightlyCase& c) {
+  ThreadLimit limit(c.threads);
+  const auto& registry = MethodRegistry::global();
+  const MethodInfo& info = registry.info(c.method);
+  MethodInput in;
+  in.seed = 1;
+  if (info.kind == MethodKind::Renderer) {
+    in.scene = scene(kNightlyScene).get();
+    in.sample_budget = kNightlySpp;
+    in.width = c.width;
+    in.height = c.height;
+  } else {
+    in.frame = &rendered_frame(kNightlyScene, c.width, c.height, kNightlySpp);
+  }
+  std::unique_ptr<Method> method;
+  try {
+    method = registry.create(c.method, c.params);
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return;
+  }
+  const ReferenceWorkload workload(c.threads);
+  auto clock = c.threads == 1 ? process_cpu_seconds : wall_seconds;
+  auto time_of = [&](auto&& f) {
+    const double t0 = clock();
+    f();
+    return clock() - t0;
+  };
+  auto run = [&] { benchmark::DoNotOptimize(run_method(*method, in).image.data()); };
+
+  int& units = workload_units(case_name);
+  if (units == 0) {  // first call: warm-up of both, and the workload's repeat count
+    run();
+    workload.run();
+    const double tm = time_of(run);
+    double tw = time_of([&] { workload.run(); });
+    tw = std::min(tw, time_of([&] { workload.run(); }));
+    units = int(std::clamp(std::round(tm / std::max(tw, 1e-6)), 1.0, 10000.0));
+  }
+
+  std::vector<double> ratios, method_s, workload_s;
+  bool workload_first = true;
+  for (auto _ : state) {
+    double tw = 0, tm = 0;
+    auto work = [&] { tw = time_of([&] { for (int i = 0; i < units; ++i) workload.run(); }) / units; };
+    if (workload_first) {
+      work();
+      tm = time_of(run);
+    } else {
+      tm = time_of(run);
+      work();
+    }
+    workload_first = !workload_first;
+    state.SetIterationTime(tm);
+    ratios.push_back(tm / std::max(tw, 1e-9));
+    method_s.push_back(tm);
+    workload_s.push_back(tw);
+  }
+  state.counters["ratio"] = median(ratios);
+  state.counters["method_ms"] = 1e3 * median(method_s);
+  state.counters["reference_ms"] = 1e3 * median(workload_s);
+  state.counters["reference_units"] = units;
+  state.SetLabel(std::string(kNightlyScene) + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + " " +
+                 std::to_string(kNightlySpp) + "spp");
+}
+
+}  // namespace
+
+void register_nightly_cases(int width, int height) {
+  const auto& registry = MethodRegistry::global();
+  std::vector<std::pair<std::string, NightlyCase>> cases;
+  const std::string size = std::to_string(width) + "x" + std::to_string(height);
+  for (const MethodInfo* m : registry.all())
+    for (int threads : {1, 0})
+      cases.push_back({"nightly/" + m->name + "/" + size + "/threads:" + (threads ? "1" : "all"),
+                       NightlyCase{m->name, {}, threads, width, height}});
+  // The OpenCL path of `proposed` (its own threads: wall time only).
+  const auto& params = registry.info("proposed").params;
+  if (std::any_of(params.begin(), params.end(), [](const ParamSpec& p) { return p.name == "device"; }))
+    cases.push_back({"nightly/proposed:opencl/" + size + "/threads:all",
+                     NightlyCase{"proposed", {{"device", "opencl"}}, 0, width, height}});
+  for (const auto& [name, c] : cases)
+    benchmark::RegisterBenchmark(name.c_str(), [name = name, c = c](benchmark::State& s) { run_nightly_case(s, name, c); })
+        ->Unit(benchmark::kMillisecond)
+        ->UseManualTime();
+}
+
+}  // namespace dnb::bench
