@@ -31,7 +31,7 @@ void add_check(CLI::App& parent, Action& action) {
   auto* cmd = parent.add_subcommand("check", "Compare a nightly run with the baseline; exit 1 on a regression");
   struct Opts {
     std::string run, baseline = "reports/baseline", history, revision;
-    bool require_perf = false, no_perf = false;
+    bool require_perf = false, no_perf = false, no_ahead = false;
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("RUN_DIR", o->run, "folder with results.json (denoisebench run) and bench.json (denoisebench_bench)")
@@ -42,11 +42,13 @@ void add_check(CLI::App& parent, Action& action) {
   cmd->add_flag("--require-performance", o->require_perf,
                 "a baseline measured on another CPU model is an error instead of a skipped gate");
   cmd->add_flag("--no-performance", o->no_perf, "check quality only");
+  cmd->add_flag("--no-ahead", o->no_ahead, "skip the ahead gate (for smoke runs at sizes where it means nothing)");
   cmd->callback([&action, o] {
     action = [o] {
       nightly::CheckOptions opt;
       opt.require_performance = o->require_perf;
       opt.performance = !o->no_perf;
+      opt.ahead = !o->no_ahead;
       const auto r = nightly::check_run(o->run, o->baseline, o->history, opt, o->revision);
       for (const auto& n : r.verdict.notes) spdlog::warn("{}", n);
       for (const auto& f : r.verdict.findings)

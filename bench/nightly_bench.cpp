@@ -10,8 +10,9 @@
 // Cases are named nightly/<method>/<W>x<H>/threads:<1|all>, and nightly/proposed:opencl/...
 // for the OpenCL path of `proposed` (PoCL's CPU device here) when the build has OpenCL and a
 // device answers. The frame is the built-in cornell-box at 16 spp (renderer-type methods
-// render that scene with a 16-spp budget); --dnb_nightly_size=WxH (main.cpp) picks another
-// size, for CI's short run. Preparing the frame, creating the method and one warm-up run of
+// render that scene with a 16-spp budget, at half the width and height: they take seconds
+// where filters take milliseconds); --dnb_nightly_size=WxH (main.cpp) picks another size, for
+// CI's short run. Preparing the frame, creating the method and one warm-up run of
 // the method and of the workload happen outside the timed loop.
 //
 // Each iteration times the reference workload (repeated so that it lasts about as long as the
@@ -130,15 +131,19 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
 void register_nightly_cases(int width, int height) {
   const auto& registry = MethodRegistry::global();
   std::vector<std::pair<std::string, NightlyCase>> cases;
-  const std::string size = std::to_string(width) + "x" + std::to_string(height);
-  for (const MethodInfo* m : registry.all())
+  auto size = [](int w, int h) { return std::to_string(w) + "x" + std::to_string(h); };
+  for (const MethodInfo* m : registry.all()) {
+    // A renderer takes seconds where a filter takes milliseconds: half the size each way.
+    const bool renderer = m->kind == MethodKind::Renderer;
+    const int w = renderer ? std::max(8, width / 2) : width, h = renderer ? std::max(8, height / 2) : height;
     for (int threads : {1, 0})
-      cases.push_back({"nightly/" + m->name + "/" + size + "/threads:" + (threads ? "1" : "all"),
-                       NightlyCase{m->name, {}, threads, width, height}});
+      cases.push_back({"nightly/" + m->name + "/" + size(w, h) + "/threads:" + (threads ? "1" : "all"),
+                       NightlyCase{m->name, {}, threads, w, h}});
+  }
   // The OpenCL path of `proposed` (its own threads: wall time only).
   const auto& params = registry.info("proposed").params;
   if (std::any_of(params.begin(), params.end(), [](const ParamSpec& p) { return p.name == "device"; }))
-    cases.push_back({"nightly/proposed:opencl/" + size + "/threads:all",
+    cases.push_back({"nightly/proposed:opencl/" + size(width, height) + "/threads:all",
                      NightlyCase{"proposed", {{"device", "opencl"}}, 0, width, height}});
   for (const auto& [name, c] : cases)
     benchmark::RegisterBenchmark(name.c_str(), [name = name, c = c](benchmark::State& s) { run_nightly_case(s, name, c); })

@@ -1,9 +1,10 @@
 // Tracer throughput: paths per second and rays per second of render_frame (every AOV layer,
-// edge sub-pixels and two reflection levels) at 1024x768 with path length 8, and, run in the
+// edge sub-pixels and two reflection levels) at 1024x768 with path length 8 on every built-in
+// scene (cornell-box, conference, bedroom, sponza) and McGuire's Cornell box, and, run in the
 // same session, the Embree tutorial path tracer (`pathtracer` from Debian's embree-tools) on a
 // Cornell box at the same size, samples per pixel and path length.
 //
-//   build/bench/denoisebench_bench --benchmark_filter='Tracer|EmbreeTutorial'
+//   build/bench/denoisebench_bench --benchmark_filter='BM_Tracer|EmbreeTutorial'
 //       --benchmark_repetitions=3 --benchmark_enable_random_interleaving=true
 //
 // The tutorial reads no emitters from OBJ files, so it renders McGuire's CornellBox-Original.obj
@@ -89,8 +90,12 @@ void BM_EmbreeTutorial(benchmark::State& state) {
 }
 
 // Samples per pixel per iteration: 4 and 16 (fixed per-frame costs, such as allocating and
-// zeroing the ~260 MB of AOV layers, weigh more at 4).
+// zeroing the ~260 MB of AOV layers, weigh more at 4). Every built-in scene at 4 spp, the
+// Cornell boxes (compared with the tutorial) at 16 as well.
 BENCHMARK_CAPTURE(BM_Tracer, cornell_box, "cornell-box")->Arg(4)->Arg(16)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Tracer, conference, "conference")->Arg(4)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Tracer, bedroom, "bedroom")->Arg(4)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Tracer, sponza, "sponza")->Arg(4)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Tracer, mcguire_cornell_box, "mcguire-cornell-box")
     ->Arg(4)
     ->Arg(16)

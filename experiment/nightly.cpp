@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "core/atomic_file.h"
 #include "core/errors.h"
@@ -35,6 +36,13 @@ double relative_std(const std::vector<double>& v) {
   double ss = 0;
   for (double x : v) ss += (x - mean) * (x - mean);
   return mean > 0 ? std::sqrt(ss / double(v.size() - 1)) / mean : 0;
+}
+
+// max / min - 1: the largest change between two of the runs (0 for fewer than two values).
+double range(const std::vector<double>& v) {
+  if (v.size() < 2) return 0;
+  const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+  return *lo > 0 ? *hi / *lo - 1.0 : 0;
 }
 
 std::string now_iso() {
@@ -257,9 +265,12 @@ Summary summarize_run(const std::string& run_dir) {
 // ---------------------------------------------------------------------------------------------
 // Gates
 
-double Gates::quality_tolerance(const std::string& method) const {
-  auto it = quality.find(method);
-  return it == quality.end() ? quality_default : it->second;
+double Gates::quality_tolerance(const std::string& scene, const std::string& method) const {
+  for (const auto& key : {scene + "/" + method, method}) {
+    auto it = quality.find(key);
+    if (it != quality.end()) return it->second;
+  }
+  return quality_default;
 }
 
 double Gates::performance_tolerance(const std::string& name) const {
@@ -394,7 +405,7 @@ Verdict check(const Summary& baseline, const Summary& current, const Gates& gate
                                    "a method or scene was dropped; accept a new baseline if that is intended",
                                    old.scene, old.method, old.spp));
     const QualityEntry& cur = *it->second;
-    const double tol = gates.quality_tolerance(old.method);
+    const double tol = gates.quality_tolerance(old.scene, old.method);
     Finding f{"quality", old.scene, old.method, "mse", old.mse, cur.mse, old.mse * (1.0 + tol), "", false, ""};
     f.failed = !std::isfinite(cur.mse) || !(cur.mse <= f.limit);
     f.message = fmt::format("quality: scene {}, method {}, mse {} from {} to {} ({}, tolerance +{:.1f}%)", old.scene,
@@ -407,7 +418,9 @@ Verdict check(const Summary& baseline, const Summary& current, const Gates& gate
       v.notes.push_back(fmt::format("scene {}, method {}: new in this run, no baseline (not gated)", e.scene, e.method));
 
   // Ahead.
-  if (!gates.ahead_method.empty()) {
+  if (!options.ahead && !gates.ahead_method.empty())
+    v.notes.push_back(fmt::format("ahead gate not run ({} ahead of {})", gates.ahead_method, fmt::join(gates.ahead_of, ", ")));
+  if (options.ahead && !gates.ahead_method.empty()) {
     std::set<std::pair<std::string, int>> scenes;
     for (const auto& e : current.quality) scenes.insert({e.scene, e.spp});
     for (const auto& [scene, spp] : scenes) {
@@ -492,16 +505,18 @@ Gates derive_gates(const std::vector<Summary>& quality_runs, const std::vector<s
       for (const auto& e : quality_runs[r].quality) mse[{e.scene, e.method}].push_back(e.mse);
     std::map<std::string, double> worst;
     json spread = json::object();
+    g.quality.clear();
     for (const auto& [key, values] : mse) {
       if (values.size() != quality_runs.size())
         throw InputError(fmt::format("scene {}, method {}: in {} of {} runs (the runs must be of one config)", key.first,
                                      key.second, values.size(), quality_runs.size()));
-      const double rs = relative_std(values);
-      spread[key.second][key.first] = {{"relative_std", rs}, {"mse", values}};
-      worst[key.second] = std::max(worst[key.second], rs);
+      const double tol = std::max({o.quality_k * relative_std(values), range(values), o.quality_floor});
+      spread[key.second][key.first] = {{"relative_std", relative_std(values)}, {"max_over_min", range(values) + 1}, {"mse", values}};
+      g.quality[key.first + "/" + key.second] = tol;
+      worst[key.second] = std::max(worst[key.second], tol);
     }
-    g.quality.clear();
-    for (const auto& [method, rs] : worst) g.quality[method] = std::max(o.quality_k * rs, o.quality_floor);
+    // A scene without a tolerance of its own (added later) gets its method's largest.
+    for (const auto& [method, tol] : worst) g.quality[method] = tol;
     g.quality_default = std::max(o.quality_floor, g.quality.empty() ? o.quality_floor : [&] {
       double m = 0;
       for (const auto& [k, t] : g.quality) m = std::max(m, t);
@@ -509,8 +524,10 @@ Gates derive_gates(const std::vector<Summary>& quality_runs, const std::vector<s
     }());
     std::vector<json> seeds;
     for (const auto& r : quality_runs) seeds.push_back(r.config.value("seed", json()));
-    d["quality"] = {{"rule", fmt::format("tolerance(method) = max({} * max over scenes of the relative standard deviation "
-                                         "of the MSE across runs, {}); default: the largest", o.quality_k, o.quality_floor)},
+    d["quality"] = {{"rule", fmt::format("tolerance(scene/method) = max({} * relative standard deviation of the MSE "
+                                         "across runs, max/min - 1 of the MSE across runs, {}); tolerance(method): its "
+                                         "largest over scenes (for scenes added later); default: the largest",
+                                         o.quality_k, o.quality_floor)},
                     {"runs", quality_names}, {"seeds", seeds}, {"config", quality_runs.front().config},
                     {"relative_std", spread}};
   }
@@ -527,14 +544,13 @@ Gates derive_gates(const std::vector<Summary>& quality_runs, const std::vector<s
         throw InputError(fmt::format("benchmark case {}: in {} of {} runs (run the same cases each time)", name, values.size(),
                                      perf_runs.size()));
       const double rs = relative_std(values);
-      const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
-      spread[name] = {{"relative_std", rs}, {"max_over_min", *hi / *lo}, {"time_ratio", values}};
-      g.performance[name] = std::max(o.performance_k * rs, o.performance_floor);
+      spread[name] = {{"relative_std", rs}, {"max_over_min", range(values) + 1}, {"time_ratio", values}};
+      g.performance[name] = std::max({o.performance_k * rs, range(values), o.performance_floor});
       largest = std::max(largest, g.performance[name]);
     }
     g.performance_default = std::max(largest, o.performance_floor);
     d["performance"] = {{"rule", fmt::format("tolerance(case) = max({} * relative standard deviation of the case's ratio "
-                                             "across runs, {}); default: the largest",
+                                             "across runs, max/min - 1 of the ratio across runs, {}); default: the largest",
                                              o.performance_k, o.performance_floor)},
                         {"runs", perf_names}, {"machine", perf_runs.front().machine},
                         {"cpu_model", perf_runs.front().cpu_model}, {"spread", spread}};
@@ -688,7 +704,11 @@ RunCheck check_run(const std::string& run_dir, const std::string& baseline_dir, 
 
 Summary accept_run(const std::string& run_dir, const std::string& baseline_dir, const std::string& git_revision) {
   Summary s = summarize_run(run_dir);
-  if (!git_revision.empty()) s.git_revision = git_revision;
+  if (!git_revision.empty()) {
+    s.git_revision = git_revision;
+  } else if (fs::exists(run_dir + "/summary.json")) {
+    s.git_revision = Summary::from_json(read_json(run_dir + "/summary.json"), run_dir + "/summary.json").git_revision;
+  }
   fs::create_directories(baseline_dir);
   const std::string gates_path = baseline_dir + "/gates.json";
   if (!fs::exists(gates_path)) {

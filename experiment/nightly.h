@@ -69,7 +69,7 @@ void add_benchmarks(Summary& s, const nlohmann::json& bench, const std::string& 
 Summary summarize_run(const std::string& run_dir);
 
 struct Gates {
-  // Quality: relative tolerance per method, and the default for a method not listed.
+  // Quality: relative tolerance per "<scene>/<method>", else per "<method>", else the default.
   double quality_default = 0.05;
   std::map<std::string, double> quality;
   // Performance: relative tolerance per case name, and the default.
@@ -80,7 +80,7 @@ struct Gates {
   std::vector<std::string> ahead_of;
   nlohmann::json derivation;  // how the tolerances were obtained (kept as written)
 
-  double quality_tolerance(const std::string& method) const;
+  double quality_tolerance(const std::string& scene, const std::string& method) const;
   double performance_tolerance(const std::string& case_name) const;
   nlohmann::json to_json() const;
   static Gates from_json(const nlohmann::json& j, const std::string& where);
@@ -111,14 +111,17 @@ struct Verdict {
 struct CheckOptions {
   bool require_performance = false;  // a missing bench.json or another CPU model is an error
   bool performance = true;           // false: quality gates only
+  bool ahead = true;                 // false: skip the ahead gate (a smoke run whose size means nothing)
 };
 
 Verdict check(const Summary& baseline, const Summary& current, const Gates& gates, const CheckOptions& options = {});
 
 // Tolerances from repeated runs: quality from runs of the same config with different seeds
-// (per method: max over scenes of the relative standard deviation of the MSE), performance
-// from repeated benchmark runs (per case: relative standard deviation of the ratio); each
-// tolerance is max(k * spread, floor). The result keeps the measured spreads, k, the floors
+// (per scene and method: the relative standard deviation of the MSE across the runs; per
+// method: the largest over its scenes), performance from repeated benchmark runs (per case:
+// the relative standard deviation of the ratio); each tolerance is max(k * relative std,
+// max/min - 1, floor): at least the largest change seen between two of the runs, so that a
+// baseline accepted from any of them would not have raised an alarm on the others. The result keeps the measured spreads, k, the floors
 // and the run names under "derivation".
 struct DeriveOptions {
   double quality_k = 3, quality_floor = 0.02;
@@ -143,7 +146,9 @@ struct RunCheck {
 RunCheck check_run(const std::string& run_dir, const std::string& baseline_dir, const std::string& history,
                    const CheckOptions& options, const std::string& git_revision = "");
 // Makes RUN_DIR's summary the baseline: writes BASELINE_DIR/baseline.json (and a default
-// gates.json when there is none). Returns the summary accepted.
+// gates.json when there is none: 5% and 25% tolerances, `proposed` ahead of every other
+// non-ablation method of the run). The revision recorded is `git_revision`, else the one
+// RUN_DIR/summary.json (written by check) holds, else results.json's. Returns the summary.
 Summary accept_run(const std::string& run_dir, const std::string& baseline_dir, const std::string& git_revision = "");
 
 }  // namespace dnb::nightly

@@ -44,6 +44,7 @@ Gates example_gates() {
   Gates g;
   g.quality_default = 0.05;
   g.quality["guided"] = 0.10;
+  g.quality["conference/guided"] = 0.20;
   g.performance_default = 0.25;
   g.ahead_method = "proposed";
   g.ahead_of = {"guided", "bilateral"};
@@ -92,6 +93,13 @@ TEST(NightlyCheck, WorseMseFailsNamingSceneMethodMetricOldAndNew) {
   EXPECT_THAT(v.markdown(base, now), AllOf(HasSubstr("FAIL (1 regressions)"), HasSubstr(f[0].message)));
   EXPECT_FALSE(v.to_json()["passed"].get<bool>());
   EXPECT_EQ(v.to_json()["failures"][0]["old"].get<double>(), 30.0);
+}
+
+TEST(NightlyCheck, ToleranceIsLookedUpBySceneAndMethodThenMethodThenDefault) {
+  const Gates g = example_gates();
+  EXPECT_DOUBLE_EQ(g.quality_tolerance("conference", "guided"), 0.20);
+  EXPECT_DOUBLE_EQ(g.quality_tolerance("cornell-box", "guided"), 0.10);
+  EXPECT_DOUBLE_EQ(g.quality_tolerance("cornell-box", "bilateral"), 0.05);
 }
 
 TEST(NightlyCheck, RiseWithinTheMethodsToleranceAndImprovementsPass) {
@@ -316,19 +324,26 @@ TEST(NightlyTolerances, FollowTheStatedRule) {
   perf[1].performance[0].ratio = 17.0 * 1.1;  // relative std of (17, 18.7): 0.1 / 1.05 / sqrt(2)
   DeriveOptions o;  // k 3, floors 2% and 10%
   const Gates g = derive_gates(seeds, {"a", "b", "c"}, perf, {"p", "q"}, example_gates(), o);
-  EXPECT_NEAR(g.quality.at("guided"), 3.0 / 11.0, 1e-12);
-  EXPECT_DOUBLE_EQ(g.quality.at("bilateral"), 0.02);  // the floor
+  EXPECT_NEAR(g.quality_tolerance("conference", "guided"), 3.0 / 11.0, 1e-12);
+  EXPECT_DOUBLE_EQ(g.quality_tolerance("cornell-box", "guided"), 0.02);  // identical there: the floor
+  EXPECT_NEAR(g.quality_tolerance("sponza", "guided"), 3.0 / 11.0, 1e-12);  // a new scene: the method's largest
+  EXPECT_DOUBLE_EQ(g.quality_tolerance("conference", "bilateral"), 0.02);
   EXPECT_NEAR(g.quality_default, 3.0 / 11.0, 1e-12);  // the largest
   const double rs = 0.1 * 17 / std::sqrt(2.0) / (17 * 1.05);
-  EXPECT_NEAR(g.performance.at("nightly/guided/256x192/threads:1"), 3 * rs, 1e-9);
+  EXPECT_NEAR(g.performance.at("nightly/guided/256x192/threads:1"), 3 * rs, 1e-9);  // above max/min - 1 = 0.1
   EXPECT_DOUBLE_EQ(g.performance.at("nightly/proposed/256x192/threads:1"), 0.10);
+  // One outlier among many equal runs: the relative std is small, the range is not.
+  std::vector<Summary> many(12, example());
+  many[11].performance[1].ratio = 70.0 * 1.5;  // relative std 0.139: 3x that is below 0.5
+  const Gates h = derive_gates({}, {}, many, std::vector<std::string>(12, "run"), example_gates(), o);
+  EXPECT_DOUBLE_EQ(h.performance.at("nightly/proposed/256x192/threads:1"), 0.5);
   EXPECT_EQ(g.ahead_of, example_gates().ahead_of);  // kept
   EXPECT_TRUE(g.derivation.contains("quality"));
   EXPECT_TRUE(g.derivation.contains("performance"));
   // The file format round-trips.
   const Gates back = Gates::from_json(json::parse(g.to_json().dump()), "gates.json");
-  EXPECT_DOUBLE_EQ(back.quality_tolerance("guided"), g.quality.at("guided"));
-  EXPECT_DOUBLE_EQ(back.quality_tolerance("unknown"), g.quality_default);
+  EXPECT_DOUBLE_EQ(back.quality_tolerance("conference", "guided"), g.quality.at("conference/guided"));
+  EXPECT_DOUBLE_EQ(back.quality_tolerance("conference", "unknown"), g.quality_default);
   EXPECT_THROW(derive_gates({example()}, {"a"}, {}, {}, example_gates(), o), InputError);
 }
 
