@@ -5,6 +5,7 @@
 #include "apps/commands.h"
 #include "core/errors.h"
 #include "denoisers/method.h"
+#include "metrics/metrics.h"
 #include "tracer/render.h"
 
 namespace dnb::app {
@@ -34,9 +35,9 @@ static int list_scenes() {
 }
 
 static int list_metrics() {
-  // The metrics library has no listing function yet (metrics issue).
-  fmt::print(stderr, "denoisebench list metrics: not available in this build yet\n");
-  return 2;
+  for (const auto& m : metrics::all_metrics())
+    fmt::print("{:<8} {:<16} {}\n", m.name, m.lower_is_better ? "lower is better" : "higher is better", m.description);
+  return 0;
 }
 
 void add_list(CLI::App& app, Action& action) {

@@ -10,6 +10,23 @@
 namespace dnb::test {
 namespace fs = std::filesystem;
 
+// The environment every test expects, set before any test runs (and before OpenCL or MPI is
+// touched), unless the caller already set it: the source tree, the built program, PoCL's kernel
+// cache inside the build tree, and the switches that let mpirun run as root (containers, CI).
+// Done here rather than through ctest's ENVIRONMENT so that a test program run by hand behaves
+// exactly as under ctest (and because gtest_discover_tests forwards only the first variable of
+// an ENVIRONMENT list).
+namespace {
+const bool environment_set = [] {
+  ::setenv("DNB_SOURCE_DIR", DNB_TEST_SOURCE_DIR, 0);
+  ::setenv("DNB_BINARY", DNB_TEST_BINARY_DIR "/denoisebench", 0);
+  ::setenv("POCL_CACHE_DIR", DNB_TEST_BINARY_DIR "/pocl-cache", 0);
+  ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 0);
+  ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 0);
+  return true;
+}();
+}  // namespace
+
 TempDir::TempDir() {
   std::random_device rd;
   path_ = fs::temp_directory_path() / ("dnb-test-" + std::to_string(rd()) + std::to_string(rd()));

@@ -102,5 +102,13 @@ TEST(ListCommand, ScenesListsTheBuiltInScenes) {
   EXPECT_THAT(r.output, HasSubstr("cornell-box"));
 }
 
+TEST(ListCommand, MetricsListsEveryMetricWithItsDirection) {
+  auto r = test::run_denoisebench("list metrics");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const char* m : {"mse ", "mse_hdr", "relmse", "psnr", "ssim", "flip"}) EXPECT_THAT(r.output, HasSubstr(m));
+  EXPECT_THAT(r.output, HasSubstr("higher is better"));  // psnr, ssim
+  EXPECT_THAT(r.output, HasSubstr("lower is better"));
+}
+
 }  // namespace
 }  // namespace dnb
