@@ -491,10 +491,29 @@ Verdict check(const Summary& baseline, const Summary& current, const Gates& gate
 // ---------------------------------------------------------------------------------------------
 // Tolerances from measured noise
 
+namespace {
+
+// The default ahead rule for a run: `proposed` ahead of every other non-ablation method in it
+// (no rule when the run has no `proposed`).
+void default_ahead(Gates& g, const Summary& s) {
+  g.ahead_of.clear();
+  if (std::none_of(s.quality.begin(), s.quality.end(), [&](const QualityEntry& e) { return e.method == g.ahead_method; })) {
+    g.ahead_method.clear();
+    return;
+  }
+  for (const auto& e : s.quality)
+    if (e.role == "method" && e.method != g.ahead_method &&
+        std::find(g.ahead_of.begin(), g.ahead_of.end(), e.method) == g.ahead_of.end())
+      g.ahead_of.push_back(e.method);
+}
+
+}  // namespace
+
 Gates derive_gates(const std::vector<Summary>& quality_runs, const std::vector<std::string>& quality_names,
                    const std::vector<Summary>& perf_runs, const std::vector<std::string>& perf_names, const Gates& previous,
                    const DeriveOptions& o) {
   Gates g = previous;
+  if (g.ahead_of.empty() && !g.ahead_method.empty() && !quality_runs.empty()) default_ahead(g, quality_runs.front());
   json d = previous.derivation.is_object() ? previous.derivation : json::object();
   d.erase("note");
   if (!quality_runs.empty()) {
@@ -713,12 +732,7 @@ Summary accept_run(const std::string& run_dir, const std::string& baseline_dir, 
   const std::string gates_path = baseline_dir + "/gates.json";
   if (!fs::exists(gates_path)) {
     Gates g;
-    if (std::none_of(s.quality.begin(), s.quality.end(), [&](const QualityEntry& e) { return e.method == g.ahead_method; }))
-      g.ahead_method.clear();  // no `proposed` in this config: no ahead gate
-    for (const auto& e : s.quality)
-      if (!g.ahead_method.empty() && e.role == "method" && e.method != g.ahead_method &&
-          std::find(g.ahead_of.begin(), g.ahead_of.end(), e.method) == g.ahead_of.end())
-        g.ahead_of.push_back(e.method);
+    default_ahead(g, s);
     g.derivation = {{"note", "defaults written by accept; derive tolerances from measured noise with "
                              "`denoisebench nightly tolerances`"}};
     write_text_atomic(gates_path, g.to_json().dump(2) + "\n");

@@ -122,7 +122,8 @@ Verdict check(const Summary& baseline, const Summary& current, const Gates& gate
 // the relative standard deviation of the ratio); each tolerance is max(k * relative std,
 // max/min - 1, floor): at least the largest change seen between two of the runs, so that a
 // baseline accepted from any of them would not have raised an alarm on the others. The result keeps the measured spreads, k, the floors
-// and the run names under "derivation".
+// and the run names under "derivation". Without an ahead rule in `previous`, the quality runs
+// give the default one (as accept does).
 struct DeriveOptions {
   double quality_k = 3, quality_floor = 0.02;
   double performance_k = 3, performance_floor = 0.10;
