@@ -3,9 +3,9 @@
 // same process, interleaved with it, so that the machine's speed and its momentary load
 // cancel out of the ratio (issue 9: "ratios, not absolute times").
 //
-//   build/bench/denoisebench_bench --benchmark_filter='^nightly/' --benchmark_repetitions=5
-//       --benchmark_enable_random_interleaving=true --benchmark_min_time=0.2
-//       --benchmark_out=bench.json --benchmark_out_format=json
+//   scripts/nightly_bench bench.json      # what the nightly runs: each case in its own process,
+//                                         # --benchmark_repetitions=5 --benchmark_min_time=0.2
+//   build/bench/denoisebench_bench --benchmark_filter='^nightly/guided/' --benchmark_repetitions=5
 //
 // Cases are named nightly/<method>/<W>x<H>/threads:<1|all>, and nightly/proposed:opencl/...
 // for the OpenCL path of `proposed` (PoCL's CPU device here) when the build has OpenCL and a

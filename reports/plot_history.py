@@ -19,6 +19,7 @@ import sys
 import matplotlib
 
 matplotlib.use("Agg")  # files only, no display
+import matplotlib.dates as mdates  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 
 
@@ -62,9 +63,13 @@ def panel(ax, rows, columns, label_of, title, ylabel, log):
         ax.set_yscale("log")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, ncol=2, loc="best")
-    for label in ax.get_xticklabels():
-        label.set_rotation(30)
-        label.set_ha("right")
+    locator = mdates.AutoDateLocator()
+    ax.xaxis.set_major_locator(locator)
+    ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
+    dates = [r["_date"] for r in rows]
+    if dates and max(dates) - min(dates) < datetime.timedelta(days=1):
+        # A few runs on one day: show that day, not years around it.
+        ax.set_xlim(min(dates) - datetime.timedelta(hours=6), max(dates) + datetime.timedelta(hours=6))
 
 
 def figure(groups, rows, label_of, ylabel, log, path, suptitle):
