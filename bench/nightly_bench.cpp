@@ -8,8 +8,7 @@
 //   build/bench/denoisebench_bench --benchmark_filter='^nightly/guided/' --benchmark_repetitions=5
 //
 // Cases are named nightly/<method>/<W>x<H>/threads:<1|all>, and nightly/proposed:opencl/...
-// for the OpenCL path of `proposed` (PoCL's CPU device here) when the build has OpenCL and a
-// device answers. The frame is the built-in cornell-box at 16 spp (renderer-type methods
+// for the OpenCL path of `proposed` (PoCL's CPU device here, one PoCL thread for threads:1). The frame is the built-in cornell-box at 16 spp (renderer-type methods
 // render that scene with a 16-spp budget, at half the width and height: they take seconds
 // where filters take milliseconds); --dnb_nightly_size=WxH (main.cpp) picks another size, for
 // CI's short run. Preparing the frame, creating the method and one warm-up run of
@@ -27,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <cstdlib>
 #include <mutex>
 
 #include "bench/bench_util.h"
@@ -73,6 +73,18 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
     in.height = c.height;
   } else {
     in.frame = &rendered_frame(kNightlyScene, c.width, c.height, kNightlySpp);
+  }
+  if (c.params.count("device") && c.params.at("device") == "opencl") {
+    // PoCL reads its thread count once, when OpenCL starts: a process times OpenCL cases of one
+    // thread setting only (scripts/nightly_bench gives every case a process of its own).
+    static int opencl_threads = -1;
+    if (opencl_threads == -1) {
+      opencl_threads = c.threads;
+      if (c.threads == 1) setenv("POCL_MAX_PTHREAD_COUNT", "1", 1);
+    } else if (opencl_threads != c.threads) {
+      state.SkipWithError("OpenCL already started with another thread count: run this case in a process of its own");
+      return;
+    }
   }
   std::unique_ptr<Method> method;
   try {
@@ -140,11 +152,13 @@ void register_nightly_cases(int width, int height) {
       cases.push_back({"nightly/" + m->name + "/" + size(w, h) + "/threads:" + (threads ? "1" : "all"),
                        NightlyCase{m->name, {}, threads, w, h}});
   }
-  // The OpenCL path of `proposed` (its own threads: wall time only).
+  // The OpenCL path of `proposed`: PoCL's CPU device runs its own threads, limited to one with
+  // POCL_MAX_PTHREAD_COUNT for threads:1 (read when OpenCL starts in the process).
   const auto& params = registry.info("proposed").params;
   if (std::any_of(params.begin(), params.end(), [](const ParamSpec& p) { return p.name == "device"; }))
-    cases.push_back({"nightly/proposed:opencl/" + size(width, height) + "/threads:all",
-                     NightlyCase{"proposed", {{"device", "opencl"}}, 0, width, height}});
+    for (int threads : {1, 0})
+      cases.push_back({"nightly/proposed:opencl/" + size(width, height) + "/threads:" + (threads ? "1" : "all"),
+                       NightlyCase{"proposed", {{"device", "opencl"}}, threads, width, height}});
   for (const auto& [name, c] : cases)
     benchmark::RegisterBenchmark(name.c_str(), [name = name, c = c](benchmark::State& s) { run_nightly_case(s, name, c); })
         ->Unit(benchmark::kMillisecond)

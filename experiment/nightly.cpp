@@ -278,10 +278,16 @@ double Gates::performance_tolerance(const std::string& name) const {
   return it == performance.end() ? performance_default : it->second;
 }
 
+bool Gates::report_only(const std::string& case_name) const {
+  return std::any_of(performance_report_only.begin(), performance_report_only.end(),
+                     [&](const std::string& p) { return !p.empty() && case_name.find(p) != std::string::npos; });
+}
+
 json Gates::to_json() const {
   return {{"format", "denoisebench-nightly-gates-1"},
           {"quality", {{"metric", "mse"}, {"default_tolerance", quality_default}, {"tolerance", quality}}},
-          {"performance", {{"metric", "time_ratio"}, {"default_tolerance", performance_default}, {"tolerance", performance}}},
+          {"performance", {{"metric", "time_ratio"}, {"default_tolerance", performance_default}, {"tolerance", performance},
+                           {"report_only", performance_report_only}}},
           {"ahead", {{"method", ahead_method}, {"of", ahead_of}}},
           {"derivation", derivation}};
 }
@@ -302,7 +308,9 @@ Gates Gates::from_json(const json& j, const std::string& where) {
     }
   };
   tolerances(get<json>(j, "quality", where), where + ": quality", g.quality_default, g.quality);
-  tolerances(get<json>(j, "performance", where), where + ": performance", g.performance_default, g.performance);
+  const json perf = get<json>(j, "performance", where);
+  tolerances(perf, where + ": performance", g.performance_default, g.performance);
+  if (perf.contains("report_only")) g.performance_report_only = get<std::vector<std::string>>(perf, "report_only", where + ": performance");
   const json ahead = get<json>(j, "ahead", where);
   g.ahead_method = get<std::string>(ahead, "method", where + ": ahead");
   g.ahead_of = get<std::vector<std::string>>(ahead, "of", where + ": ahead");
@@ -324,6 +332,7 @@ json Verdict::to_json() const {
               {"metric", x.metric},     {"old", x.old_value},       {"new", x.new_value},
               {"limit", x.limit},       {"failed", x.failed},       {"message", x.message}};
     if (!x.compared_with.empty()) e["compared_with"] = x.compared_with;
+    if (x.report_only) e["report_only"] = true;
     for (const char* k : {"old", "new", "limit"})
       if (!std::isfinite(e[k].get<double>())) e[k] = nullptr;
     (x.failed ? failed : f).push_back(e);
@@ -362,7 +371,11 @@ std::string Verdict::markdown(const Summary& baseline, const Summary& current) c
       else
         t += fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", f.scene, f.method, fmt_value(f.old_value),
                          fmt_value(f.new_value), std::isfinite(rel) ? percent(rel) : "-",
-                         percent(f.limit / f.old_value - 1.0), f.failed ? "**FAIL**" : "ok");
+                         percent(f.limit / f.old_value - 1.0),
+                         f.failed                                          ? "**FAIL**"
+                         : f.report_only && !(f.new_value <= f.limit)      ? "over (report only)"
+                         : f.report_only                                   ? "ok (report only)"
+                                                                           : "ok");
     }
     if (t.empty()) return;
     o += "\n## " + title + "\n\n";
@@ -469,14 +482,17 @@ Verdict check(const Summary& baseline, const Summary& current, const Gates& gate
         const double tol = gates.performance_tolerance(old.name);
         Finding f{"performance", old.frame.empty() ? old.name : old.name + " (frame " + old.frame + ")", old.method, "time_ratio", old.ratio, cur.ratio,
                   old.ratio * (1.0 + tol), "", false, ""};
-        f.failed = !std::isfinite(cur.ratio) || !(cur.ratio <= f.limit);
+        const bool over = !std::isfinite(cur.ratio) || !(cur.ratio <= f.limit);
+        f.report_only = gates.report_only(old.name);
+        f.failed = over && !f.report_only;
         f.message = fmt::format("performance: case {}, method {}, time_ratio {} from {} to {} ({}, tolerance +{:.1f}%; "
                                 "method {:.3g} ms, reference workload {:.3g} ms)",
-                                f.scene, old.method, f.failed ? "rose" : "went", fmt_value(old.ratio), fmt_value(cur.ratio),
+                                f.scene, old.method, over ? "rose" : "went", fmt_value(old.ratio), fmt_value(cur.ratio),
                                 percent(cur.ratio / old.ratio - 1.0), 100.0 * tol, cur.method_ms, cur.reference_ms);
         if (!cur.error.empty())
           f.message = fmt::format("performance: case {}, method {}, time_ratio was {}, now the case fails: {}", f.scene,
                                   old.method, fmt_value(old.ratio), cur.error);
+        if (over && f.report_only) v.notes.push_back("over its tolerance, reported only (not gated): " + f.message);
         v.findings.push_back(f);
       }
       std::set<std::string> old_names;

@@ -12,7 +12,8 @@
 //   quality      new MSE <= baseline MSE * (1 + tolerance of the method)
 //   ahead        the leading method's MSE < every listed baseline method's MSE, per scene
 //   performance  new ratio <= baseline ratio * (1 + tolerance of the case); run only when
-//                the baseline was measured on the same CPU model (else skipped, with a note)
+//                the baseline was measured on the same CPU model (else skipped, with a note);
+//                cases listed as report-only (all-core wall times) are shown, never failing
 //
 // Bad input (a missing or malformed file, a scene, method or case of the baseline missing
 // from the run, a run of another config) is an InputError: exit status 2.
@@ -75,6 +76,10 @@ struct Gates {
   // Performance: relative tolerance per case name, and the default.
   double performance_default = 0.25;
   std::map<std::string, double> performance;
+  // Cases whose name contains one of these are compared and reported, but never fail the run:
+  // all-core wall times move with how many cores other jobs leave free (reports/baseline/README.md).
+  std::vector<std::string> performance_report_only = {"/threads:all"};
+  bool report_only(const std::string& case_name) const;
   // Ahead: `ahead_method` must have a lower MSE than each of `ahead_of` on every scene.
   std::string ahead_method = "proposed";
   std::vector<std::string> ahead_of;
@@ -96,6 +101,7 @@ struct Finding {
   std::string compared_with;  // ahead: the baseline method
   bool failed = false;
   std::string message;  // one line, naming all of the above
+  bool report_only = false;  // compared and shown, never failing (Gates::performance_report_only)
 };
 
 struct Verdict {
