@@ -155,6 +155,25 @@ TEST(NightlyCheck, FasterBaselineRatioFailsThePerformanceGate) {
                                   HasSubstr("+40.0%"), HasSubstr("tolerance +25.0%")));
 }
 
+TEST(NightlyCheck, AllCoreCasesAreReportedNotGated) {
+  Summary base = example();
+  base.performance.push_back({"nightly/guided/256x192/threads:all", "guided", "cornell-box 256x192 16spp", 17.0, 17, 17, 16, 0.9, 5, ""});
+  Summary now = base;
+  now.performance.back().ratio = 34.0;  // twice as slow, but an all-core wall time
+  const Verdict v = check(base, now, example_gates());
+  EXPECT_TRUE(v.passed());
+  ASSERT_FALSE(v.notes.empty());
+  EXPECT_THAT(v.notes.back(), AllOf(HasSubstr("reported only (not gated)"), HasSubstr("threads:all"),
+                                    HasSubstr("time_ratio rose from 17 to 34")));
+  EXPECT_THAT(v.markdown(base, now), HasSubstr("over (report only)"));
+  Gates all_gated = example_gates();
+  all_gated.performance_report_only.clear();
+  EXPECT_FALSE(check(base, now, all_gated).passed());
+  // The list survives the gates file.
+  EXPECT_EQ(Gates::from_json(json::parse(example_gates().to_json().dump()), "g").performance_report_only,
+            std::vector<std::string>{"/threads:all"});
+}
+
 TEST(NightlyCheck, FailedBenchmarkCaseFails) {
   const Summary base = example();
   Summary now = base;
@@ -322,7 +341,7 @@ TEST(NightlyTolerances, FollowTheStatedRule) {
   entry(seeds[2], "conference", "guided").mse = 12;
   std::vector<Summary> perf(2, example());
   perf[1].performance[0].ratio = 17.0 * 1.1;  // relative std of (17, 18.7): 0.1 / 1.05 / sqrt(2)
-  DeriveOptions o;  // k 3, floors 2% and 10%
+  DeriveOptions o;  // k 3 and 4.25, floors 2% and 10%
   const Gates g = derive_gates(seeds, {"a", "b", "c"}, perf, {"p", "q"}, example_gates(), o);
   EXPECT_NEAR(g.quality_tolerance("conference", "guided"), 3.0 / 11.0, 1e-12);
   EXPECT_DOUBLE_EQ(g.quality_tolerance("cornell-box", "guided"), 0.02);  // identical there: the floor
@@ -330,12 +349,12 @@ TEST(NightlyTolerances, FollowTheStatedRule) {
   EXPECT_DOUBLE_EQ(g.quality_tolerance("conference", "bilateral"), 0.02);
   EXPECT_NEAR(g.quality_default, 3.0 / 11.0, 1e-12);  // the largest
   const double rs = 0.1 * 17 / std::sqrt(2.0) / (17 * 1.05);
-  EXPECT_NEAR(g.performance.at("nightly/guided/256x192/threads:1"), 3 * rs, 1e-9);  // above max/min - 1 = 0.1
+  EXPECT_NEAR(g.performance.at("nightly/guided/256x192/threads:1"), 4.25 * rs, 1e-9);  // above max/min - 1 = 0.1
   EXPECT_DOUBLE_EQ(g.performance.at("nightly/proposed/256x192/threads:1"), 0.10);
   // One outlier among many equal runs: the relative std is small, the range is not.
-  std::vector<Summary> many(12, example());
-  many[11].performance[1].ratio = 70.0 * 1.5;  // relative std 0.139: 3x that is below 0.5
-  const Gates h = derive_gates({}, {}, many, std::vector<std::string>(12, "run"), example_gates(), o);
+  std::vector<Summary> many(24, example());
+  many[23].performance[1].ratio = 70.0 * 1.5;  // relative std 0.1: 4.25x that is below 0.5
+  const Gates h = derive_gates({}, {}, many, std::vector<std::string>(24, "run"), example_gates(), o);
   EXPECT_DOUBLE_EQ(h.performance.at("nightly/proposed/256x192/threads:1"), 0.5);
   EXPECT_EQ(g.ahead_of, example_gates().ahead_of);  // kept
   EXPECT_TRUE(g.derivation.contains("quality"));
