@@ -6,8 +6,9 @@
   OUT_DIR/history_speed.png  time ratio (method / reference workload) per benchmark case
                              (one panel per thread setting), one line per method
 
-Runs that failed the gates are marked with a red ring. Rows are ordered by date; the x axis
-is the run's date.
+A value that failed its gate in that run (the history's failed_checks: quality or ahead for
+an MSE, performance for a ratio) is marked with a red ring. Rows are ordered by date; the x
+axis is the run's date.
 
 Usage: /usr/bin/python3 reports/plot_history.py HISTORY.csv OUT_DIR
 """
@@ -21,6 +22,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only, no display
 import matplotlib.dates as mdates  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 
 
 def parse_date(text):
@@ -34,6 +36,20 @@ def number(text):
         return None
 
 
+def failed(row, column):
+    """Whether `column`'s value failed its gate in this run (from the row's failed_checks:
+    "quality SCENE METHOD", "ahead SCENE METHOD", "performance CASE (frame ...) METHOD")."""
+    checks = [c.strip() for c in row.get("failed_checks", "").split(";") if c.strip()]
+    parts = column.split("/")
+    if parts[0] == "mse" and len(parts) == 3:
+        scene, method = parts[1], parts[2]
+        return any(c in (f"quality {scene} {method}", f"ahead {scene} {method}") for c in checks)
+    if parts[0] == "ratio":
+        case = column[len("ratio/"):]
+        return any(c.startswith(f"performance {case} ") for c in checks)
+    return False
+
+
 def series(rows, column):
     """(dates, values, failed) of the rows that have a value in `column`."""
     xs, ys, bad = [], [], []
@@ -43,15 +59,18 @@ def series(rows, column):
             continue
         xs.append(r["_date"])
         ys.append(v)
-        bad.append(r["verdict"] != "pass")
+        bad.append(failed(r, column))
     return xs, ys, bad
 
 
 def panel(ax, rows, columns, label_of, title, ylabel, log):
+    ax.set_prop_cycle(color=plt.cm.tab20.colors)  # up to 20 methods without a repeated colour
+    values = []
     for col in columns:
         xs, ys, bad = series(rows, col)
         if not xs:
             continue
+        values += ys
         (line,) = ax.plot(xs, ys, marker="o", markersize=3, label=label_of(col))
         fx = [x for x, b in zip(xs, bad) if b]
         fy = [y for y, b in zip(ys, bad) if b]
@@ -61,8 +80,13 @@ def panel(ax, rows, columns, label_of, title, ylabel, log):
     ax.set_ylabel(ylabel)
     if log:
         ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+        # Label minor ticks only when the values span less than a decade (else they collide).
+        narrow = values and min(values) > 0 and max(values) < 10 * min(values)
+        minor = matplotlib.ticker.FormatStrFormatter("%g") if narrow else matplotlib.ticker.NullFormatter()
+        ax.yaxis.set_minor_formatter(minor)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="best")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     locator = mdates.AutoDateLocator()
     ax.xaxis.set_major_locator(locator)
     ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
@@ -76,7 +100,7 @@ def figure(groups, rows, label_of, ylabel, log, path, suptitle):
     n = len(groups)
     cols = 2 if n > 1 else 1
     nrows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(nrows, cols, figsize=(7 * cols, 3.6 * nrows), squeeze=False)
+    fig, axes = plt.subplots(nrows, cols, figsize=(8.5 * cols, 3.6 * nrows), squeeze=False)
     for ax, (title, columns) in zip(axes.flat, groups):
         panel(ax, rows, columns, label_of, title, ylabel, log)
     for ax in list(axes.flat)[n:]:
@@ -116,7 +140,7 @@ def main():
     if scenes:
         out = os.path.join(out_dir, "history_mse.png")
         figure(sorted(scenes.items()), rows, lambda c: c.split("/")[2], "MSE (8-bit)", True, out,
-               "Nightly quality: MSE per scene and method (red ring: failed run)")
+               "Nightly quality: MSE per scene and method (red ring: failed its gate)")
         written.append(out)
 
     # ratio/nightly/<method>/<size>/threads:<n>
@@ -129,7 +153,7 @@ def main():
     if speed:
         out = os.path.join(out_dir, "history_speed.png")
         figure(sorted(speed.items()), rows, lambda c: c.split("/")[2], "time / reference workload", True, out,
-               "Nightly speed: method time over the reference workload (red ring: failed run)")
+               "Nightly speed: method time over the reference workload (red ring: failed its gate)")
         written.append(out)
 
     if not written:
