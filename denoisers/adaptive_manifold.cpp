@@ -297,7 +297,7 @@ class AmRun {
       query_out->assign(queries_.size() * C_, 0.0f);
       for (std::size_t q = 0; q < queries_.size(); ++q) {
         const double den = qacc_[q * (C_ + 1) + C_];
-        const float alpha = s_.adjust_outliers && queries_[q].adjust_outliers ? std::exp(alpha_k * qmin_[q]) : 1.0f;
+        const float alpha = queries_[q].adjust_outliers ? std::exp(alpha_k * qmin_[q]) : 1.0f;
         for (int c = 0; c < C_; ++c) {
           const float f = queries_[q].src ? queries_[q].src[c]
                                            : src_.row(c, queries_[q].y)[queries_[q].x];

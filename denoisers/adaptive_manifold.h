@@ -62,7 +62,7 @@ struct AmQuery {
   int x = 0, y = 0;
   const float* guide = nullptr;
   const float* src = nullptr;
-  bool adjust_outliers = true;  // false: the plain slice even when settings adjust outliers
+  bool adjust_outliers = true;  // eq. 11 for this query, whatever the settings say for the image
 };
 
 // A group of guide channels with its own range standard deviation.

@@ -177,7 +177,7 @@ class ClRun {
       query_out->assign(queries_.size() * C_, 0.0f);
       for (std::size_t i = 0; i < queries_.size(); ++i) {
         const float den = acc[i * (C_ + 1) + C_];
-        const float alpha = s_.adjust_outliers && queries_[i].adjust_outliers ? std::exp(alpha_k * mn[i]) : 1.0f;
+        const float alpha = queries_[i].adjust_outliers ? std::exp(alpha_k * mn[i]) : 1.0f;
         for (int c = 0; c < C_; ++c) {
           const float f = queries_[i].src ? queries_[i].src[c] : src_value(queries_[i].x, queries_[i].y, c);
           const float g = den > kAmMinWeight ? acc[i * (C_ + 1) + c] / den : f;

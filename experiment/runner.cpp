@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 #include <thread>
 
@@ -147,9 +148,23 @@ json machine_info() {
   return m;
 }
 
+// The SHA-256 of the running program's own file: it changes with any rebuild that changes code,
+// so a finished method cell is reused only when the very same build computed it. (The git
+// revision is fixed at configure time and misses uncommitted edits, so it cannot serve.) Input
+// frames and references keep their own cache keys (scene, settings, tracer version) and are
+// not re-rendered by a rebuild.
+const std::string& build_id() {
+  static const std::string id = [] {
+    std::ifstream in("/proc/self/exe", std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return bytes.empty() ? std::string("unknown") : sha256_hex(bytes);
+  }();
+  return id;
+}
+
 json build_info() {
   return {{"version", DNB_VERSION}, {"git_revision", DNB_GIT_REVISION}, {"build_type", DNB_BUILD_TYPE},
-          {"compiler", DNB_COMPILER}, {"tracer_version", kTracerVersion}};
+          {"compiler", DNB_COMPILER}, {"tracer_version", kTracerVersion}, {"build_id", build_id()}};
 }
 
 std::string safe(const std::string& s) {
@@ -318,7 +333,7 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
       {
         json r = base_record("input", spp);
         r["role"] = "input";
-        const std::string key = cell_key({{"input", fkey.digest()}, {"ref", c.reference_spp}});
+        const std::string key = cell_key({{"input", fkey.digest()}, {"ref", c.reference_spp}, {"build", build_id()}});
         if (const json* old = store.finished(key)) {
           store.reuse(*old);
         } else {
@@ -346,7 +361,7 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
         r["kind"] = to_string(info.kind);
         r["params"] = params.as_strings();
         const std::string key = cell_key({{"method", m.method}, {"params", r["params"]}, {"input", fkey.digest()},
-                                          {"ref", c.reference_spp}, {"repeats", c.repeats}});
+                                          {"ref", c.reference_spp}, {"repeats", c.repeats}, {"build", build_id()}});
         if (const json* old = store.finished(key); old && fs::exists(opt.out_dir + "/" + (*old)["files"]["image"].get<std::string>())) {
           store.reuse(*old);
           progress.add(1);

@@ -50,17 +50,17 @@ GRIDS = {
         },
     },
     "proposed": {
-        "start": {"sigma_s": "16", "sigma_r": "0.25", "tree_height": "0", "adjust_outliers": "false",
-                  "sigma_nlm": "0.15", "sigma_normal": "0.3", "sigma_depth": "0.05", "nlm_dims": "6"},
+        "start": {"sigma_s": "4", "sigma_r": "0.4", "tree_height": "0", "adjust_outliers": "true",
+                  "sigma_nlm": "0.05", "sigma_normal": "0.3", "sigma_depth": "0.02", "nlm_dims": "3"},
         "grid": {
-            "sigma_s": ["4", "8", "16", "32"],
-            "sigma_r": ["0.15", "0.25", "0.4"],
-            "tree_height": ["0", "4", "5"],
+            "sigma_s": ["2", "4", "8", "16"],
+            "sigma_r": ["0.25", "0.4", "0.6"],
+            "tree_height": ["0", "3"],  # 4: 5x the time of 0 at 1024x768
             "adjust_outliers": ["false", "true"],
-            "sigma_nlm": ["0.05", "0.1", "0.15", "0.3", "0.6"],
+            "sigma_nlm": ["0.025", "0.05", "0.1", "0.2"],
             "sigma_normal": ["0.1", "0.3", "0.6", "1"],
-            "sigma_depth": ["0.02", "0.05", "0.1", "0.3"],
-            "nlm_dims": ["3", "6", "10"],
+            "sigma_depth": ["0.01", "0.02", "0.05", "0.1"],
+            "nlm_dims": ["3", "6"],
         },
     },
     "bilateral": {

@@ -95,6 +95,21 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
   EXPECT_THAT(again.output, HasSubstr("cache hit"));
   EXPECT_EQ(fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr"), before);
   EXPECT_EQ(nlohmann::json::parse(slurp(out + "/results.json"))["records"].size(), 5u);
+
+  // Another build (here: the same program with one byte appended, so its file hash differs)
+  // must not reuse the method cells another build computed: after a code change the tables
+  // would silently keep the old numbers. The plain path-tracing cells are the tracer's and stay.
+  const fs::path other = dir.path() / "denoisebench-rebuilt";
+  fs::copy_file(binary(), other);
+  std::ofstream(other, std::ios::app | std::ios::binary) << '\n';
+  fs::permissions(other, fs::perms::owner_exec, fs::perm_options::add);
+  auto rebuilt = test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + other.string() + "' run " +
+                                   dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(rebuilt.exit_code, 0) << rebuilt.output;
+  EXPECT_NE(fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr"), before);
+  const auto res3 = nlohmann::json::parse(slurp(out + "/results.json"));
+  EXPECT_EQ(res3["records"].size(), 5u);
+  EXPECT_NE(res3["build"]["build_id"], res["build"]["build_id"]);
 }
 
 TEST(RunCommand, RefusesUnknownMethodsAndKeys) {

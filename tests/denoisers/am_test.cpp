@@ -114,7 +114,8 @@ TEST(AdaptiveManifold, MethodsAgreeOnAFrame) {
   }
 }
 
-// A slice query with the pixel's own guide value gives the filtered pixel (the same sums in
+// A slice query with the pixel's own guide value (and the image's outlier adjustment) gives the
+// filtered pixel (the same sums in
 // double instead of float: 1e-4 relative); another guide value gives another answer.
 TEST(AdaptiveManifold, SliceQueryReproducesThePixel) {
   Input in = make_input(96, 64, 5);
@@ -128,6 +129,7 @@ TEST(AdaptiveManifold, SliceQueryReproducesThePixel) {
   for (bool adjust : {false, true}) {
     AmSettings s;
     s.adjust_outliers = adjust;
+    for (auto& query : q) query.adjust_outliers = adjust;  // a query's own switch: as the image's
     const Image img = am_filter(in.src.cview(), in.guide.cview(), s, q, &out);
     for (std::size_t k = 0; k + 1 < q.size(); ++k)
       for (int c = 0; c < 3; ++c) EXPECT_NEAR(out[k * 3 + c], img.at(q[k].x, q[k].y, c), 1e-4f * img.at(q[k].x, q[k].y, c));

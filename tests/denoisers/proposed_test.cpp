@@ -8,6 +8,7 @@
 
 #include "denoisers/method.h"
 #include "denoisers/synthetic_frame.h"
+#include "tracer/render.h"
 
 namespace dnb {
 namespace {
@@ -175,9 +176,11 @@ double mse_on(const Image& a, const Image& b, const std::vector<char>& mask) {
   return s / double(std::max<std::size_t>(n, 1));
 }
 
-// The sub-pixel resolve lowers the error on the pixels of G: measured MSE 1.6e-4 with it, 1.3e-2
-// without (the mixed pixels' blended guide pulls in both sides' illumination, and the product
-// of pixel means is not the mean of products). Bound: 0.1x.
+// The sub-pixel resolve lowers the error on the pixels of G: measured MSE 8.0e-3 with it,
+// 1.3e-2 without (the mixed pixels' blended guide pulls in both sides' illumination, and the
+// product of pixel means is not the mean of products). Sub-pixel slices far from every manifold
+// fall back towards the sub-pixel's own value (eq. 11), which carries 4x the noise of the pixel
+// here, so the gain is 0.6x, not more; bound 0.8x leaves room for the split's random start.
 TEST(Proposed, EdgeSubpixelResolveLowersErrorOnEdgePixels) {
   Image clean;
   std::vector<char> g;
@@ -187,7 +190,31 @@ TEST(Proposed, EdgeSubpixelResolveLowersErrorOnEdgePixels) {
   const double without = mse_on(run("proposed", f, {{"edge_subpixels", "false"}}), clean, g);
   RecordProperty("mse_edge_with_resolve", sci(with));
   RecordProperty("mse_edge_without_resolve", sci(without));
-  EXPECT_LT(with, 0.1 * without) << "with " << with << " without " << without;
+  EXPECT_LT(with, 0.8 * without) << "with " << with << " without " << without;
+}
+
+// On a rendered scene the resolve must not raise the error on G. Before the outlier adjustment
+// applied to sub-pixel slices, a sub-pixel guide far from every manifold (a sliver of a second
+// surface inside a silhouette pixel) took the value of whichever manifold was least far: the
+// 8-bit MSE on G of conference at 256x192, 256 spp went from 8.7 without the resolve to 99 with
+// it (now 8.0). Here: conference at 128x96, 64 spp, against 512 spp. Bound 1.3x of the error
+// without the resolve: where sub-pixels fall back to their own values (a sixteenth of the
+// samples) the resolve can cost a little; the failure it guards against cost 11x.
+TEST(Proposed, EdgeResolveDoesNotRaiseTheErrorOnARenderedScene) {
+  auto scene = load_scene("conference");
+  RenderSettings s;
+  s.width = 128, s.height = 96, s.spp = 64, s.seed = 1;
+  const AovFrame f = render_frame(*scene, s);
+  s.spp = 512, s.seed = 77, s.edge_subpixels = false, s.reflection_levels = 0;
+  const Image reference = render_frame(*scene, s).layer(layer::kColor);
+  ASSERT_TRUE(f.edges && f.edges->size() > 200u);
+  std::vector<char> g(std::size_t(f.width()) * f.height(), 0);
+  for (int p : f.edges->pixels) g[std::size_t(p)] = 1;
+  const double with = mse_on(run("proposed", f), reference, g);
+  const double without = mse_on(run("proposed", f, {{"edge_subpixels", "false"}}), reference, g);
+  RecordProperty("mse_edge_with_resolve", sci(with));
+  RecordProperty("mse_edge_without_resolve", sci(without));
+  EXPECT_LT(with, 1.3 * without) << "with " << with << " without " << without;
 }
 
 // Reflection level (paper 3.2): the right half is a mirror (T = D = I = 0 at level 0, tint 0.9)
