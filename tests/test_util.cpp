@@ -5,6 +5,8 @@
 #include <array>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <sstream>
 #include <random>
 
 namespace dnb::test {
@@ -60,5 +62,14 @@ CommandResult run_denoisebench(const std::string& args) {
 }
 
 std::string source_dir() { return env_or("DNB_SOURCE_DIR", "."); }
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void write(const fs::path& p, const std::string& text) { std::ofstream(p, std::ios::binary) << text; }
 
 }  // namespace dnb::test

@@ -30,4 +30,8 @@ CommandResult run_command(const std::string& command);
 // The source tree ($DNB_SOURCE_DIR).
 std::string source_dir();
 
+// A whole file as a string ("" when it cannot be read), and a file written from a string.
+std::string slurp(const std::filesystem::path& p);
+void write(const std::filesystem::path& p, const std::string& text);
+
 }  // namespace dnb::test

@@ -23,14 +23,8 @@ using ::testing::AllOf;
 using ::testing::HasSubstr;
 using nlohmann::json;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void write(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+using test::slurp;
+using test::write;
 
 // A value as the messages print it (fmt's {:.6g}).
 std::string g6(double v) {
