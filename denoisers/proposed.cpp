@@ -227,10 +227,11 @@ class Proposed final : public Method {
           }
           for (int k = 0; k < 3; ++k) qsrc[q * 3 + k] = (e.*sub)[k];
           // The outlier adjustment (eq. 11) towards the sub-pixel's own value, always (also
-          // with adjust_outliers = false, which concerns the image's pixels). Sub-pixel guides (a second surface inside a silhouette pixel) are often far
-          // from every manifold, and there the normalised slice is dominated by whatever
-          // manifold is least far: without the adjustment the resolve raised the 8-bit MSE on
-          // G from 8.7 to 99 (conference, 256x192, 256 spp); with it, G falls to 8.0.
+          // with adjust_outliers = false, which concerns the image's pixels). Sub-pixel guides
+          // (a second surface inside a silhouette pixel) are often far from every manifold,
+          // and there the normalised slice is dominated by whatever manifold is least far:
+          // without the adjustment the resolve raised the 8-bit MSE on G from 8.7 to 99
+          // (conference, 256x192, 256 spp); with it, G falls to 8.0.
           queries[q] = {x, y, gq, qsrc.data() + q * 3, true};
         }
       });

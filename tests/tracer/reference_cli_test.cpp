@@ -176,9 +176,8 @@ TEST(ReferenceCli, TwoMpiRanksGiveTheImageOfOneProcess) {
   auto one = test::run_denoisebench(args(tmp.file("one.exr"), tmp.file("cache1")));
   ASSERT_EQ(one.exit_code, 0) << one.output;
   // --oversubscribe: the test machine may have fewer cores than ranks. One thread per rank.
-  // The OMPI_* variables let mpirun run as root (containers, CI); tests/CMakeLists.txt sets
-  // them too, but gtest_discover_tests passes only the first ENVIRONMENT entry through.
-  auto two = test::run_command("OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe -np 2 " + binary() + " " +
+  // mpirun may run as root here (containers, CI): test_util.cpp sets the OMPI_* switches.
+  auto two = test::run_command("mpirun --oversubscribe -np 2 " + binary() + " " +
                                args(tmp.file("two.exr"), tmp.file("cache2"), 64, "--threads 1"));
   ASSERT_EQ(two.exit_code, 0) << two.output;
   EXPECT_NE(two.output.find("(2 ranks)"), std::string::npos) << two.output;
