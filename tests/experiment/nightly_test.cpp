@@ -366,6 +366,16 @@ TEST(NightlyTolerances, FollowTheStatedRule) {
   EXPECT_THROW(derive_gates({example()}, {"a"}, {}, {}, example_gates(), o), InputError);
 }
 
+TEST(NightlyTolerances, DefaultAheadRuleListsTheFiltersNotTheRenderers) {
+  Summary s = example();
+  s.quality.push_back({"cornell-box", "irradiance_cache", "method", 16, 5.0});
+  Gates empty = example_gates();
+  empty.ahead_of.clear();
+  const Gates g = derive_gates({s, s}, {"a", "b"}, {}, {}, empty, DeriveOptions{});
+  // The irradiance cache renders with its own budget: not a filter of the same frame.
+  EXPECT_EQ(g.ahead_of, (std::vector<std::string>{"guided", "bilateral"}));
+}
+
 TEST(NightlyHistory, AppendsOneRowPerRunAndWidensTheHeader) {
   test::TempDir dir;
   const std::string path = dir.file("sub/history.csv");
