@@ -24,7 +24,13 @@
 //   tree_height      int    manifold tree height; 0: from sigma_s and sigma_r
 //   pca_iterations   int    power-iteration steps of each manifold split
 //   adjust_outliers  bool   Gastal and Oliveira's eq. 11
-//   sigma_nlm        float  NLM-vector group sigma, log(1 + lum/mean) units (about relative)
+//   sigma_nlm        float  NLM-vector group sigma at 256 spp, log(1 + lum/mean) units (about
+//                           relative); a frame of N spp uses sigma_nlm (256 / N)^nlm_spp_exponent
+//   nlm_spp_exponent float  how sigma_nlm follows the frame's sample count (0: fixed). Fitted on
+//                           the training room (docs/method-defaults.md): the best sigma_nlm is
+//                           0.035-0.05 at 256 spp, 0.2-0.3 at 64, 0.5-0.8 at 16, so 1: it grows
+//                           like the noise variance, not its standard deviation (at low spp the
+//                           NLM vectors are mostly noise and the geometry guides must lead)
 //   sigma_normal     float  normal group sigma (unit vectors)
 //   sigma_depth      float  depth group sigma, in units of the median depth
 //   nlm_dims         int    PCA dimensions of the NLM vector
@@ -59,6 +65,7 @@ class Proposed final : public Method {
  public:
   explicit Proposed(const Params& p)
       : sigma_nlm_(float(p.f("sigma_nlm"))),
+        nlm_spp_exponent_(float(p.f("nlm_spp_exponent"))),
         sigma_normal_(float(p.f("sigma_normal"))),
         sigma_depth_(float(p.f("sigma_depth"))),
         use_nlm_(p.b("nlm_space")),
@@ -93,9 +100,11 @@ class Proposed final : public Method {
   MethodResult execute(const MethodInput& in) override {
     MethodResult r;
     const AovFrame& f = *in.frame;
+    const float sigma_nlm = nlm_sigma_for(f.meta.spp);
+    r.stats.counters["sigma_nlm"] = sigma_nlm;
     if (filter_color_) {
       const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
-      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), depth, r.stats, nullptr);
+      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), depth, sigma_nlm, r.stats, nullptr);
       r.image = std::move(c.image);
       return r;
     }
@@ -115,8 +124,8 @@ class Proposed final : public Method {
         ScopedPhase p(r.stats, k == 0 ? "depth" : "depth_level" + std::to_string(k));
         depth = normalized_depth(f, k);
       }
-      Filtered fd = filter_layer(f, k, d, depth, r.stats, edges ? &EdgeSample::direct : nullptr);
-      Filtered fi = filter_layer(f, k, i, depth, r.stats, edges ? &EdgeSample::indirect : nullptr);
+      Filtered fd = filter_layer(f, k, d, depth, sigma_nlm, r.stats, edges ? &EdgeSample::direct : nullptr);
+      Filtered fi = filter_layer(f, k, i, depth, sigma_nlm, r.stats, edges ? &EdgeSample::indirect : nullptr);
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
       Image out(f.width(), f.height(), 3);
       const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
@@ -158,6 +167,13 @@ class Proposed final : public Method {
     std::vector<float> queries;  // 3 floats per edge sub-pixel, when asked
   };
 
+  // The NLM group sigma for a frame of `spp` samples per pixel (0: unknown, e.g. a frame made
+  // by hand without the metadata: sigma_nlm as given).
+  float nlm_sigma_for(int spp) const {
+    if (spp <= 0 || nlm_spp_exponent_ == 0.0f) return sigma_nlm_;
+    return sigma_nlm_ * std::pow(256.0f / float(spp), nlm_spp_exponent_);
+  }
+
   static bool has_level(const AovFrame& f, int k) {
     for (const char* base : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
                              layer::kNormal, layer::kDepth, layer::kTint})
@@ -168,8 +184,8 @@ class Proposed final : public Method {
   // Filters `src` (a layer of level k) guided by [NLM vector, normal, depth] of that level. With
   // `sub` set (level 0), also answers one slice query per edge sub-pixel, its guide built from
   // the sub-pixel's value of that layer, normal and depth.
-  Filtered filter_layer(const AovFrame& f, int level, const Image& src, const Image& depth, MethodStats& stats,
-                        float (EdgeSample::*sub)[3]) const {
+  Filtered filter_layer(const AovFrame& f, int level, const Image& src, const Image& depth, float sigma_nlm,
+                        MethodStats& stats, float (EdgeSample::*sub)[3]) const {
     const std::string suffix = level == 0 ? "" : "_level" + std::to_string(level);
     NlmSpace nlm;
     Image range;
@@ -179,11 +195,11 @@ class Proposed final : public Method {
       ScopedPhase p(stats, "nlm_space" + suffix);
       if (use_nlm_) {
         nlm = nlm_space(src, nlm_);
-        groups.push_back({nlm.vectors.cview(), sigma_nlm_});
+        groups.push_back({nlm.vectors.cview(), sigma_nlm});
       } else {
         range_scale = illumination_scale(src);
         range = compressed_illumination(src, range_scale);
-        groups.push_back({range.cview(), sigma_nlm_});
+        groups.push_back({range.cview(), sigma_nlm});
       }
       if (use_geometry_) {
         groups.push_back({f.layer(layer::at_level(level, layer::kNormal)).cview(), sigma_normal_});
@@ -216,10 +232,10 @@ class Proposed final : public Method {
           int c = 0;
           if (use_nlm_) {
             nlm.vector_with_center(src, x, y, e.*sub, gq);
-            for (int k = 0; k < nlm.vectors.channels(); ++k) gq[k] *= sr / sigma_nlm_;
+            for (int k = 0; k < nlm.vectors.channels(); ++k) gq[k] *= sr / sigma_nlm;
             c = nlm.vectors.channels();
           } else {
-            for (int k = 0; k < 3; ++k) gq[c++] = std::log1p(std::max(0.0f, (e.*sub)[k]) / range_scale) * sr / sigma_nlm_;
+            for (int k = 0; k < 3; ++k) gq[c++] = std::log1p(std::max(0.0f, (e.*sub)[k]) / range_scale) * sr / sigma_nlm;
           }
           if (use_geometry_) {
             for (int k = 0; k < 3; ++k) gq[c++] = e.normal[k] * sr / sigma_normal_;
@@ -253,7 +269,7 @@ class Proposed final : public Method {
 
   AmSettings am_;
   NlmSpaceSettings nlm_;
-  float sigma_nlm_, sigma_normal_, sigma_depth_;
+  float sigma_nlm_, nlm_spp_exponent_, sigma_normal_, sigma_depth_;
   bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_, opencl_;
 };
 
@@ -271,7 +287,8 @@ MethodInfo proposed_method() {
               {"tree_height", ParamType::Int, "0", "manifold tree height; 0: from sigma_s and sigma_r", 0.0, 12.0},
               {"pca_iterations", ParamType::Int, "2", "power-iteration steps of each manifold split", 1.0, 100.0},
               {"adjust_outliers", ParamType::Bool, "true", "Gastal and Oliveira's outlier adjustment (eq. 11)"},
-              {"sigma_nlm", ParamType::Float, "0.05", "NLM-vector group sigma, log(1 + lum/mean) units", 1e-4, 1e3},
+              {"sigma_nlm", ParamType::Float, "0.05", "NLM-vector group sigma at 256 spp, log(1 + lum/mean) units", 1e-4, 1e3},
+              {"nlm_spp_exponent", ParamType::Float, "1", "sigma_nlm scales as (256 / frame spp)^this; 0: fixed", 0.0, 4.0},
               {"sigma_normal", ParamType::Float, "0.3", "normal group sigma (unit vectors)", 1e-4, 1e3},
               {"sigma_depth", ParamType::Float, "0.02", "depth group sigma, units of the median depth", 1e-4, 1e3},
               {"nlm_dims", ParamType::Int, "3", "PCA dimensions of the NLM vector", 1.0, 49.0},
