@@ -223,7 +223,7 @@ class AmRun {
       throw WorkError("am_filter: guide and source differ in size");
     if (!(s.sigma_s >= 1.0) || !(s.sigma_r > 0.0)) throw WorkError("am_filter: needs sigma_s >= 1 and sigma_r > 0");
     height_ = s.tree_height > 0 ? std::min(s.tree_height, 12) : std::min(am_tree_height(s.sigma_s, s.sigma_r), 12);
-    df_ = am_downsample_factor(s.sigma_s, s.sigma_r);
+    df_ = s.downsample > 0 ? s.downsample : am_downsample_factor(s.sigma_s, s.sigma_r);
     sw_ = (W_ + df_ - 1) / df_;
     sh_ = (H_ + df_ - 1) / df_;
     inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));

@@ -53,6 +53,7 @@ struct AmSettings {
   int tree_height = 0;        // manifold tree height; 0: from sigma_s and sigma_r (eq. 10)
   int pca_iterations = 1;     // power-iteration steps for each split (1 as the reference code)
   bool adjust_outliers = false;  // eq. 11
+  int downsample = 0;         // reduced-grid factor (a power of 2); 0: from sigma_s and sigma_r
 };
 
 // One slice query: the filtered value at pixel (x, y) as if that pixel's guide were `guide`

@@ -95,7 +95,7 @@ class ClRun {
   ClRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
       : st_(state()), s_(s), W_(src.width), H_(src.height), C_(src.channels), D_(guide.channels), queries_(queries) {
     height_ = std::min(s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r), 12);
-    df_ = am_downsample_factor(s.sigma_s, s.sigma_r);
+    df_ = s.downsample > 0 ? s.downsample : am_downsample_factor(s.sigma_s, s.sigma_r);
     sw_ = (W_ + df_ - 1) / df_;
     sh_ = (H_ + df_ - 1) / df_;
     inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
