@@ -278,7 +278,7 @@ class AmRun {
     node(1, 1, &eta_full, Planes());
 
     Image out(W_, H_, C_);
-    const float alpha_k = float(-0.5 / (s_.sigma_r * s_.sigma_r));
+    const float alpha_k = float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r));
     tbb::parallel_for(0, H_, [&](int y) {
       for (int x = 0; x < W_; ++x) {
         const std::size_t i = std::size_t(y) * W_ + x;

@@ -53,6 +53,10 @@ struct AmSettings {
   int tree_height = 0;        // manifold tree height; 0: from sigma_s and sigma_r (eq. 10)
   int pca_iterations = 1;     // power-iteration steps for each split (1 as the reference code)
   bool adjust_outliers = false;  // eq. 11
+  // Strength of eq. 11: alpha = exp(-outlier_scale * d^2 / (2 sigma_r^2)), d the distance to the
+  // nearest manifold; 1 is Gastal and Oliveira's, below 1 a pixel must be further from every
+  // manifold before it falls back to its own value (also applies to the queries).
+  double outlier_scale = 1.0;
   int downsample = 0;         // reduced-grid factor (a power of 2); 0: from sigma_s and sigma_r
 };
 

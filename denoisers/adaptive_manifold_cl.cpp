@@ -165,7 +165,7 @@ class ClRun {
 
     cl::Buffer out(ctx, CL_MEM_WRITE_ONLY, sizeof(float) * N * C_);
     cl::Kernel k(prog_, "finish");
-    set(k, W_, H_, acc_, src_, min_d2_, int(s_.adjust_outliers), float(-0.5 / (s_.sigma_r * s_.sigma_r)), out);
+    set(k, W_, H_, acc_, src_, min_d2_, int(s_.adjust_outliers), float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)), out);
     q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(W_, H_));
     Image img(W_, H_, C_);
     q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data());
@@ -173,7 +173,7 @@ class ClRun {
       std::vector<float> acc(queries_.size() * (C_ + 1)), mn(queries_.size());
       q.enqueueReadBuffer(qacc_, CL_TRUE, 0, sizeof(float) * acc.size(), acc.data());
       q.enqueueReadBuffer(qmin_, CL_TRUE, 0, sizeof(float) * mn.size(), mn.data());
-      const float alpha_k = float(-0.5 / (s_.sigma_r * s_.sigma_r));
+      const float alpha_k = float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r));
       query_out->assign(queries_.size() * C_, 0.0f);
       for (std::size_t i = 0; i < queries_.size(); ++i) {
         const float den = acc[i * (C_ + 1) + C_];

@@ -28,6 +28,10 @@
 //   downsample       int    AM reduced-grid factor; 0: from sigma_s and sigma_r (1 at sigma_s 4)
 //   pca_iterations   int    power-iteration steps of each manifold split
 //   adjust_outliers  bool   Gastal and Oliveira's eq. 11
+//   outlier_spp_exponent float  eq. 11's strength (AmSettings::outlier_scale) is (spp/256)^this:
+//                           at low spp a pixel's own value is too noisy to fall back to, so an
+//                           outlier must lie further from every manifold before it keeps it
+//                           (docs/method-defaults.md: fitted on the training room at 16 spp)
 //   sigma_nlm        float  NLM-vector group sigma at 256 spp, log(1 + lum/mean) units (about
 //                           relative); a frame of N spp uses sigma_nlm (256 / N)^nlm_spp_exponent
 //   nlm_spp_exponent float  how sigma_nlm follows the frame's sample count (0: fixed). Fitted on
@@ -70,6 +74,7 @@ class Proposed final : public Method {
   explicit Proposed(const Params& p)
       : sigma_nlm_(float(p.f("sigma_nlm"))),
         nlm_spp_exponent_(float(p.f("nlm_spp_exponent"))),
+        outlier_spp_exponent_(float(p.f("outlier_spp_exponent"))),
         sigma_normal_(float(p.f("sigma_normal"))),
         sigma_depth_(float(p.f("sigma_depth"))),
         use_nlm_(p.b("nlm_space")),
@@ -107,9 +112,12 @@ class Proposed final : public Method {
     const AovFrame& f = *in.frame;
     const float sigma_nlm = nlm_sigma_for(f.meta.spp);
     r.stats.counters["sigma_nlm"] = sigma_nlm;
+    AmSettings am = am_;
+    am.outlier_scale = spp_scale(f.meta.spp, -outlier_spp_exponent_);
+    r.stats.counters["outlier_scale"] = am.outlier_scale;
     if (filter_color_) {
       const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
-      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), depth, sigma_nlm, r.stats, nullptr);
+      Filtered c = filter_layer(f, 0, f.layer(layer::kColor), depth, sigma_nlm, am, r.stats, nullptr);
       r.image = std::move(c.image);
       return r;
     }
@@ -129,8 +137,8 @@ class Proposed final : public Method {
         ScopedPhase p(r.stats, k == 0 ? "depth" : "depth_level" + std::to_string(k));
         depth = normalized_depth(f, k);
       }
-      Filtered fd = filter_layer(f, k, d, depth, sigma_nlm, r.stats, edges ? &EdgeSample::direct : nullptr);
-      Filtered fi = filter_layer(f, k, i, depth, sigma_nlm, r.stats, edges ? &EdgeSample::indirect : nullptr);
+      Filtered fd = filter_layer(f, k, d, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::direct : nullptr);
+      Filtered fi = filter_layer(f, k, i, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::indirect : nullptr);
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
       Image out(f.width(), f.height(), 3);
       const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
@@ -174,9 +182,11 @@ class Proposed final : public Method {
 
   // The NLM group sigma for a frame of `spp` samples per pixel (0: unknown, e.g. a frame made
   // by hand without the metadata: sigma_nlm as given).
-  float nlm_sigma_for(int spp) const {
-    if (spp <= 0 || nlm_spp_exponent_ == 0.0f) return sigma_nlm_;
-    return sigma_nlm_ * std::pow(256.0f / float(spp), nlm_spp_exponent_);
+  float nlm_sigma_for(int spp) const { return sigma_nlm_ * float(spp_scale(spp, nlm_spp_exponent_)); }
+  // (256 / spp)^exponent; 1 for an unknown sample count or exponent 0.
+  static double spp_scale(int spp, double exponent) {
+    if (spp <= 0 || exponent == 0.0) return 1.0;
+    return std::pow(256.0 / double(spp), exponent);
   }
 
   static bool has_level(const AovFrame& f, int k) {
@@ -190,7 +200,7 @@ class Proposed final : public Method {
   // `sub` set (level 0), also answers one slice query per edge sub-pixel, its guide built from
   // the sub-pixel's value of that layer, normal and depth.
   Filtered filter_layer(const AovFrame& f, int level, const Image& src, const Image& depth, float sigma_nlm,
-                        MethodStats& stats, float (EdgeSample::*sub)[3]) const {
+                        const AmSettings& am, MethodStats& stats, float (EdgeSample::*sub)[3]) const {
     const std::string suffix = level == 0 ? "" : "_level" + std::to_string(level);
     NlmSpace nlm;
     Image range;
@@ -211,7 +221,7 @@ class Proposed final : public Method {
         groups.push_back({depth.cview(), sigma_depth_});
       }
     }
-    const float sr = float(am_.sigma_r);
+    const float sr = float(am.sigma_r);
     Image guide = make_guide(groups, sr);
     stats.counters["guide_channels"] = guide.channels();
 
@@ -259,8 +269,8 @@ class Proposed final : public Method {
     }
     Filtered out;
     ScopedPhase p(stats, "adaptive_manifolds" + suffix);
-    out.image = opencl_ ? am_filter_opencl(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr)
-                        : am_filter(src.cview(), guide.cview(), am_, queries, sub ? &out.queries : nullptr);
+    out.image = opencl_ ? am_filter_opencl(src.cview(), guide.cview(), am, queries, sub ? &out.queries : nullptr)
+                        : am_filter(src.cview(), guide.cview(), am, queries, sub ? &out.queries : nullptr);
     return out;
   }
 
@@ -274,7 +284,7 @@ class Proposed final : public Method {
 
   AmSettings am_;
   NlmSpaceSettings nlm_;
-  float sigma_nlm_, nlm_spp_exponent_, sigma_normal_, sigma_depth_;
+  float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_;
   bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_, opencl_;
 };
 
@@ -293,6 +303,7 @@ MethodInfo proposed_method() {
               {"downsample", ParamType::Int, "2", "AM reduced-grid factor (1, 2, 4, ...); 0: from sigma_s and sigma_r", 0.0, 64.0},
               {"pca_iterations", ParamType::Int, "2", "power-iteration steps of each manifold split", 1.0, 100.0},
               {"adjust_outliers", ParamType::Bool, "true", "Gastal and Oliveira's outlier adjustment (eq. 11)"},
+              {"outlier_spp_exponent", ParamType::Float, "0.5", "eq. 11's strength scales as (frame spp / 256)^this; 0: fixed", 0.0, 4.0},
               {"sigma_nlm", ParamType::Float, "0.05", "NLM-vector group sigma at 256 spp, log(1 + lum/mean) units", 1e-4, 1e3},
               {"nlm_spp_exponent", ParamType::Float, "1", "sigma_nlm scales as (256 / frame spp)^this; 0: fixed", 0.0, 4.0},
               {"sigma_normal", ParamType::Float, "0.3", "normal group sigma (unit vectors)", 1e-4, 1e3},

@@ -35,6 +35,12 @@ double rel_rms(const Image& a, const Image& b) {
 
 // A smooth 3-channel image with a step and noise, and an 8-channel guide built from it
 // (the image itself, its square, and two smooth ramps), the benchmark's kind of input.
+double test_mse(const Image& a, const Image& b) {
+  double e = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) e += double(a.data()[k] - b.data()[k]) * (a.data()[k] - b.data()[k]);
+  return e / double(std::max<std::size_t>(a.size(), 1));
+}
+
 struct Input {
   Image src, guide;
 };
@@ -136,6 +142,33 @@ TEST(AdaptiveManifold, SliceQueryReproducesThePixel) {
     // Pixel (10, 10) on the dark side asked with a bright-side guide: answered near the bright side.
     EXPECT_GT(out[4 * 3], img.at(10, 10, 0) + 0.2f);
   }
+}
+
+// Eq. 11's strength (AmSettings::outlier_scale): 0 is no adjustment at all (alpha = 1), the
+// default 1 is Gastal and Oliveira's, and a weaker adjustment leaves the output between the
+// two: per pixel it only moves alpha within [alpha(1), 1].
+TEST(AdaptiveManifold, OutlierScaleSpansNoAdjustmentToFull) {
+  Input in = make_input(96, 64, 9);
+  AmSettings s;
+  s.sigma_r = 0.15;  // small, so that many pixels are outliers and the adjustment matters
+  s.adjust_outliers = false;
+  const Image none = am_filter(in.src.cview(), in.guide.cview(), s);
+  s.adjust_outliers = true;
+  const Image full = am_filter(in.src.cview(), in.guide.cview(), s);
+  s.outlier_scale = 0.0;
+  EXPECT_EQ(test_mse(none, am_filter(in.src.cview(), in.guide.cview(), s)), 0.0);
+  s.outlier_scale = 0.25;
+  const Image weak = am_filter(in.src.cview(), in.guide.cview(), s);
+  ASSERT_GT(test_mse(none, full), 1e-8) << "the adjustment does nothing on this input";
+  int outside = 0;
+  for (std::size_t k = 0; k < weak.size(); ++k) {
+    const float lo = std::min(none.data()[k], full.data()[k]), hi = std::max(none.data()[k], full.data()[k]);
+    const float slack = 1e-5f * (1.0f + std::abs(hi));  // float rounding of f + alpha (g - f)
+    outside += weak.data()[k] < lo - slack || weak.data()[k] > hi + slack;
+  }
+  EXPECT_EQ(outside, 0);
+  EXPECT_GT(test_mse(weak, full), 0.0);
+  EXPECT_GT(test_mse(weak, none), 0.0);
 }
 
 // Dividing a guide group by its sigma is what make_guide does: scaling the data and the sigma

@@ -255,11 +255,13 @@ TEST(Proposed, ReflectionLevelIsFiltered) {
   EXPECT_LT(with, 0.3 * without) << "with " << with << " without " << without;
 }
 
-// sigma_nlm is the value at 256 spp and follows the frame's sample count (its metadata) as
-// (256 / spp)^nlm_spp_exponent: a 16-spp frame is filtered exactly as a 256-spp frame with
-// sigma_nlm 16x larger, exponent 0 turns the scaling off, and a frame without a sample count
-// (spp 0, a hand-made frame) keeps sigma_nlm as given.
-TEST(Proposed, NlmSigmaFollowsTheFrameSampleCount) {
+// sigma_nlm and the outlier adjustment's strength are the values at 256 spp and follow the
+// frame's sample count (its metadata): sigma_nlm as (256 / spp)^nlm_spp_exponent, eq. 11's
+// strength as (spp / 256)^outlier_spp_exponent. A 16-spp frame is filtered exactly as a 256-spp
+// frame with sigma_nlm 16x larger (the outlier scaling off in both), exponents 0 turn the
+// scalings off, and a frame without a sample count (spp 0, a hand-made frame) is filtered with
+// the parameters as given.
+TEST(Proposed, ParametersFollowTheFrameSampleCount) {
   Image clean;
   AovFrame f16 = textured_plane(48, 40, 0.3f, &clean);
   f16.meta.spp = 16;
@@ -267,15 +269,19 @@ TEST(Proposed, NlmSigmaFollowsTheFrameSampleCount) {
   f256.meta.spp = 256;
   AovFrame f0 = f16;
   f0.meta.spp = 0;
-  const Image scaled = run("proposed", f16);
-  EXPECT_EQ(test::mse(scaled, run("proposed", f256, {{"sigma_nlm", "0.8"}})), 0.0);
-  const Image fixed = run("proposed", f16, {{"nlm_spp_exponent", "0"}});
+  const std::map<std::string, std::string> no_outlier{{"outlier_spp_exponent", "0"}};
+  EXPECT_EQ(test::mse(run("proposed", f16, no_outlier),
+                      run("proposed", f256, {{"sigma_nlm", "0.8"}, {"outlier_spp_exponent", "0"}})),
+            0.0);
+  const Image fixed = run("proposed", f16, {{"nlm_spp_exponent", "0"}, {"outlier_spp_exponent", "0"}});
   EXPECT_EQ(test::mse(fixed, run("proposed", f256)), 0.0);
   EXPECT_EQ(test::mse(fixed, run("proposed", f0)), 0.0);
-  EXPECT_GT(test::mse(scaled, fixed), 1e-8) << "the scaling changed nothing";
-  // At this noise (30% relative, about 16 spp) the wider sigma also lowers the error against
-  // the noise-free image (measured 2.68e-4 scaled, 2.95e-4 fixed); the 9% margin is that of one
-  // noise draw, so only "not higher" is asserted.
+  const Image scaled = run("proposed", f16);
+  EXPECT_GT(test::mse(scaled, run("proposed", f16, no_outlier)), 1e-10) << "the outlier scaling changed nothing";
+  EXPECT_GT(test::mse(scaled, fixed), 1e-8) << "the scalings changed nothing";
+  // At this noise (30% relative, about 16 spp) the scaled parameters also lower the error
+  // against the noise-free image (measured in the record); one noise draw, so only "not
+  // higher" is asserted.
   const double e_scaled = test::mse(scaled, clean), e_fixed = test::mse(fixed, clean);
   RecordProperty("mse_scaled", sci(e_scaled));
   RecordProperty("mse_fixed", sci(e_fixed));
