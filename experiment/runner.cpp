@@ -194,10 +194,15 @@ json score(const Image& image, const Image& reference, const std::string& out_di
 
 class ResultsStore {
  public:
+  // results.json lists the cells of this run's config; finished_cells.json keeps every cell
+  // ever finished in this folder, so that a run that stops early (killed, or a config listing
+  // fewer cells) does not forget the cells it had not reached yet: results.json alone is
+  // rewritten after every cell with only the cells visited so far.
   ResultsStore(std::string dir, json header) : dir_(std::move(dir)), doc_(std::move(header)) {
     doc_["records"] = json::array();
-    const std::string path = dir_ + "/results.json";
-    if (fs::exists(path)) {
+    for (const char* name : {"finished_cells.json", "results.json"}) {
+      const std::string path = dir_ + "/" + name;
+      if (!fs::exists(path)) continue;
       try {
         json old = json::parse(read_text_file(path));
         for (auto& r : old.at("records")) done_[r.at("cell_key").get<std::string>()] = r;
@@ -205,12 +210,14 @@ class ResultsStore {
         throw InputError(fmt::format("'{}' exists but cannot be resumed from ({}): remove it or choose another -o", path, e.what()));
       }
     }
+    all_ = done_;
   }
   const json* finished(const std::string& key) const {
     auto it = done_.find(key);
     return it == done_.end() ? nullptr : &it->second;
   }
   void add(json record) {
+    all_[record.at("cell_key").get<std::string>()] = record;
     doc_["records"].push_back(std::move(record));
     write();
   }
@@ -219,13 +226,17 @@ class ResultsStore {
     doc_["written"] = std::time(nullptr);
     write_text_atomic(dir_ + "/results.json", doc_.dump(2) + "\n");
     write_text_atomic(dir_ + "/results.csv", results_csv(doc_));
+    json cells = {{"format", "denoisebench-finished-cells-1"}, {"records", json::array()}};
+    for (const auto& [key, r] : all_) cells["records"].push_back(r);
+    write_text_atomic(dir_ + "/finished_cells.json", cells.dump(1) + "\n");
   }
   const json& doc() const { return doc_; }
 
  private:
   std::string dir_;
   json doc_;
-  std::map<std::string, json> done_;
+  std::map<std::string, json> done_;  // finished before this run, by cell key
+  std::map<std::string, json> all_;   // done_ and this run's new cells
 };
 
 }  // namespace

@@ -90,6 +90,23 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
   EXPECT_EQ(fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr"), before);
   EXPECT_EQ(nlohmann::json::parse(slurp(out + "/results.json"))["records"].size(), 5u);
 
+  // A run that does not reach a cell (killed, or here a config without the variant) must not
+  // make the folder forget it: results.json then lists that run's cells only, but the next run
+  // of the full config reuses the variant's cell instead of recomputing it.
+  const std::string variant_image = out + "/images/cornell-box/bilateral-wide_2.exr";
+  ASSERT_TRUE(fs::exists(variant_image));
+  const auto variant_before = fs::last_write_time(variant_image);
+  std::string subset = kTinyConfig;
+  subset.resize(subset.find("[[variant]]"));
+  write(dir.path() / "subset.toml", subset);
+  auto part = run_in(dir, "run " + dir.file("subset.toml") + " -o " + out);
+  ASSERT_EQ(part.exit_code, 0) << part.output;
+  EXPECT_EQ(nlohmann::json::parse(slurp(out + "/results.json"))["records"].size(), 4u);
+  auto full = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(full.exit_code, 0) << full.output;
+  EXPECT_EQ(fs::last_write_time(variant_image), variant_before) << "the variant's finished cell was recomputed";
+  EXPECT_EQ(nlohmann::json::parse(slurp(out + "/results.json"))["records"].size(), 5u);
+
   // Another build (here: the same program with one byte appended, so its file hash differs)
   // must not reuse the method cells another build computed: after a code change the tables
   // would silently keep the old numbers. The plain path-tracing cells are the tracer's and stay.
