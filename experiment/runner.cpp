@@ -205,19 +205,18 @@ class ResultsStore {
       if (!fs::exists(path)) continue;
       try {
         json old = json::parse(read_text_file(path));
-        for (auto& r : old.at("records")) done_[r.at("cell_key").get<std::string>()] = r;
+        for (auto& r : old.at("records")) cells_[r.at("cell_key").get<std::string>()] = r;
       } catch (const std::exception& e) {
         throw InputError(fmt::format("'{}' exists but cannot be resumed from ({}): remove it or choose another -o", path, e.what()));
       }
     }
-    all_ = done_;
   }
   const json* finished(const std::string& key) const {
-    auto it = done_.find(key);
-    return it == done_.end() ? nullptr : &it->second;
+    auto it = cells_.find(key);
+    return it == cells_.end() ? nullptr : &it->second;
   }
   void add(json record) {
-    all_[record.at("cell_key").get<std::string>()] = record;
+    cells_[record.at("cell_key").get<std::string>()] = record;
     doc_["records"].push_back(std::move(record));
     write();
   }
@@ -227,7 +226,7 @@ class ResultsStore {
     write_text_atomic(dir_ + "/results.json", doc_.dump(2) + "\n");
     write_text_atomic(dir_ + "/results.csv", results_csv(doc_));
     json cells = {{"format", "denoisebench-finished-cells-1"}, {"records", json::array()}};
-    for (const auto& [key, r] : all_) cells["records"].push_back(r);
+    for (const auto& [key, r] : cells_) cells["records"].push_back(r);
     write_text_atomic(dir_ + "/finished_cells.json", cells.dump(1) + "\n");
   }
   const json& doc() const { return doc_; }
@@ -235,8 +234,7 @@ class ResultsStore {
  private:
   std::string dir_;
   json doc_;
-  std::map<std::string, json> done_;  // finished before this run, by cell key
-  std::map<std::string, json> all_;   // done_ and this run's new cells
+  std::map<std::string, json> cells_;  // every finished cell, earlier runs' and this one's, by key
 };
 
 }  // namespace

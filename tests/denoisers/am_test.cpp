@@ -35,12 +35,6 @@ double rel_rms(const Image& a, const Image& b) {
 
 // A smooth 3-channel image with a step and noise, and an 8-channel guide built from it
 // (the image itself, its square, and two smooth ramps), the benchmark's kind of input.
-double test_mse(const Image& a, const Image& b) {
-  double e = 0;
-  for (std::size_t k = 0; k < a.size(); ++k) e += double(a.data()[k] - b.data()[k]) * (a.data()[k] - b.data()[k]);
-  return e / double(std::max<std::size_t>(a.size(), 1));
-}
-
 struct Input {
   Image src, guide;
 };
@@ -156,10 +150,10 @@ TEST(AdaptiveManifold, OutlierScaleSpansNoAdjustmentToFull) {
   s.adjust_outliers = true;
   const Image full = am_filter(in.src.cview(), in.guide.cview(), s);
   s.outlier_scale = 0.0;
-  EXPECT_EQ(test_mse(none, am_filter(in.src.cview(), in.guide.cview(), s)), 0.0);
+  EXPECT_EQ(test::mse(none, am_filter(in.src.cview(), in.guide.cview(), s)), 0.0);
   s.outlier_scale = 0.25;
   const Image weak = am_filter(in.src.cview(), in.guide.cview(), s);
-  ASSERT_GT(test_mse(none, full), 1e-8) << "the adjustment does nothing on this input";
+  ASSERT_GT(test::mse(none, full), 1e-8) << "the adjustment does nothing on this input";
   int outside = 0;
   for (std::size_t k = 0; k < weak.size(); ++k) {
     const float lo = std::min(none.data()[k], full.data()[k]), hi = std::max(none.data()[k], full.data()[k]);
@@ -167,8 +161,8 @@ TEST(AdaptiveManifold, OutlierScaleSpansNoAdjustmentToFull) {
     outside += weak.data()[k] < lo - slack || weak.data()[k] > hi + slack;
   }
   EXPECT_EQ(outside, 0);
-  EXPECT_GT(test_mse(weak, full), 0.0);
-  EXPECT_GT(test_mse(weak, none), 0.0);
+  EXPECT_GT(test::mse(weak, full), 0.0);
+  EXPECT_GT(test::mse(weak, none), 0.0);
 }
 
 // Dividing a guide group by its sigma is what make_guide does: scaling the data and the sigma
