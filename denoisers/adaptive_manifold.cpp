@@ -16,6 +16,7 @@
 #include <random>
 
 #include <opencv2/core/hal/hal.hpp>
+#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -129,6 +130,30 @@ struct Planes {
   const float* row(int c, int y) const { return plane(c) + std::size_t(y) * w; }
 };
 
+// The vertical half of recursive_filter: columns are independent, split into 64-wide chunks.
+template <typename WV>
+void recursive_filter_vertical(Planes& p, int first, int count, WV wv) {
+  const int w = p.w, h = p.h;
+  constexpr int kChunk = 64;
+  tbb::parallel_for(0, (w + kChunk - 1) / kChunk, [&](int chunk) {
+    const int x0 = chunk * kChunk, x1 = std::min(w, x0 + kChunk);
+    for (int c = first; c < first + count; ++c) {
+      for (int y = 1; y < h; ++y) {
+        const float* a = wv(y - 1);
+        float* r = p.row(c, y);
+        const float* q = p.row(c, y - 1);
+        for (int x = x0; x < x1; ++x) r[x] += a[x] * (q[x] - r[x]);
+      }
+      for (int y = h - 2; y >= 0; --y) {
+        const float* a = wv(y);
+        float* r = p.row(c, y);
+        const float* q = p.row(c, y + 1);
+        for (int x = x0; x < x1; ++x) r[x] += a[x] * (q[x] - r[x]);
+      }
+    }
+  });
+}
+
 // Recursive filter, one causal and one anti-causal pass per direction (Gastal and Oliveira
 // 2011, domain transform RF): out[x] += a_x (out[x-1] - out[x]) with a per-edge feedback a_x.
 // `wh(y)` returns the w-1 horizontal edge weights of row y, `wv(y)` the w vertical weights
@@ -168,24 +193,7 @@ void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
       for (int x = w - 2; x >= 0; --x) r[x] += a[x] * (r[x + 1] - r[x]);
     }
   });
-  constexpr int kChunk = 64;
-  tbb::parallel_for(0, (w + kChunk - 1) / kChunk, [&](int chunk) {
-    const int x0 = chunk * kChunk, x1 = std::min(w, x0 + kChunk);
-    for (int c = first; c < first + count; ++c) {
-      for (int y = 1; y < h; ++y) {
-        const float* a = wv(y - 1);
-        float* r = p.row(c, y);
-        const float* q = p.row(c, y - 1);
-        for (int x = x0; x < x1; ++x) r[x] += a[x] * (q[x] - r[x]);
-      }
-      for (int y = h - 2; y >= 0; --y) {
-        const float* a = wv(y);
-        float* r = p.row(c, y);
-        const float* q = p.row(c, y + 1);
-        for (int x = x0; x < x1; ++x) r[x] += a[x] * (q[x] - r[x]);
-      }
-    }
-  });
+  recursive_filter_vertical(p, first, count, wv);
 }
 
 // Their h_filter: the recursive filter with a constant feedback exp(-sqrt 2 / sigma).
@@ -193,6 +201,70 @@ void low_pass(Planes& p, int first, int count, double sigma) {
   std::vector<float> a(std::max(p.w, 1), float(std::exp(-std::sqrt(2.0) / sigma)));
   auto same = [&](int) { return a.data(); };
   recursive_filter(p, first, count, same, same);
+}
+
+// The horizontal half of low_pass on pixel-interleaved rows (channels padded to blocks of 8):
+// the recursion runs along x, so in planar rows it is a scalar dependency chain per channel;
+// here the 8 channels of a block are one SIMD vector and R rows x NB blocks independent
+// chains hide the latency (about 4x faster than the planar loop above on the 8-channel guide).
+// GCC/Clang vector extensions keep it portable; each element sees the same operations as in
+// the planar loop.
+using Vec8 = float __attribute__((vector_size(32)));
+inline Vec8 load8(const float* p) {
+  Vec8 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store8(float* p, Vec8 v) { std::memcpy(p, &v, sizeof v); }
+
+template <int NB, int R>
+void low_pass_interleaved(float* const* rows, int w, float k) {
+  constexpr int DP = 8 * NB;
+  Vec8 prev[R][NB];
+  for (int r = 0; r < R; ++r)
+    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + 8 * b);
+  for (int x = 1; x < w; ++x)
+    for (int r = 0; r < R; ++r)
+      for (int b = 0; b < NB; ++b) {
+        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
+        Vec8 v = load8(q);
+        v += k * (prev[r][b] - v);
+        store8(q, v);
+        prev[r][b] = v;
+      }
+  for (int r = 0; r < R; ++r)
+    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + std::size_t(w - 1) * DP + 8 * b);
+  for (int x = w - 2; x >= 0; --x)
+    for (int r = 0; r < R; ++r)
+      for (int b = 0; b < NB; ++b) {
+        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
+        Vec8 v = load8(q);
+        v += k * (prev[r][b] - v);
+        store8(q, v);
+        prev[r][b] = v;
+      }
+}
+
+// Dispatch on the block count (guides of up to 32 channels; wider ones go block by block).
+template <int R>
+void low_pass_interleaved(float* const* rows, int w, int nb, float k) {
+  switch (nb) {
+    case 1: return low_pass_interleaved<1, R>(rows, w, k);
+    case 2: return low_pass_interleaved<2, R>(rows, w, k);
+    case 3: return low_pass_interleaved<3, R>(rows, w, k);
+    case 4: return low_pass_interleaved<4, R>(rows, w, k);
+    default: break;
+  }
+  // Wider: the rows viewed as nb single-block rows would need a stride; filter each block in a
+  // copy instead (rare: guides of more than 32 channels).
+  std::vector<float> tmp(std::size_t(w) * 8);
+  for (int r = 0; r < R; ++r)
+    for (int b = 0; b < nb; ++b) {
+      for (int x = 0; x < w; ++x) std::memcpy(&tmp[std::size_t(x) * 8], rows[r] + std::size_t(x) * nb * 8 + 8 * b, 32);
+      float* one = tmp.data();
+      low_pass_interleaved<1, 1>(&one, w, k);
+      for (int x = 0; x < w; ++x) std::memcpy(rows[r] + std::size_t(x) * nb * 8 + 8 * b, &tmp[std::size_t(x) * 8], 32);
+    }
 }
 
 std::uint64_t hash_guide(ConstImageView g) {
@@ -231,12 +303,37 @@ class AmRun {
 
     guide_ = Planes(W_, H_, D_);
     src_ = Planes(W_, H_, C_);
-    tbb::parallel_for(0, H_, [&](int y) {
-      for (int x = 0; x < W_; ++x) {
-        const float* g = guide.pixel(x, y);
-        for (int c = 0; c < D_; ++c) guide_.row(c, y)[x] = g[c];
-        const float* f = src.pixel(x, y);
-        for (int c = 0; c < C_; ++c) src_.row(c, y)[x] = f[c];
+    // One pass over the interleaved input: planar copies of the guide and source, and the
+    // first manifold's horizontal low-pass (done interleaved, see low_pass_interleaved), in
+    // pairs of rows. The vertical half follows in run().
+    eta_full_ = Planes(W_, H_, D_);
+    const int nb = (D_ + 7) / 8, dp = 8 * nb;
+    const float k_first = float(std::exp(-std::sqrt(2.0) / s.sigma_s));
+    tbb::parallel_for(tbb::blocked_range<int>(0, (H_ + 1) / 2), [&](const tbb::blocked_range<int>& range) {
+      std::vector<float> buf(std::size_t(2) * W_ * dp, 0.0f);
+      float* rows[2] = {buf.data(), buf.data() + std::size_t(W_) * dp};
+      for (int t = range.begin(); t != range.end(); ++t) {
+        const int y0 = 2 * t, n = std::min(2, H_ - y0);
+        for (int r = 0; r < n; ++r) {
+          const int y = y0 + r;
+          for (int x = 0; x < W_; ++x) {
+            const float* g = guide.pixel(x, y);
+            float* b = rows[r] + std::size_t(x) * dp;
+            for (int c = 0; c < D_; ++c) {
+              guide_.row(c, y)[x] = g[c];
+              b[c] = g[c];
+            }
+            const float* f = src.pixel(x, y);
+            for (int c = 0; c < C_; ++c) src_.row(c, y)[x] = f[c];
+          }
+        }
+        if (n == 2) low_pass_interleaved<2>(rows, W_, nb, k_first);
+        else low_pass_interleaved<1>(rows, W_, nb, k_first);
+        for (int r = 0; r < n; ++r)
+          for (int x = 0; x < W_; ++x) {
+            const float* b = rows[r] + std::size_t(x) * dp;
+            for (int c = 0; c < D_; ++c) eta_full_.row(c, y0 + r)[x] = b[c];
+          }
       }
     });
     acc_ = Planes(W_, H_, C_ + 1);
@@ -273,9 +370,10 @@ class AmRun {
 
   Image run(std::vector<float>* query_out) {
     // The first manifold: the guide low-passed at full resolution.
-    Planes eta_full = guide_;
-    low_pass(eta_full, 0, D_, s_.sigma_s);
-    node(1, 1, &eta_full, Planes());
+    std::vector<float> a_first(std::max(W_, 1), float(std::exp(-std::sqrt(2.0) / s_.sigma_s)));
+    recursive_filter_vertical(eta_full_, 0, D_, [&](int) { return a_first.data(); });
+    node(1, 1, &eta_full_, Planes());
+    eta_full_ = Planes();
 
     Image out(W_, H_, C_);
     const float alpha_k = float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r));
@@ -458,10 +556,14 @@ class AmRun {
             const float* Xi = sc.x.data() + std::size_t(i) * W_;
             for (int j = i; j < D_; ++j) {
               const float* Xj = sc.x.data() + std::size_t(j) * W_;
-              float* lanes = sc.cov.data() + std::size_t(i * D_ + j) * kLanes;
+              // A local accumulator: through `lanes` the compiler must assume aliasing with
+              // Xi and Xj and would store all 16 lanes every step (a third of this pass).
+              float acc[kLanes] = {};
               for (int x = 0; x < body; x += kLanes)
-                for (int l = 0; l < kLanes; ++l) lanes[l] += Xi[x + l] * Xj[x + l];
-              for (int x = body; x < W_; ++x) lanes[x - body] += Xi[x] * Xj[x];
+                for (int l = 0; l < kLanes; ++l) acc[l] += Xi[x + l] * Xj[x + l];
+              for (int x = body; x < W_; ++x) acc[x - body] += Xi[x] * Xj[x];
+              float* lanes = sc.cov.data() + std::size_t(i * D_ + j) * kLanes;
+              for (int l = 0; l < kLanes; ++l) lanes[l] += acc[l];
             }
           }
         }
@@ -653,7 +755,7 @@ class AmRun {
   int height_ = 2, df_ = 1, sw_ = 1, sh_ = 1;
   float inv_sr2_ = 1;
   std::uint64_t seed_ = 0;
-  Planes guide_, src_, acc_;
+  Planes guide_, src_, acc_, eta_full_;  // eta_full_: the first manifold, full resolution
   std::vector<float> w_, min_d2_;
   std::vector<std::int32_t> label_;
   std::vector<int> x0_, x1_, y0_, y1_;
