@@ -154,6 +154,108 @@ void recursive_filter_vertical(Planes& p, int first, int count, WV wv) {
   });
 }
 
+// The horizontal recursion runs along x, so in planar rows it is a scalar dependency chain per
+// channel, latency-bound. Here rows are pixel-interleaved (channels padded to blocks of 8): the
+// 8 channels of a block are one SIMD vector, and R rows x NB blocks independent chains hide
+// the latency. GCC/Clang vector extensions keep it portable; each element sees the same
+// operations, in the same order, as in the planar loop. a[r] holds row r's w-1 edge weights.
+using Vec8 = float __attribute__((vector_size(32)));
+inline Vec8 load8(const float* p) {
+  Vec8 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store8(float* p, Vec8 v) { std::memcpy(p, &v, sizeof v); }
+
+template <int NB, int R>
+void recursive_interleaved(float* const* rows, const float* const* a, int w) {
+  constexpr int DP = 8 * NB;
+  Vec8 prev[R][NB];
+  for (int r = 0; r < R; ++r)
+    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + 8 * b);
+  for (int x = 1; x < w; ++x)
+    for (int r = 0; r < R; ++r) {
+      const float k = a[r][x - 1];
+      for (int b = 0; b < NB; ++b) {
+        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
+        Vec8 v = load8(q);
+        v += k * (prev[r][b] - v);
+        store8(q, v);
+        prev[r][b] = v;
+      }
+    }
+  for (int r = 0; r < R; ++r)
+    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + std::size_t(w - 1) * DP + 8 * b);
+  for (int x = w - 2; x >= 0; --x)
+    for (int r = 0; r < R; ++r) {
+      const float k = a[r][x];
+      for (int b = 0; b < NB; ++b) {
+        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
+        Vec8 v = load8(q);
+        v += k * (prev[r][b] - v);
+        store8(q, v);
+        prev[r][b] = v;
+      }
+    }
+}
+
+// Rows of `nb` blocks, in groups of kRowGroup (the last group may be smaller).
+constexpr int kRowGroup = 4;
+template <int R>
+void recursive_interleaved(float* const* rows, const float* const* a, int w, int nb) {
+  switch (nb) {
+    case 1: return recursive_interleaved<1, R>(rows, a, w);
+    case 2: return recursive_interleaved<2, R>(rows, a, w);
+    case 3: return recursive_interleaved<3, R>(rows, a, w);
+    case 4: return recursive_interleaved<4, R>(rows, a, w);
+    default: break;
+  }
+  // Wider (guides of more than 32 channels, rare): block by block through a copy.
+  std::vector<float> tmp(std::size_t(w) * 8);
+  for (int r = 0; r < R; ++r)
+    for (int b = 0; b < nb; ++b) {
+      for (int x = 0; x < w; ++x) std::memcpy(&tmp[std::size_t(x) * 8], rows[r] + std::size_t(x) * nb * 8 + 8 * b, 32);
+      float* one = tmp.data();
+      recursive_interleaved<1, 1>(&one, a + r, w);
+      for (int x = 0; x < w; ++x) std::memcpy(rows[r] + std::size_t(x) * nb * 8 + 8 * b, &tmp[std::size_t(x) * 8], 32);
+    }
+}
+inline void recursive_interleaved(float* const* rows, const float* const* a, int w, int nb, int n) {
+  switch (n) {
+    case 4: return recursive_interleaved<4>(rows, a, w, nb);
+    case 3: return recursive_interleaved<3>(rows, a, w, nb);
+    case 2: return recursive_interleaved<2>(rows, a, w, nb);
+    default: return recursive_interleaved<1>(rows, a, w, nb);
+  }
+}
+
+// Row y of planes [first, first + count) to pixel-interleaved `out` (stride dp) and back, in
+// blocks of 8 pixels so the transposes stay in registers.
+void interleave(const Planes& p, int first, int count, int y, float* out, int dp) {
+  const float* src[32];
+  for (int c0 = 0; c0 < count; c0 += 32) {
+    const int m = std::min(32, count - c0);
+    for (int c = 0; c < m; ++c) src[c] = p.row(first + c0 + c, y);
+    for (int x0 = 0; x0 < p.w; x0 += 8) {
+      const int xn = std::min(8, p.w - x0);
+      for (int c = 0; c < m; ++c)
+        for (int k = 0; k < xn; ++k) out[std::size_t(x0 + k) * dp + c0 + c] = src[c][x0 + k];
+    }
+  }
+}
+void deinterleave(const float* in, int dp, Planes& p, int first, int count, int y) {
+  float* dst[32];
+  for (int c0 = 0; c0 < count; c0 += 32) {
+    const int m = std::min(32, count - c0);
+    for (int c = 0; c < m; ++c) dst[c] = p.row(first + c0 + c, y);
+    for (int x0 = 0; x0 < p.w; x0 += 8) {
+      const int xn = std::min(8, p.w - x0);
+      for (int c = 0; c < m; ++c)
+        for (int k = 0; k < xn; ++k) dst[c][x0 + k] = in[std::size_t(x0 + k) * dp + c0 + c];
+    }
+  }
+}
+
 // Recursive filter, one causal and one anti-causal pass per direction (Gastal and Oliveira
 // 2011, domain transform RF): out[x] += a_x (out[x-1] - out[x]) with a per-edge feedback a_x.
 // `wh(y)` returns the w-1 horizontal edge weights of row y, `wv(y)` the w vertical weights
@@ -162,35 +264,22 @@ void recursive_filter_vertical(Planes& p, int first, int count, WV wv) {
 template <typename WH, typename WV>
 void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
   const int w = p.w, h = p.h;
-  // Horizontal: each row is a serial recursion, so up to 4 planes advance together to hide
-  // the latency of the dependency chain.
-  tbb::parallel_for(0, h, [&](int y) {
-    const float* a = wh(y);
-    int c = first;
-    for (; c + 4 <= first + count; c += 4) {
-      float* r0 = p.row(c, y);
-      float* r1 = p.row(c + 1, y);
-      float* r2 = p.row(c + 2, y);
-      float* r3 = p.row(c + 3, y);
-      for (int x = 1; x < w; ++x) {
-        const float k = a[x - 1];
-        r0[x] += k * (r0[x - 1] - r0[x]);
-        r1[x] += k * (r1[x - 1] - r1[x]);
-        r2[x] += k * (r2[x - 1] - r2[x]);
-        r3[x] += k * (r3[x - 1] - r3[x]);
+  // Horizontal: groups of rows gathered into interleaved buffers (recursive_interleaved).
+  const int nb = (count + 7) / 8, dp = 8 * nb;
+  const int groups = (h + kRowGroup - 1) / kRowGroup;
+  tbb::parallel_for(tbb::blocked_range<int>(0, groups), [&](const tbb::blocked_range<int>& range) {
+    std::vector<float> buf(std::size_t(kRowGroup) * w * dp, 0.0f);
+    float* rows[kRowGroup];
+    const float* a[kRowGroup];
+    for (int r = 0; r < kRowGroup; ++r) rows[r] = buf.data() + std::size_t(r) * w * dp;
+    for (int g = range.begin(); g != range.end(); ++g) {
+      const int y0 = g * kRowGroup, n = std::min(kRowGroup, h - y0);
+      for (int r = 0; r < n; ++r) {
+        a[r] = wh(y0 + r);
+        interleave(p, first, count, y0 + r, rows[r], dp);
       }
-      for (int x = w - 2; x >= 0; --x) {
-        const float k = a[x];
-        r0[x] += k * (r0[x + 1] - r0[x]);
-        r1[x] += k * (r1[x + 1] - r1[x]);
-        r2[x] += k * (r2[x + 1] - r2[x]);
-        r3[x] += k * (r3[x + 1] - r3[x]);
-      }
-    }
-    for (; c < first + count; ++c) {
-      float* r = p.row(c, y);
-      for (int x = 1; x < w; ++x) r[x] += a[x - 1] * (r[x - 1] - r[x]);
-      for (int x = w - 2; x >= 0; --x) r[x] += a[x] * (r[x + 1] - r[x]);
+      recursive_interleaved(rows, a, w, nb, n);
+      for (int r = 0; r < n; ++r) deinterleave(rows[r], dp, p, first, count, y0 + r);
     }
   });
   recursive_filter_vertical(p, first, count, wv);
@@ -201,70 +290,6 @@ void low_pass(Planes& p, int first, int count, double sigma) {
   std::vector<float> a(std::max(p.w, 1), float(std::exp(-std::sqrt(2.0) / sigma)));
   auto same = [&](int) { return a.data(); };
   recursive_filter(p, first, count, same, same);
-}
-
-// The horizontal half of low_pass on pixel-interleaved rows (channels padded to blocks of 8):
-// the recursion runs along x, so in planar rows it is a scalar dependency chain per channel;
-// here the 8 channels of a block are one SIMD vector and R rows x NB blocks independent
-// chains hide the latency (about 4x faster than the planar loop above on the 8-channel guide).
-// GCC/Clang vector extensions keep it portable; each element sees the same operations as in
-// the planar loop.
-using Vec8 = float __attribute__((vector_size(32)));
-inline Vec8 load8(const float* p) {
-  Vec8 v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-inline void store8(float* p, Vec8 v) { std::memcpy(p, &v, sizeof v); }
-
-template <int NB, int R>
-void low_pass_interleaved(float* const* rows, int w, float k) {
-  constexpr int DP = 8 * NB;
-  Vec8 prev[R][NB];
-  for (int r = 0; r < R; ++r)
-    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + 8 * b);
-  for (int x = 1; x < w; ++x)
-    for (int r = 0; r < R; ++r)
-      for (int b = 0; b < NB; ++b) {
-        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
-        Vec8 v = load8(q);
-        v += k * (prev[r][b] - v);
-        store8(q, v);
-        prev[r][b] = v;
-      }
-  for (int r = 0; r < R; ++r)
-    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + std::size_t(w - 1) * DP + 8 * b);
-  for (int x = w - 2; x >= 0; --x)
-    for (int r = 0; r < R; ++r)
-      for (int b = 0; b < NB; ++b) {
-        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
-        Vec8 v = load8(q);
-        v += k * (prev[r][b] - v);
-        store8(q, v);
-        prev[r][b] = v;
-      }
-}
-
-// Dispatch on the block count (guides of up to 32 channels; wider ones go block by block).
-template <int R>
-void low_pass_interleaved(float* const* rows, int w, int nb, float k) {
-  switch (nb) {
-    case 1: return low_pass_interleaved<1, R>(rows, w, k);
-    case 2: return low_pass_interleaved<2, R>(rows, w, k);
-    case 3: return low_pass_interleaved<3, R>(rows, w, k);
-    case 4: return low_pass_interleaved<4, R>(rows, w, k);
-    default: break;
-  }
-  // Wider: the rows viewed as nb single-block rows would need a stride; filter each block in a
-  // copy instead (rare: guides of more than 32 channels).
-  std::vector<float> tmp(std::size_t(w) * 8);
-  for (int r = 0; r < R; ++r)
-    for (int b = 0; b < nb; ++b) {
-      for (int x = 0; x < w; ++x) std::memcpy(&tmp[std::size_t(x) * 8], rows[r] + std::size_t(x) * nb * 8 + 8 * b, 32);
-      float* one = tmp.data();
-      low_pass_interleaved<1, 1>(&one, w, k);
-      for (int x = 0; x < w; ++x) std::memcpy(rows[r] + std::size_t(x) * nb * 8 + 8 * b, &tmp[std::size_t(x) * 8], 32);
-    }
 }
 
 std::uint64_t hash_guide(ConstImageView g) {
@@ -304,11 +329,11 @@ class AmRun {
     guide_ = Planes(W_, H_, D_);
     src_ = Planes(W_, H_, C_);
     // One pass over the interleaved input: planar copies of the guide and source, and the
-    // first manifold's horizontal low-pass (done interleaved, see low_pass_interleaved), in
+    // first manifold's horizontal low-pass (done interleaved, see recursive_interleaved), in
     // pairs of rows. The vertical half follows in run().
     eta_full_ = Planes(W_, H_, D_);
     const int nb = (D_ + 7) / 8, dp = 8 * nb;
-    const float k_first = float(std::exp(-std::sqrt(2.0) / s.sigma_s));
+    const std::vector<float> a_first(std::max(W_, 1), float(std::exp(-std::sqrt(2.0) / s.sigma_s)));
     tbb::parallel_for(tbb::blocked_range<int>(0, (H_ + 1) / 2), [&](const tbb::blocked_range<int>& range) {
       std::vector<float> buf(std::size_t(2) * W_ * dp, 0.0f);
       float* rows[2] = {buf.data(), buf.data() + std::size_t(W_) * dp};
@@ -327,8 +352,8 @@ class AmRun {
             for (int c = 0; c < C_; ++c) src_.row(c, y)[x] = f[c];
           }
         }
-        if (n == 2) low_pass_interleaved<2>(rows, W_, nb, k_first);
-        else low_pass_interleaved<1>(rows, W_, nb, k_first);
+        const float* a[2] = {a_first.data(), a_first.data()};
+        recursive_interleaved(rows, a, W_, nb, n);
         for (int r = 0; r < n; ++r)
           for (int x = 0; x < W_; ++x) {
             const float* b = rows[r] + std::size_t(x) * dp;
@@ -359,6 +384,8 @@ class AmRun {
     for (int k = 0; k < df_; ++k) frac_[k] = (df_ / 2 + k + 0.5f) / df_ - 0.5f;
     qacc_.assign(queries_.size() * (C_ + 1), 0.0);
     qmin_.assign(queries_.size(), INFINITY);
+    qsite_.resize(queries_.size());
+    for (std::size_t q = 0; q < queries_.size(); ++q) qsite_[q] = site(queries_[q].x, queries_[q].y);
   }
 
   ~AmRun() {
@@ -470,20 +497,46 @@ class AmRun {
 
   // Adds the df-wide blocks of `col` (W floats) to the reduced row `out`, scaled by inv_rows.
   void reduce_columns(const float* col, float* out, float inv_rows) const {
-    for (int sx = 0; sx < sw_; ++sx) {
-      const int xa = sx * df_, xb = std::min(W_, xa + df_);
+    switch (df_) {  // the block width as a constant, so the block sums unroll
+      case 1: return reduce_columns<1>(col, out, inv_rows);
+      case 2: return reduce_columns<2>(col, out, inv_rows);
+      case 4: return reduce_columns<4>(col, out, inv_rows);
+      case 8: return reduce_columns<8>(col, out, inv_rows);
+      default: return reduce_columns<0>(col, out, inv_rows);
+    }
+  }
+  template <int DF>
+  void reduce_columns(const float* col, float* out, float inv_rows) const {
+    const int df = DF > 0 ? DF : df_;
+    const int full = W_ / df;  // blocks of df columns; a partial one may follow
+    const float scale = inv_rows / float(df);
+    for (int sx = 0; sx < full; ++sx) {
       float s = 0;
-      for (int x = xa; x < xb; ++x) s += col[x];
-      out[sx] = s * inv_rows / float(xb - xa);
+      for (int k = 0; k < df; ++k) s += col[sx * df + k];
+      out[sx] = s * scale;
+    }
+    if (full < sw_) {
+      float s = 0;
+      for (int x = full * df; x < W_; ++x) s += col[x];
+      out[full] = s * inv_rows / float(W_ - full * df);
     }
   }
 
-  float sample(const Planes& p, int c, int x, int y) const {
-    const float* r0 = p.row(c, y0_[y]);
-    const float* r1 = p.row(c, y1_[y]);
-    const float a = r0[x0_[x]] + fx_[x] * (r0[x1_[x]] - r0[x0_[x]]);
-    const float b = r1[x0_[x]] + fx_[x] * (r1[x1_[x]] - r1[x0_[x]]);
-    return a + fy_[y] * (b - a);
+  // Where a full-resolution pixel reads the reduced grid: the four bilinear taps' offsets in a
+  // plane and the fractions (the same for every manifold, so the queries keep one each).
+  struct Site {
+    std::uint32_t o00, o01, o10, o11;
+    float fx, fy;
+  };
+  Site site(int x, int y) const {
+    const std::uint32_t r0 = std::uint32_t(y0_[y]) * sw_, r1 = std::uint32_t(y1_[y]) * sw_;
+    return {r0 + x0_[x], r0 + x1_[x], r1 + x0_[x], r1 + x1_[x], fx_[x], fy_[y]};
+  }
+  static float sample(const Planes& p, int c, const Site& t) {
+    const float* q = p.plane(c);
+    const float a = q[t.o00] + t.fx * (q[t.o01] - q[t.o00]);
+    const float b = q[t.o10] + t.fx * (q[t.o11] - q[t.o10]);
+    return a + t.fy * (b - a);
   }
 
   Scratch& scratch() {
@@ -583,19 +636,24 @@ class AmRun {
     // Blur along the manifold: domain-transform recursive filter at the reduced resolution.
     blur(splat, eta_small);
 
-    // Point queries: the same slice with the query's guide value.
-    for (std::size_t q = 0; q < queries_.size(); ++q) {
-      const AmQuery& Q = queries_[q];
-      double d2 = 0;
-      for (int c = 0; c < D_; ++c) {
-        const float e = eta_full ? eta_full->row(c, Q.y)[Q.x] : sample(eta_small, c, Q.x, Q.y);
-        const double d = double(Q.guide[c]) - e;
-        d2 += d * d;
+    // Point queries: the same slice with the query's guide value (each query its own sums, so
+    // the parallel split does not change them).
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries_.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t q = r.begin(); q != r.end(); ++q) {
+        const AmQuery& Q = queries_[q];
+        const Site& t = qsite_[q];
+        double d2 = 0;
+        for (int c = 0; c < D_; ++c) {
+          const float e = eta_full ? eta_full->row(c, Q.y)[Q.x] : sample(eta_small, c, t);
+          const double d = double(Q.guide[c]) - e;
+          d2 += d * d;
+        }
+        // The weight in float, as the image's pixels get it (exp32f); the sums stay double.
+        const double wq = std::exp(float(-d2 * inv_sr2_));
+        for (int c = 0; c <= C_; ++c) qacc_[q * (C_ + 1) + c] += wq * sample(splat, c, t);
+        qmin_[q] = std::min(qmin_[q], float(d2));
       }
-      const double wq = std::exp(-d2 * inv_sr2_);
-      for (int c = 0; c <= C_; ++c) qacc_[q * (C_ + 1) + c] += wq * sample(splat, c, Q.x, Q.y);
-      qmin_[q] = std::min(qmin_[q], float(d2));
-    }
+    });
 
     // The split direction: leading eigenvector of the cluster's covariance (power iteration).
     std::vector<float> v(D_, 0.0f);
@@ -762,6 +820,7 @@ class AmRun {
   std::vector<float> fx_, fy_, frac_;
   std::vector<double> qacc_;
   std::vector<float> qmin_;
+  std::vector<Site> qsite_;
   tbb::enumerable_thread_specific<Scratch> scratch_;
 };
 
