@@ -132,13 +132,42 @@ class Proposed final : public Method {
       const bool edges = k == 0 && use_edges_ && f.edges && !f.edges->pixels.empty();
       const Image& d = f.layer(layer::at_level(k, layer::kDirect));
       const Image& i = f.layer(layer::at_level(k, layer::kIndirect));
-      Image depth;  // the level's depth over its median, shared by the D and I guides
-      if (use_geometry_) {
-        ScopedPhase p(r.stats, k == 0 ? "depth" : "depth_level" + std::to_string(k));
-        depth = normalized_depth(f, k);
+      Filtered fd, fi;
+      if (k == 0) {
+        Image depth;  // the level's depth over its median, shared by the D and I guides
+        if (use_geometry_) {
+          ScopedPhase p(r.stats, "depth");
+          depth = normalized_depth(f, k);
+        }
+        fd = filter_layer(f, k, d, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::direct : nullptr);
+        fi = filter_layer(f, k, i, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::indirect : nullptr);
+      } else {
+        // Level k only shows where its tint is non-zero (it enters the level above as
+        // tint_k * F'_k): filter the bounding box of those pixels plus a margin of 6 sigma_s
+        // (the spatial kernel falls to 2e-4 there), and nothing for a level no pixel shows.
+        // Outside the box F'_k stays 0, multiplied by a zero tint. Level 1 covers 10-19% of
+        // the built-in scenes' pixels, level 2 under 2%.
+        const Box box = visible_box(f.layer(layer::at_level(k, layer::kTint)), int(std::ceil(6.0 * am.sigma_s)));
+        r.stats.counters["level" + std::to_string(k) + "_filtered_fraction"] =
+            double(box.w) * box.h / (double(f.width()) * f.height());
+        fd.image = Image(f.width(), f.height(), 3);
+        fi.image = Image(f.width(), f.height(), 3);
+        if (box.w > 0 && box.h > 0) {
+          AovFrame sub(box.w, box.h);
+          sub.meta = f.meta;
+          for (const char* base : {layer::kNormal, layer::kDepth}) {
+            const std::string name = layer::at_level(k, base);
+            sub.set(name, cropped(f.layer(name), box));
+          }
+          Image sub_depth;  // over the median inside the box
+          if (use_geometry_) {
+            ScopedPhase p(r.stats, "depth_level" + std::to_string(k));
+            sub_depth = normalized_depth(sub, k);
+          }
+          paste(filter_layer(sub, k, cropped(d, box), sub_depth, sigma_nlm, am, r.stats, nullptr).image, box, fd.image);
+          paste(filter_layer(sub, k, cropped(i, box), sub_depth, sigma_nlm, am, r.stats, nullptr).image, box, fi.image);
+        }
       }
-      Filtered fd = filter_layer(f, k, d, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::direct : nullptr);
-      Filtered fi = filter_layer(f, k, i, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::indirect : nullptr);
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
       Image out(f.width(), f.height(), 3);
       const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
@@ -175,6 +204,33 @@ class Proposed final : public Method {
   }
 
  private:
+  struct Box {
+    int x = 0, y = 0, w = 0, h = 0;
+  };
+  // Bounding box of the pixels with a non-zero channel, grown by `margin` and clipped to the
+  // image; empty when there are none.
+  static Box visible_box(const Image& tint, int margin) {
+    int x0 = tint.width(), y0 = tint.height(), x1 = -1, y1 = -1;
+    for (int y = 0; y < tint.height(); ++y)
+      for (int x = 0; x < tint.width(); ++x) {
+        const float* t = tint.pixel(x, y);
+        bool on = false;
+        for (int c = 0; c < tint.channels(); ++c) on = on || t[c] != 0.0f;
+        if (!on) continue;
+        x0 = std::min(x0, x), x1 = std::max(x1, x);
+        y0 = std::min(y0, y), y1 = std::max(y1, y);
+      }
+    if (x1 < 0) return {};
+    x0 = std::max(0, x0 - margin), y0 = std::max(0, y0 - margin);
+    x1 = std::min(tint.width() - 1, x1 + margin), y1 = std::min(tint.height() - 1, y1 + margin);
+    return {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
+  }
+  static Image cropped(const Image& im, const Box& b) { return to_image(im.cview().crop(b.x, b.y, b.w, b.h)); }
+  static void paste(const Image& part, const Box& b, Image& whole) {
+    for (int y = 0; y < b.h; ++y)
+      std::copy(part.pixel(0, y), part.pixel(0, y) + std::size_t(b.w) * part.channels(), whole.pixel(b.x, b.y + y));
+  }
+
   struct Filtered {
     Image image;
     std::vector<float> queries;  // 3 floats per edge sub-pixel, when asked

@@ -255,6 +255,68 @@ TEST(Proposed, ReflectionLevelIsFiltered) {
   EXPECT_LT(with, 0.3 * without) << "with " << with << " without " << without;
 }
 
+// A reflection level is filtered only over the box where its tint is non-zero, plus a margin
+// of 6 sigma_s (24 pixels at the default sigma_s 4): the level's layers outside it do not
+// change the output by a single bit, the box is the expected size, and a level whose tint is
+// zero everywhere is not filtered at all.
+TEST(Proposed, ReflectionLevelFilteredOnlyWhereVisible) {
+  AovFrame f = textured_plane(128, 96, 0.3f, nullptr);
+  const int w = f.width(), h = f.height();
+  const int mx0 = 40, my0 = 20, side = 24;  // the mirror: x 40..63, y 20..43
+  std::mt19937_64 rng(11);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (int y = my0; y < my0 + side; ++y)
+    for (int x = mx0; x < mx0 + side; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        f.layer(layer::at_level(1, layer::kDirect)).at(x, y, c) = std::max(0.0f, 0.7f * (1 + 0.3f * g(rng)));
+        f.layer(layer::at_level(1, layer::kIndirect)).at(x, y, c) = std::max(0.0f, 0.2f * (1 + 0.3f * g(rng)));
+        f.layer(layer::at_level(1, layer::kAlbedo)).at(x, y, c) = 0.5f;
+        f.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = 0.9f;
+        for (const char* base : {layer::kDirect, layer::kIndirect, layer::kAlbedo}) f.layer(base).at(x, y, c) = 0;
+      }
+      f.layer(layer::at_level(1, layer::kNormal)).at(x, y, 1) = 1;
+      f.layer(layer::at_level(1, layer::kDepth)).at(x, y, 0) = 3.0f;
+    }
+  // Level 2 present, its tint zero everywhere, its layers noise.
+  for (const char* base : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
+                           layer::kNormal, layer::kTint})
+    f.add(layer::at_level(2, base), 3);
+  f.add(layer::at_level(2, layer::kDepth), 1);
+  AovFrame noisy = f;
+  for (const char* base : {layer::kDirect, layer::kIndirect, layer::kNormal, layer::kDepth}) {
+    for (int k = 1; k <= 2; ++k) {
+      Image& im = noisy.layer(layer::at_level(k, base));
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const bool in_box = x >= mx0 - 24 && x < mx0 + side + 24 && y >= my0 - 24 && y < my0 + side + 24;
+          if (k == 1 && in_box) continue;
+          for (int c = 0; c < im.channels(); ++c) im.at(x, y, c) = 5.0f + 3.0f * g(rng);
+        }
+    }
+  }
+  auto m = MethodRegistry::global().create("proposed", {});
+  const MethodResult a = run_method(*m, {.frame = &f});
+  const MethodResult b = run_method(*m, {.frame = &noisy});
+  EXPECT_TRUE(a.image == b.image) << "level-1/2 layers outside the visible box changed the output";
+  // Box x 16..87, y 0..67 (clipped at the top): 72 x 68 of 128 x 96.
+  EXPECT_DOUBLE_EQ(a.stats.counters.at("level1_filtered_fraction"), 72.0 * 68.0 / (128.0 * 96.0));
+  EXPECT_DOUBLE_EQ(a.stats.counters.at("level2_filtered_fraction"), 0.0);
+  // And level 1 was filtered inside the box: the mirror's output is smoother than its input.
+  double in_var = 0, out_var = 0, in_mean = 0, out_mean = 0;
+  const int n = side * side;
+  std::vector<double> iv, ov;
+  for (int y = my0; y < my0 + side; ++y)
+    for (int x = mx0; x < mx0 + side; ++x) {
+      const double t = 0.9 * 0.5;
+      iv.push_back(t * (f.layer(layer::at_level(1, layer::kDirect)).at(x, y, 1) + f.layer(layer::at_level(1, layer::kIndirect)).at(x, y, 1)));
+      ov.push_back(a.image.at(x, y, 1));
+    }
+  for (int k = 0; k < n; ++k) in_mean += iv[k] / n, out_mean += ov[k] / n;
+  for (int k = 0; k < n; ++k) in_var += (iv[k] - in_mean) * (iv[k] - in_mean) / n, out_var += (ov[k] - out_mean) * (ov[k] - out_mean) / n;
+  EXPECT_LT(out_var, 0.3 * in_var) << "in " << in_var << " out " << out_var;
+  EXPECT_NEAR(out_mean, in_mean, 0.05 * in_mean);
+}
+
 // sigma_nlm and the outlier adjustment's strength are the values at 256 spp and follow the
 // frame's sample count (its metadata): sigma_nlm as (256 / spp)^nlm_spp_exponent, eq. 11's
 // strength as (spp / 256)^outlier_spp_exponent. A 16-spp frame is filtered exactly as a 256-spp
