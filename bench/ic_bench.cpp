@@ -13,7 +13,9 @@ namespace {
 
 using dnb::ic::Vec3;
 
-dnb::ic::IrradianceCache random_cache(int n) {
+// n records with random radii on the plane z = `z` of the unit cube (z = 0: on the scene's
+// bounds, as the walls of a Cornell box are).
+dnb::ic::IrradianceCache random_cache(int n, float z = 0.5f) {
   dnb::ic::IrradianceCache cache(Vec3(0.0f), Vec3(1.0f), {});
   std::mt19937 gen(5);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -21,7 +23,7 @@ dnb::ic::IrradianceCache random_cache(int n) {
     dnb::ic::GatherResult g;
     g.irradiance = Vec3(1.0f);
     g.harmonic_mean_distance = 0.01f + 0.05f * u(gen);
-    cache.insert(Vec3(u(gen), u(gen), 0.5f), Vec3(0, 0, 1), g, {0.0f, 1e30f});
+    cache.insert(Vec3(u(gen), u(gen), z), Vec3(0, 0, 1), g, {0.0f, 1e30f});
   }
   return cache;
 }
@@ -36,6 +38,17 @@ void BM_CacheInterpolate(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_CacheInterpolate)->Arg(1000)->Arg(100000);
+
+void BM_CacheInterpolateOnBounds(benchmark::State& state) {
+  auto cache = random_cache(int(state.range(0)), 0.0f);
+  std::mt19937 gen(9);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (auto _ : state) {
+    Vec3 e;
+    benchmark::DoNotOptimize(cache.interpolate(Vec3(u(gen), u(gen), 0.0f), Vec3(0, 0, 1), e));
+  }
+}
+BENCHMARK(BM_CacheInterpolateOnBounds)->Arg(1000)->Arg(100000);
 
 void BM_GatherReduction(benchmark::State& state) {
   // The gather's arithmetic alone (radiance from a closed-form callback): M x N = 16 x 48.

@@ -145,12 +145,10 @@ void IrradianceCache::place(std::size_t index) {
   const Record& r = records_[index];
   const float rad = r.placed_radius;
   const Vec3 blo = r.p - Vec3(rad), bhi = r.p + Vec3(rad);
-  const bool inside = blo.x >= lo_.x && blo.y >= lo_.y && blo.z >= lo_.z && bhi.x <= hi_.x && bhi.y <= hi_.y &&
-                      bhi.z <= hi_.z;
-  if (!inside) {  // partly outside the root: only the root is sure to be visited
-    root_->items.push_back(std::uint32_t(index));
-    return;
-  }
+  // A box reaching outside the root is placed like any other, in the nodes its inside part
+  // overlaps: for_each_near descends only for points inside the root and scans every record
+  // for the others. (Keeping such records at the root made every look-up scan them: in the
+  // Cornell box, whose walls are the scene's bounds, that was nearly every record.)
   auto rec = [&](auto&& self, Node& node, Vec3 lo, Vec3 hi, int depth) -> void {
     const float child_side = 0.5f * (hi.x - lo.x);
     if (depth == kMaxDepth || child_side < 2.0f * rad) {
@@ -176,9 +174,12 @@ void IrradianceCache::for_each_near(Vec3 p, F&& f) const {
   const Node* node = root_.get();
   Vec3 lo = lo_, hi = hi_;
   const bool inside = p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z;
+  if (!inside) {  // outside the scene's bounds (no hit point is): every record, once
+    for (std::size_t i = 0; i < records_.size(); ++i) f(records_[i], i);
+    return;
+  }
   while (node) {
     for (std::uint32_t i : node->items) f(records_[i], std::size_t(i));
-    if (!inside) return;
     const Vec3 mid = (lo + hi) * 0.5f;
     int c = (p.x >= mid.x ? 1 : 0) | (p.y >= mid.y ? 2 : 0) | (p.z >= mid.z ? 4 : 0);
     lo = {(c & 1) ? mid.x : lo.x, (c & 2) ? mid.y : lo.y, (c & 4) ? mid.z : lo.z};
