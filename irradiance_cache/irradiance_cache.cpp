@@ -34,13 +34,12 @@
 //   overture_stride      int    pixel stride of the first overture pass
 //   overture_min_stride  int    pixel stride of the last overture pass (strides halve)
 //   max_depth            int    path length of gather paths and specular chains (as the tracer)
-// Defaults: min spacing 2.5 px as pbrt-v2; the rest from a sweep on cornell-box at 256x192
-// against a 2048-spp reference (8-bit MSE): record noise dominated, so a finer gather (48 x 144
-// = 6912 paths, pbrt-v2 uses 4096) with a larger maximum spacing (30 px) beat more records with
-// coarser gathers at the same time. On conference and sponza (direct light from many lamps or a
-// half-occluded sky) the error is direct-light and edge noise: 64 camera samples x 2 light
-// samples beat 16 x 4 (conference 8-bit MSE 14.8 -> 8.3) and stay below the 256-spp render's
-// time at 256x192.
+// Defaults: min spacing 2.5 px as pbrt-v2; the gather 48 x 144 = 6912 paths (pbrt-v2 uses
+// 4096: record noise dominated with coarser gathers); direct_samples, max_pixel_spacing, kappa
+// and pixel_samples from scripts/sweep_params.py on the training room (not an evaluation scene;
+// 256x192, 256 spp, 2048-spp reference), each candidate held to the path-traced input's render
+// time: 16 light samples x 64 camera samples and 15 px beat the earlier 2 x 64 and 30 px
+// (8-bit MSE 6.88 -> 3.89; docs/method-defaults.md). Direct-light noise was the larger part.
 //   gradients            bool   gradient extrapolation and the gradient radius limit
 //   neighbor_clamp       bool   neighbour clamping of radii
 #include <algorithm>
@@ -314,13 +313,13 @@ MethodInfo irradiance_cache_method() {
       .params =
           {
               {"pixel_samples", ParamType::Int, "64", "camera samples per pixel (anti-aliasing)", 1.0, 65536.0},
-              {"direct_samples", ParamType::Int, "2", "light samples per camera sample for direct light", 1.0, 4096.0},
+              {"direct_samples", ParamType::Int, "16", "light samples per camera sample for direct light", 1.0, 4096.0},
               {"gather_theta_cells", ParamType::Int, "48", "M: polar strata of a record's hemisphere gather", 1.0, 1024.0},
               {"gather_phi_cells", ParamType::Int, "144", "N: azimuthal strata of a record's hemisphere gather", 1.0, 4096.0},
               {"kappa", ParamType::Float, "1", "Tabellion-Lamorlette accuracy (higher: more records)", 1e-3, 1e3},
               {"max_angle_degrees", ParamType::Float, "10", "normal deviation (degrees) at which the angle error is 1/kappa", 0.1, 90.0},
               {"min_pixel_spacing", ParamType::Float, "2.5", "lower bound of a record's radius, in projected pixels", 0.0, 1e4},
-              {"max_pixel_spacing", ParamType::Float, "30", "upper bound of a record's radius, in projected pixels", 0.0, 1e6},
+              {"max_pixel_spacing", ParamType::Float, "15", "upper bound of a record's radius, in projected pixels", 0.0, 1e6},
               {"overture_stride", ParamType::Int, "32", "pixel stride of the first overture pass", 1.0, 4096.0},
               {"overture_min_stride", ParamType::Int, "4", "pixel stride of the last overture pass (strides halve)", 1.0, 4096.0},
               {"max_depth", ParamType::Int, "8", "path length of gather paths and specular chains", 1.0, 64.0},
