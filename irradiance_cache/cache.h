@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "tracer/math.h"
@@ -22,6 +23,42 @@
 namespace dnb::ic {
 
 using rt::Vec3;
+
+// Stratified numbers for the n light samples of one shading point's direct light: u0 (which
+// light) in n strata, (u1, u2) (where on the light, or which sky direction) in a k x k jittered
+// grid when n = k^2 (else u1 in n strata, u2 free), the pairing of the two decorrelated by a
+// random permutation. Same expectation as independent samples, lower variance where a light is
+// partly hidden (a penumbra, sky through a window). `rng()` returns a uniform float in [0, 1).
+class LightStrata {
+ public:
+  struct Numbers {
+    float u0, u1, u2;
+  };
+  explicit LightStrata(int n) : n_(n), k_(1) {
+    while ((k_ + 1) * (k_ + 1) <= n_) ++k_;
+  }
+  // The d-th sample's numbers, d = 0 .. n-1 in order (d = 0 draws a new permutation).
+  template <typename Rng>
+  Numbers next(int d, Rng&& rng) {
+    if (d == 0) {
+      perm_.resize(std::size_t(n_));
+      for (int i = 0; i < n_; ++i) perm_[std::size_t(i)] = i;
+      for (int i = n_ - 1; i > 0; --i) {
+        const int j = int(rng() * float(i + 1));
+        std::swap(perm_[std::size_t(i)], perm_[std::size_t(j < i ? j : i)]);
+      }
+    }
+    const float j0 = rng(), j1 = rng(), j2 = rng();
+    const int c = perm_[std::size_t(d)];
+    const float u0 = (float(d) + j0) / float(n_);
+    if (k_ * k_ == n_) return {u0, (float(c % k_) + j1) / float(k_), (float(c / k_) + j2) / float(k_)};
+    return {u0, (float(c) + j1) / float(n_), j2};
+  }
+
+ private:
+  int n_, k_;
+  std::vector<int> perm_;
+};
 
 // Radiance arriving from one gather direction and the distance to what it came from
 // (infinity when the ray escaped).

@@ -3,7 +3,8 @@
 // with the shared tracer:
 //   F = (D + I) * T + R + E
 // - D: next-event estimation of direct light at the first diffuse hit, `direct_samples` light
-//   samples per pixel sample (PathTracer::direct_white), like the tracer's D.
+//   samples per pixel sample (PathTracer::direct_white), like the tracer's D, stratified over
+//   the lights and their surfaces (ic::LightStrata).
 // - I: indirect diffuse light from the irradiance cache (irradiance_cache/cache.h): records from
 //   stratified hemisphere gathers of paths traced by PathTracer::incoming (their first-hit
 //   emission excluded: that light is in D), interpolated with gradients.
@@ -198,6 +199,7 @@ class IrradianceCacheRenderer final : public Method {
         rt::enable_flush_to_zero();
         IrradianceCache local(scene.bounds_min(), scene.bounds_max(), cache_);
         std::vector<ShadePoint> pts;
+        ic::LightStrata strata(direct_samples_);  // direct light: stratified light samples
         std::uint64_t tile_rays = 0;
         const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
         for (int y = y0; y < std::min(H, y0 + kTile); ++y)
@@ -217,7 +219,10 @@ class IrradianceCacheRenderer final : public Method {
                 const ShadePoint& sp = pts[i];
                 rt::PathContext ctx{rng};
                 Vec3 direct(0.0f);
-                for (int d = 0; d < direct_samples_; ++d) direct += tracer.direct_white(sp.hit, ctx);
+                for (int d = 0; d < direct_samples_; ++d) {
+                  const ic::LightStrata::Numbers u = strata.next(d, [&] { return rng.next(); });
+                  direct += tracer.direct_white(sp.hit, ctx, u.u0, u.u1, u.u2);
+                }
                 direct *= 1.0f / float(direct_samples_);
                 tile_rays += ctx.rays;
                 Vec3 wsum(0.0f), e;

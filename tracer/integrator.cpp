@@ -79,6 +79,10 @@ Vec3 PathTracer::nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ct
 Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx) const {
   Sampler& s = ctx.sampler;
   float u0 = s.next(), u1 = s.next(), u2 = s.next();
+  return direct_white(hit, ctx, u0, u1, u2);
+}
+
+Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx, float u0, float u1, float u2) const {
   LightSample ls;
   if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return Vec3(0.0f);
   float cos_s = dot(ls.wi, hit.ns);

@@ -124,6 +124,9 @@ class PathTracer {
   // emitters (direct light only): one light sample, visibility tested, no MIS. The direct
   // irradiance is pi times this. Multiply by the albedo for the actual surface.
   Vec3 direct_white(const SurfaceHit& hit, PathContext& ctx) const;
+  // The same with the light sample's numbers given: u0 picks the light, (u1, u2) the point on
+  // it (for stratified sets of light samples).
+  Vec3 direct_white(const SurfaceHit& hit, PathContext& ctx, float u0, float u1, float u2) const;
 
  private:
   // The MIS-weighted light-sample term of direct light at a base (diffuse) lobe chosen with
