@@ -200,6 +200,7 @@ class IrradianceCacheRenderer final : public Method {
         IrradianceCache local(scene.bounds_min(), scene.bounds_max(), cache_);
         std::vector<ShadePoint> pts;
         ic::LightStrata strata(direct_samples_);  // direct light: stratified light samples
+        std::vector<std::array<float, 3>> light_u;
         std::uint64_t tile_rays = 0;
         const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
         for (int y = y0; y < std::min(H, y0 + kTile); ++y)
@@ -218,11 +219,12 @@ class IrradianceCacheRenderer final : public Method {
               for (std::size_t i = 0; i < pts.size(); ++i) {
                 const ShadePoint& sp = pts[i];
                 rt::PathContext ctx{rng};
-                Vec3 direct(0.0f);
+                light_u.resize(std::size_t(direct_samples_));
                 for (int d = 0; d < direct_samples_; ++d) {
                   const ic::LightStrata::Numbers u = strata.next(d, [&] { return rng.next(); });
-                  direct += tracer.direct_white(sp.hit, ctx, u.u0, u.u1, u.u2);
+                  light_u[std::size_t(d)] = {u.u0, u.u1, u.u2};
                 }
+                Vec3 direct = tracer.direct_white_sum(sp.hit, ctx, light_u.data(), direct_samples_);
                 direct *= 1.0f / float(direct_samples_);
                 tile_rays += ctx.rays;
                 Vec3 wsum(0.0f), e;

@@ -91,6 +91,44 @@ Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx, float u0,
   return ls.radiance * (kInvPi * cos_s / ls.pdf);
 }
 
+Vec3 PathTracer::direct_white_sum(const SurfaceHit& hit, PathContext& ctx, const std::array<float, 3>* u,
+                                  int n) const {
+  // Light samples first, their shadow rays traced as one batch, then the sum in sample order
+  // (so that it equals the one-by-one sum bit for bit). Sphere-light samples are tested one by
+  // one (visible(): the first hit must be the light itself).
+  thread_local std::vector<Ray> rays;
+  thread_local std::vector<int> ray_of;  // per sample: its index in `rays`, -1 when none
+  thread_local std::vector<Vec3> contrib;
+  thread_local std::vector<std::uint8_t> hidden;
+  rays.clear();
+  ray_of.assign(std::size_t(n), -1);
+  contrib.assign(std::size_t(n), Vec3(0.0f));
+  for (int i = 0; i < n; ++i) {
+    LightSample ls;
+    if (!scene_.sample_light(hit.p, hit.ns, u[i][0], u[i][1], u[i][2], ls)) continue;
+    float cos_s = dot(ls.wi, hit.ns);
+    if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) continue;
+    const Vec3 c = ls.radiance * (kInvPi * cos_s / ls.pdf);
+    if (ls.sphere_mesh >= 0) {
+      if (visible(hit, ls, ctx)) contrib[std::size_t(i)] = c;
+      continue;
+    }
+    ray_of[std::size_t(i)] = int(rays.size());
+    rays.push_back(Ray{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f});
+    contrib[std::size_t(i)] = c;
+  }
+  hidden.resize(rays.size());
+  if (!rays.empty()) scene_.occluded(rays.data(), int(rays.size()), hidden.data());
+  ctx.rays += rays.size();
+  Vec3 sum(0.0f);
+  for (int i = 0; i < n; ++i) {
+    const int r = ray_of[std::size_t(i)];
+    if (r >= 0 && hidden[std::size_t(r)]) continue;
+    sum += contrib[std::size_t(i)];
+  }
+  return sum;
+}
+
 PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, Vec3 path_weight,
                                PathContext& ctx) const {
   PathRadiance out;

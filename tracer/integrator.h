@@ -58,6 +58,8 @@
 // Scene, Camera, SurfaceHit, Material and the light queries are documented in tracer/scene.h.
 #pragma once
 
+#include <array>
+
 #include <cstdint>
 
 #include "tracer/math.h"
@@ -127,6 +129,9 @@ class PathTracer {
   // The same with the light sample's numbers given: u0 picks the light, (u1, u2) the point on
   // it (for stratified sets of light samples).
   Vec3 direct_white(const SurfaceHit& hit, PathContext& ctx, float u0, float u1, float u2) const;
+  // The sum of n such estimates, u[i] = {u0, u1, u2} of sample i, their shadow rays traced
+  // together (Scene::occluded on n rays). Equal to summing direct_white(hit, ctx, u[i]...).
+  Vec3 direct_white_sum(const SurfaceHit& hit, PathContext& ctx, const std::array<float, 3>* u, int n) const;
 
  private:
   // The MIS-weighted light-sample term of direct light at a base (diffuse) lobe chosen with

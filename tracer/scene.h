@@ -190,6 +190,10 @@ class Scene {
   bool intersect(const rt::Ray& ray, rt::SurfaceHit& hit) const;
   // True when something blocks the segment origin + t dir, t in (0, tmax).
   bool occluded(const rt::Ray& ray) const;
+  // occluded() for n rays at once (Embree packets of 16): hidden[i] = 1 when rays[i] is
+  // blocked, else 0. Shadow rays from one point towards the lights are coherent, and a packet
+  // traverses them together.
+  void occluded(const rt::Ray* rays, int n, std::uint8_t* hidden) const;
   // Radiance arriving along a ray that escapes the scene (sky plus the sun's disc).
   rt::Vec3 escaped_radiance(rt::Vec3 dir) const;
 

@@ -350,5 +350,41 @@ TEST(Render, BadSettingsAreInputErrors) {
   EXPECT_THROW(render_frame(*scene, s), InputError);
 }
 
+// The batched direct light (shadow rays traced as Embree packets) equals the one-by-one sum
+// bit for bit, on scenes with an area light (cornell-box) and with a sphere lamp, the sun and
+// the sky through a window (bedroom); and it sees shadows: some sums are partial.
+TEST(DirectLight, BatchedShadowRaysEqualOneByOne) {
+  for (const char* name : {"cornell-box", "bedroom"}) {
+    auto scene = load_scene(name);
+    rt::PathTracer tracer(*scene, {});
+    int compared = 0, partial = 0;
+    for (int i = 0; i < 400; ++i) {
+      rt::Sampler rng(3, std::uint64_t(i), 0);
+      rt::SurfaceHit hit;
+      if (!scene->intersect(scene->camera.generate_ray(rng.next() * 64, rng.next() * 48, 64, 48), hit)) continue;
+      std::vector<std::array<float, 3>> u(21);  // more than one packet of 16
+      for (auto& v : u) v = {rng.next(), rng.next(), rng.next()};
+      rt::Sampler a(1, 1, 1), b(1, 1, 1);
+      rt::PathContext ca{a}, cb{b};
+      Vec3 one(0.0f);
+      int lit = 0;
+      for (const auto& v : u) {
+        const Vec3 c = tracer.direct_white(hit, ca, v[0], v[1], v[2]);
+        lit += rt::is_black(c) ? 0 : 1;
+        one += c;
+      }
+      const Vec3 batch = tracer.direct_white_sum(hit, cb, u.data(), int(u.size()));
+      ASSERT_EQ(one.x, batch.x) << name << " sample " << i;
+      ASSERT_EQ(one.y, batch.y);
+      ASSERT_EQ(one.z, batch.z);
+      EXPECT_EQ(ca.rays, cb.rays);
+      ++compared;
+      partial += lit > 0 && lit < int(u.size());
+    }
+    EXPECT_GT(compared, 250) << name;  // camera rays that hit something (286 and more)
+    EXPECT_GT(partial, 10) << name;  // penumbrae and partly hidden lights were exercised
+  }
+}
+
 }  // namespace
 }  // namespace dnb
