@@ -362,7 +362,6 @@ class AmRun {
       }
     });
     acc_ = Planes(W_, H_, C_ + 1);
-    w_ = pooled(std::size_t(W_) * H_, 0.0f);
     label_.assign(std::size_t(W_) * H_, 1);
     if (s.adjust_outliers) min_d2_ = pooled(std::size_t(W_) * H_, INFINITY);
 
@@ -389,7 +388,6 @@ class AmRun {
   }
 
   ~AmRun() {
-    BufferPool::get().give(std::move(w_));
     BufferPool::get().give(std::move(min_d2_));
   }
   AmRun(const AmRun&) = delete;
@@ -399,7 +397,7 @@ class AmRun {
     // The first manifold: the guide low-passed at full resolution.
     std::vector<float> a_first(std::max(W_, 1), float(std::exp(-std::sqrt(2.0) / s_.sigma_s)));
     recursive_filter_vertical(eta_full_, 0, D_, [&](int) { return a_first.data(); });
-    node(1, 1, &eta_full_, Planes());
+    tree();
     eta_full_ = Planes();
 
     Image out(W_, H_, C_);
@@ -553,58 +551,108 @@ class AmRun {
   }
 
   // One manifold: splat, blur, slice, and (above the leaves) split into two children.
-  void node(int id, int level, const Planes* eta_full, Planes eta_small) {
+  // One manifold of the tree: its id (children 2 id and 2 id + 1), its eta on the reduced grid
+  // (the root's also at full resolution), and what its level's passes make of it.
+  struct Node {
+    int id = 1;
+    const Planes* eta_full = nullptr;
+    Planes eta_small;
+    Planes splat;                  // C + 1 planes on the reduced grid: the splat, then blurred
+    std::vector<double> cov_rows;  // per reduced row, the D x D covariance sums (split levels)
+    std::vector<float> v;          // the split direction
+    std::vector<float> w;          // every pixel's weight for this manifold, full resolution
+    Planes kids[2];                // the children's (1 - w)-weighted guide splats and weights
+  };
+  // Manifolds of one level processed together: the full-resolution passes are bound by
+  // reading the guide, the source and the accumulators from memory, so each pass reads them
+  // once for up to kGroup manifolds instead of once per manifold (15 manifolds: 4 reads of the
+  // guide per pass instead of 15). The group's weights are kept at full resolution meanwhile.
+  static constexpr int kGroup = 8;
+
+  // Builds and slices the whole tree, level by level (the same manifolds as their recursive
+  // algorithm 1; only the order in which slices are summed differs).
+  void tree() {
+    std::vector<Node> nodes(1);
+    nodes[0].eta_full = &eta_full_;
+    for (int level = 1; !nodes.empty(); ++level) {
+      std::vector<Node> next;
+      for (std::size_t first = 0; first < nodes.size(); first += kGroup) {
+        const std::size_t last = std::min(nodes.size(), first + kGroup);
+        group(nodes.data() + first, int(last - first), level, next);
+      }
+      nodes = std::move(next);
+    }
+  }
+
+  Scratch& scratch(int m) {
+    Scratch& s = scratch();
+    s.colsum.resize(std::size_t(m) * std::max(C_ + 1, 2 * (D_ + 1)) * W_);
+    s.cov.resize(std::size_t(m) * D_ * D_ * kLanes);
+    return s;
+  }
+
+  // Splat, blur, slice and (above the leaves) split the m manifolds nodes[0 .. m); their
+  // children go to `next`.
+  void group(Node* nodes, int m, int level, std::vector<Node>& next) {
     const bool split = level < height_;
     const int DD = D_ * D_;
-    Planes splat(sw_, sh_, C_ + 1);
-    std::vector<double> cov_rows(split ? std::size_t(sh_) * DD : 0, 0.0);
+    for (int k = 0; k < m; ++k) {
+      nodes[k].splat = Planes(sw_, sh_, C_ + 1);
+      nodes[k].cov_rows.assign(split ? std::size_t(sh_) * DD : 0, 0.0);
+      nodes[k].w = BufferPool::get().take(std::size_t(W_) * H_);
+      nodes[k].w.resize(std::size_t(W_) * H_);
+    }
+    const std::size_t splat_cols = std::size_t(C_ + 1) * W_;
 
-    // Pass 1 (full resolution): distance to the manifold, weight, splat, covariance. One task
+    // Pass 1 (full resolution): distance to each manifold, weight, splat, covariance. One task
     // per reduced-grid row: its df full rows are summed per column first (vectorised), then
     // per block.
     tbb::parallel_for(0, sh_, [&](int sy) {
-      Scratch& sc = scratch();
+      Scratch& sc = scratch(m);
       const int ya = sy * df_, yb = std::min(H_, ya + df_);
-      float* col = sc.colsum.data();
-      std::fill(col, col + std::size_t(C_ + 1) * W_, 0.0f);
-      if (split) std::fill(sc.cov.begin(), sc.cov.end(), 0.0f);
+      std::fill(sc.colsum.begin(), sc.colsum.begin() + std::ptrdiff_t(m * splat_cols), 0.0f);
+      if (split) std::fill(sc.cov.begin(), sc.cov.begin() + std::ptrdiff_t(std::size_t(m) * DD * kLanes), 0.0f);
       for (int y = ya; y < yb; ++y) {
-        eta_row(eta_full, eta_small, y, sc.eta.data(), sc.tmp.data());
-        std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
-        for (int c = 0; c < D_; ++c) {
-          const float* g = guide_.row(c, y);
-          const float* e = sc.eta.data() + std::size_t(c) * W_;
-          float* X = sc.x.data() + std::size_t(c) * W_;
-          float* d2 = sc.d2.data();
-          for (int x = 0; x < W_; ++x) {
-            X[x] = g[x] - e[x];
-            d2[x] += X[x] * X[x];
+        const std::int32_t* lab = label_.data() + std::size_t(y) * W_;
+        for (int k = 0; k < m; ++k) {
+          const Node& n = nodes[k];
+          float* col = sc.colsum.data() + std::size_t(k) * splat_cols;
+          eta_row(n.eta_full, n.eta_small, y, sc.eta.data(), sc.tmp.data());
+          std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
+          for (int c = 0; c < D_; ++c) {
+            const float* g = guide_.row(c, y);
+            const float* e = sc.eta.data() + std::size_t(c) * W_;
+            float* X = sc.x.data() + std::size_t(c) * W_;
+            float* d2 = sc.d2.data();
+            for (int x = 0; x < W_; ++x) {
+              X[x] = g[x] - e[x];
+              d2[x] += X[x] * X[x];
+            }
           }
-        }
-        float* wrow = w_.data() + std::size_t(y) * W_;
-        for (int x = 0; x < W_; ++x) sc.w[x] = -sc.d2[x] * inv_sr2_;
-        cv::hal::exp32f(sc.w.data(), wrow, W_);
-        if (s_.adjust_outliers) {
-          float* m = min_d2_.data() + std::size_t(y) * W_;
-          for (int x = 0; x < W_; ++x) m[x] = std::min(m[x], sc.d2[x]);
-        }
-        for (int c = 0; c < C_; ++c) {
-          float* o = col + std::size_t(c) * W_;
-          const float* f = src_.row(c, y);
-          for (int x = 0; x < W_; ++x) o[x] += wrow[x] * f[x];
-        }
-        float* o = col + std::size_t(C_) * W_;
-        for (int x = 0; x < W_; ++x) o[x] += wrow[x];
-        if (split) {
+          float* wrow = nodes[k].w.data() + std::size_t(y) * W_;
+          for (int x = 0; x < W_; ++x) sc.w[x] = -sc.d2[x] * inv_sr2_;
+          cv::hal::exp32f(sc.w.data(), wrow, W_);
+          if (s_.adjust_outliers) {
+            float* md = min_d2_.data() + std::size_t(y) * W_;
+            for (int x = 0; x < W_; ++x) md[x] = std::min(md[x], sc.d2[x]);
+          }
+          for (int c = 0; c < C_; ++c) {
+            float* o = col + std::size_t(c) * W_;
+            const float* f = src_.row(c, y);
+            for (int x = 0; x < W_; ++x) o[x] += wrow[x] * f[x];
+          }
+          float* o = col + std::size_t(C_) * W_;
+          for (int x = 0; x < W_; ++x) o[x] += wrow[x];
+          if (!split) continue;
           // Uncentred covariance of (g - eta) over the node's cluster: X is relative to the
           // manifold, itself the cluster's weighted mean (their algorithm 1, step 2). Pixels
           // outside the cluster get X = 0.
-          const std::int32_t* lab = label_.data() + std::size_t(y) * W_;
           for (int c = 0; c < D_; ++c) {
             float* X = sc.x.data() + std::size_t(c) * W_;
-            for (int x = 0; x < W_; ++x) X[x] = lab[x] == id ? X[x] : 0.0f;
+            for (int x = 0; x < W_; ++x) X[x] = lab[x] == n.id ? X[x] : 0.0f;
           }
           const int body = W_ / kLanes * kLanes;
+          float* cov = sc.cov.data() + std::size_t(k) * DD * kLanes;
           for (int i = 0; i < D_; ++i) {
             const float* Xi = sc.x.data() + std::size_t(i) * W_;
             for (int j = i; j < D_; ++j) {
@@ -615,141 +663,160 @@ class AmRun {
               for (int x = 0; x < body; x += kLanes)
                 for (int l = 0; l < kLanes; ++l) acc[l] += Xi[x + l] * Xj[x + l];
               for (int x = body; x < W_; ++x) acc[x - body] += Xi[x] * Xj[x];
-              float* lanes = sc.cov.data() + std::size_t(i * D_ + j) * kLanes;
+              float* lanes = cov + std::size_t(i * D_ + j) * kLanes;
               for (int l = 0; l < kLanes; ++l) lanes[l] += acc[l];
             }
           }
         }
       }
       const float inv_rows = 1.0f / float(yb - ya);
-      for (int c = 0; c <= C_; ++c) reduce_columns(col + std::size_t(c) * W_, splat.row(c, sy), inv_rows);
-      if (split)
-        for (int k = 0; k < DD; ++k) {
+      for (int k = 0; k < m; ++k) {
+        const float* col = sc.colsum.data() + std::size_t(k) * splat_cols;
+        for (int c = 0; c <= C_; ++c) reduce_columns(col + std::size_t(c) * W_, nodes[k].splat.row(c, sy), inv_rows);
+        if (!split) continue;
+        const float* cov = sc.cov.data() + std::size_t(k) * DD * kLanes;
+        for (int e = 0; e < DD; ++e) {
           double t = 0;
-          for (int l = 0; l < kLanes; ++l) t += sc.cov[std::size_t(k) * kLanes + l];
-          cov_rows[std::size_t(sy) * DD + k] = t;
+          for (int l = 0; l < kLanes; ++l) t += cov[std::size_t(e) * kLanes + l];
+          nodes[k].cov_rows[std::size_t(sy) * DD + e] = t;
         }
-    });
-
-    if (eta_full) eta_small = downsample(*eta_full, D_);
-
-    // Blur along the manifold: domain-transform recursive filter at the reduced resolution.
-    blur(splat, eta_small);
-
-    // Point queries: the same slice with the query's guide value (each query its own sums, so
-    // the parallel split does not change them).
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries_.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t q = r.begin(); q != r.end(); ++q) {
-        const AmQuery& Q = queries_[q];
-        const Site& t = qsite_[q];
-        double d2 = 0;
-        for (int c = 0; c < D_; ++c) {
-          const float e = eta_full ? eta_full->row(c, Q.y)[Q.x] : sample(eta_small, c, t);
-          const double d = double(Q.guide[c]) - e;
-          d2 += d * d;
-        }
-        // The weight in float, as the image's pixels get it (exp32f); the sums stay double.
-        const double wq = std::exp(float(-d2 * inv_sr2_));
-        for (int c = 0; c <= C_; ++c) qacc_[q * (C_ + 1) + c] += wq * sample(splat, c, t);
-        qmin_[q] = std::min(qmin_[q], float(d2));
       }
     });
 
-    // The split direction: leading eigenvector of the cluster's covariance (power iteration).
-    std::vector<float> v(D_, 0.0f);
-    if (split) {
+    for (int k = 0; k < m; ++k) {
+      Node& n = nodes[k];
+      if (n.eta_full) n.eta_small = downsample(*n.eta_full, D_);
+      // Blur along the manifold: domain-transform recursive filter at the reduced resolution.
+      blur(n.splat, n.eta_small);
+      slice_queries(n);
+      if (!split) continue;
+      // The split direction: leading eigenvector of the cluster's covariance (power iteration).
       std::vector<double> cov(DD, 0.0);
       for (int sy = 0; sy < sh_; ++sy)
-        for (int k = 0; k < DD; ++k) cov[k] += cov_rows[std::size_t(sy) * DD + k];
+        for (int e = 0; e < DD; ++e) cov[e] += n.cov_rows[std::size_t(sy) * DD + e];
       for (int i = 0; i < D_; ++i)
         for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
-      v = am_detail::split_direction(cov, D_, seed_, id, s_.pca_iterations);
+      n.v = am_detail::split_direction(cov, D_, seed_, n.id, s_.pca_iterations);
+      n.kids[0] = Planes(sw_, sh_, D_ + 1);
+      n.kids[1] = Planes(sw_, sh_, D_ + 1);
     }
 
-    // Pass 2 (full resolution): slice; above the leaves also split the cluster and splat the
+    // Pass 2 (full resolution): slice; above the leaves also split each cluster and splat the
     // children's (1 - w)-weighted guide (their eqs. 7-8).
-    Planes kids[2];
-    if (split) {
-      kids[0] = Planes(sw_, sh_, D_ + 1);
-      kids[1] = Planes(sw_, sh_, D_ + 1);
-    }
-    const int left = 2 * id, right = 2 * id + 1;
+    const std::size_t kid_cols = std::size_t(2 * (D_ + 1)) * W_;  // left child, then right
     tbb::parallel_for(0, sh_, [&](int sy) {
-      Scratch& sc = scratch();
+      Scratch& sc = scratch(m);
       const int ya = sy * df_, yb = std::min(H_, ya + df_);
-      float* col = sc.colsum.data();  // 2 (D + 1) column sums: left child, then right
-      if (split) std::fill(col, col + std::size_t(2 * (D_ + 1)) * W_, 0.0f);
+      if (split) std::fill(sc.colsum.begin(), sc.colsum.begin() + std::ptrdiff_t(m * kid_cols), 0.0f);
       for (int y = ya; y < yb; ++y) {
-        upsample_rows(splat, 0, C_ + 1, y, sc.blur.data(), sc.tmp.data());
-        const float* wrow = w_.data() + std::size_t(y) * W_;
-        for (int c = 0; c <= C_; ++c) {
-          float* a = acc_.row(c, y);
-          const float* b = sc.blur.data() + std::size_t(c) * W_;
-          for (int x = 0; x < W_; ++x) a[x] += wrow[x] * b[x];
-        }
-        if (!split) continue;
-        eta_row(eta_full, eta_small, y, sc.eta.data(), sc.tmp.data());
-        float* dot = sc.d2.data();
-        std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
-        for (int c = 0; c < D_; ++c) {
-          const float* g = guide_.row(c, y);
-          const float* e = sc.eta.data() + std::size_t(c) * W_;
-          const float vc = v[c];
-          for (int x = 0; x < W_; ++x) dot[x] += vc * (g[x] - e[x]);
-        }
         std::int32_t* lab = label_.data() + std::size_t(y) * W_;
-        float* tl = sc.w.data();    // (1 - w) for pixels going left, else 0
-        float* tr = sc.x.data();    // the same for pixels going right
-        // Branch-free and of one element width (32-bit labels), so the loop vectorises.
-        for (int x = 0; x < W_; ++x) {
-          const std::int32_t mine = lab[x] == id;
-          const std::int32_t go_left = dot[x] < 0;
-          const float theta = 1.0f - wrow[x];
-          tl[x] = (mine & go_left) ? theta : 0.0f;
-          tr[x] = (mine & (go_left ^ 1)) ? theta : 0.0f;
-          lab[x] = mine ? (go_left ? left : right) : lab[x];
-        }
-        for (int c = 0; c <= D_; ++c) {
-          float* ol = col + std::size_t(c) * W_;
-          float* orr = col + std::size_t(D_ + 1 + c) * W_;
-          if (c < D_) {
+        for (int k = 0; k < m; ++k) {
+          const Node& n = nodes[k];
+          upsample_rows(n.splat, 0, C_ + 1, y, sc.blur.data(), sc.tmp.data());
+          const float* wrow = n.w.data() + std::size_t(y) * W_;
+          for (int c = 0; c <= C_; ++c) {
+            float* a = acc_.row(c, y);
+            const float* b = sc.blur.data() + std::size_t(c) * W_;
+            for (int x = 0; x < W_; ++x) a[x] += wrow[x] * b[x];
+          }
+          if (!split) continue;
+          eta_row(n.eta_full, n.eta_small, y, sc.eta.data(), sc.tmp.data());
+          float* dot = sc.d2.data();
+          std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
+          for (int c = 0; c < D_; ++c) {
             const float* g = guide_.row(c, y);
-            for (int x = 0; x < W_; ++x) {
-              ol[x] += tl[x] * g[x];
-              orr[x] += tr[x] * g[x];
-            }
-          } else {
-            for (int x = 0; x < W_; ++x) {
-              ol[x] += tl[x];
-              orr[x] += tr[x];
+            const float* e = sc.eta.data() + std::size_t(c) * W_;
+            const float vc = n.v[c];
+            for (int x = 0; x < W_; ++x) dot[x] += vc * (g[x] - e[x]);
+          }
+          float* tl = sc.w.data();  // (1 - w) for pixels going left, else 0
+          float* tr = sc.x.data();  // the same for pixels going right
+          const std::int32_t id = n.id, left = 2 * id, right = 2 * id + 1;
+          // Branch-free and of one element width (32-bit labels), so the loop vectorises. The
+          // children's ids belong to the next level, so no other node of this group sees them.
+          for (int x = 0; x < W_; ++x) {
+            const std::int32_t mine = lab[x] == id;
+            const std::int32_t go_left = dot[x] < 0;
+            const float theta = 1.0f - wrow[x];
+            tl[x] = (mine & go_left) ? theta : 0.0f;
+            tr[x] = (mine & (go_left ^ 1)) ? theta : 0.0f;
+            lab[x] = mine ? (go_left ? left : right) : lab[x];
+          }
+          float* col = sc.colsum.data() + std::size_t(k) * kid_cols;
+          for (int c = 0; c <= D_; ++c) {
+            float* ol = col + std::size_t(c) * W_;
+            float* orr = col + std::size_t(D_ + 1 + c) * W_;
+            if (c < D_) {
+              const float* g = guide_.row(c, y);
+              for (int x = 0; x < W_; ++x) {
+                ol[x] += tl[x] * g[x];
+                orr[x] += tr[x] * g[x];
+              }
+            } else {
+              for (int x = 0; x < W_; ++x) {
+                ol[x] += tl[x];
+                orr[x] += tr[x];
+              }
             }
           }
         }
       }
       if (!split) return;
       const float inv_rows = 1.0f / float(yb - ya);
-      for (int c = 0; c <= D_; ++c) {
-        reduce_columns(col + std::size_t(c) * W_, kids[0].row(c, sy), inv_rows);
-        reduce_columns(col + std::size_t(D_ + 1 + c) * W_, kids[1].row(c, sy), inv_rows);
+      for (int k = 0; k < m; ++k) {
+        const float* col = sc.colsum.data() + std::size_t(k) * kid_cols;
+        for (int c = 0; c <= D_; ++c) {
+          reduce_columns(col + std::size_t(c) * W_, nodes[k].kids[0].row(c, sy), inv_rows);
+          reduce_columns(col + std::size_t(D_ + 1 + c) * W_, nodes[k].kids[1].row(c, sy), inv_rows);
+        }
       }
     });
-    if (!split) return;
 
-    for (int k = 0; k < 2; ++k) {
-      Planes& p = kids[k];
-      low_pass(p, 0, D_ + 1, s_.sigma_s / df_);
-      Planes eta(sw_, sh_, D_);
-      const float* den = p.plane(D_);
-      for (int c = 0; c < D_; ++c) {
-        const float* num = p.plane(c);
-        const float* parent = eta_small.plane(c);
-        float* e = eta.plane(c);
-        // Where the child's cluster left no weight, it keeps its parent's manifold.
-        for (std::size_t i = 0; i < std::size_t(sw_) * sh_; ++i) e[i] = den[i] > 1e-20f ? num[i] / den[i] : parent[i];
+    for (int k = 0; k < m; ++k) {
+      Node& n = nodes[k];
+      BufferPool::get().give(std::move(n.w));
+      n.splat = Planes();
+      if (!split) continue;
+      for (int c2 = 0; c2 < 2; ++c2) {
+        Planes& p = n.kids[c2];
+        low_pass(p, 0, D_ + 1, s_.sigma_s / df_);
+        Node child;
+        child.id = 2 * n.id + c2;
+        child.eta_small = Planes(sw_, sh_, D_);
+        const float* den = p.plane(D_);
+        for (int c = 0; c < D_; ++c) {
+          const float* num = p.plane(c);
+          const float* parent = n.eta_small.plane(c);
+          float* e = child.eta_small.plane(c);
+          // Where the child's cluster left no weight, it keeps its parent's manifold.
+          for (std::size_t i = 0; i < std::size_t(sw_) * sh_; ++i) e[i] = den[i] > 1e-20f ? num[i] / den[i] : parent[i];
+        }
+        p = Planes();
+        next.push_back(std::move(child));
       }
-      p = Planes();
-      node(k == 0 ? left : right, level + 1, nullptr, std::move(eta));
+      n.eta_small = Planes();
     }
+  }
+
+  // Point queries: the same slice with the query's guide value (each query its own sums, so
+  // the parallel split does not change them).
+  void slice_queries(const Node& n) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries_.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t q = r.begin(); q != r.end(); ++q) {
+        const AmQuery& Q = queries_[q];
+        const Site& t = qsite_[q];
+        double d2 = 0;
+        for (int c = 0; c < D_; ++c) {
+          const float e = n.eta_full ? n.eta_full->row(c, Q.y)[Q.x] : sample(n.eta_small, c, t);
+          const double d = double(Q.guide[c]) - e;
+          d2 += d * d;
+        }
+        // The weight in float, as the image's pixels get it (exp32f); the sums stay double.
+        const double wq = std::exp(float(-d2 * inv_sr2_));
+        for (int c = 0; c <= C_; ++c) qacc_[q * (C_ + 1) + c] += wq * sample(n.splat, c, t);
+        qmin_[q] = std::min(qmin_[q], float(d2));
+      }
+    });
   }
 
   Planes downsample(const Planes& full, int n) const {
@@ -814,7 +881,7 @@ class AmRun {
   float inv_sr2_ = 1;
   std::uint64_t seed_ = 0;
   Planes guide_, src_, acc_, eta_full_;  // eta_full_: the first manifold, full resolution
-  std::vector<float> w_, min_d2_;
+  std::vector<float> min_d2_;
   std::vector<std::int32_t> label_;
   std::vector<int> x0_, x1_, y0_, y1_;
   std::vector<float> fx_, fy_, frac_;

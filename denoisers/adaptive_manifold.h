@@ -28,7 +28,9 @@
 // hash of the guide's samples (every 61st float) and the tree node's index, so the same input
 // gives the same output; all parallel loops write disjoint outputs (splat and split accumulate
 // per reduced-resolution row, covariance sums per row are added in row order), so the result
-// does not depend on the thread count.
+// does not depend on the thread count. The tree is built level by level, the full-resolution
+// passes of up to 8 manifolds of a level sharing one read of the guide (the passes are bound
+// by memory, not arithmetic); slices are summed in level order.
 //
 // Multi-source guides: each group of guide channels is divided by its own sigma (make_guide),
 // so a unit of distance means "one sigma of that group", as Gastal and Oliveira do for their
