@@ -28,26 +28,19 @@ dnb::ic::IrradianceCache random_cache(int n, float z = 0.5f) {
   return cache;
 }
 
-void BM_CacheInterpolate(benchmark::State& state) {
-  auto cache = random_cache(int(state.range(0)));
+// Look-ups at random points of the records' plane z.
+void interpolate_loop(benchmark::State& state, float z) {
+  auto cache = random_cache(int(state.range(0)), z);
   std::mt19937 gen(9);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   for (auto _ : state) {
     Vec3 e;
-    benchmark::DoNotOptimize(cache.interpolate(Vec3(u(gen), u(gen), 0.5f), Vec3(0, 0, 1), e));
+    benchmark::DoNotOptimize(cache.interpolate(Vec3(u(gen), u(gen), z), Vec3(0, 0, 1), e));
   }
 }
+void BM_CacheInterpolate(benchmark::State& state) { interpolate_loop(state, 0.5f); }
 BENCHMARK(BM_CacheInterpolate)->Arg(1000)->Arg(100000);
-
-void BM_CacheInterpolateOnBounds(benchmark::State& state) {
-  auto cache = random_cache(int(state.range(0)), 0.0f);
-  std::mt19937 gen(9);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  for (auto _ : state) {
-    Vec3 e;
-    benchmark::DoNotOptimize(cache.interpolate(Vec3(u(gen), u(gen), 0.0f), Vec3(0, 0, 1), e));
-  }
-}
+void BM_CacheInterpolateOnBounds(benchmark::State& state) { interpolate_loop(state, 0.0f); }
 BENCHMARK(BM_CacheInterpolateOnBounds)->Arg(1000)->Arg(100000);
 
 void BM_GatherReduction(benchmark::State& state) {

@@ -171,32 +171,26 @@ template <int NB, int R>
 void recursive_interleaved(float* const* rows, const float* const* a, int w) {
   constexpr int DP = 8 * NB;
   Vec8 prev[R][NB];
-  for (int r = 0; r < R; ++r)
-    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + 8 * b);
+  auto start = [&](int x) {
+    for (int r = 0; r < R; ++r)
+      for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + std::size_t(x) * DP + 8 * b);
+  };
+  // Pixel x of row r moves towards the previous one along the pass by the edge weight k.
+  auto step = [&](int r, int x, float k) {
+    for (int b = 0; b < NB; ++b) {
+      float* q = rows[r] + std::size_t(x) * DP + 8 * b;
+      Vec8 v = load8(q);
+      v += k * (prev[r][b] - v);
+      store8(q, v);
+      prev[r][b] = v;
+    }
+  };
+  start(0);
   for (int x = 1; x < w; ++x)
-    for (int r = 0; r < R; ++r) {
-      const float k = a[r][x - 1];
-      for (int b = 0; b < NB; ++b) {
-        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
-        Vec8 v = load8(q);
-        v += k * (prev[r][b] - v);
-        store8(q, v);
-        prev[r][b] = v;
-      }
-    }
-  for (int r = 0; r < R; ++r)
-    for (int b = 0; b < NB; ++b) prev[r][b] = load8(rows[r] + std::size_t(w - 1) * DP + 8 * b);
+    for (int r = 0; r < R; ++r) step(r, x, a[r][x - 1]);
+  start(w - 1);
   for (int x = w - 2; x >= 0; --x)
-    for (int r = 0; r < R; ++r) {
-      const float k = a[r][x];
-      for (int b = 0; b < NB; ++b) {
-        float* q = rows[r] + std::size_t(x) * DP + 8 * b;
-        Vec8 v = load8(q);
-        v += k * (prev[r][b] - v);
-        store8(q, v);
-        prev[r][b] = v;
-      }
-    }
+    for (int r = 0; r < R; ++r) step(r, x, a[r][x]);
 }
 
 // Rows of `nb` blocks, in groups of kRowGroup (the last group may be smaller).
@@ -545,8 +539,6 @@ class AmRun {
     s.w.resize(W_);
     s.tmp.resize(sw_);
     s.blur.resize(std::size_t(C_ + 1) * W_);
-    s.colsum.resize(std::size_t(std::max(C_ + 1, 2 * (D_ + 1))) * W_);
-    s.cov.resize(std::size_t(D_) * D_ * kLanes);
     return s;
   }
 
@@ -584,10 +576,15 @@ class AmRun {
     }
   }
 
+  // The scratch of this thread with column sums and covariance lanes for m manifolds. Only
+  // ever grown: resizing down and up again would zero them on every call (the passes clear
+  // what they use).
   Scratch& scratch(int m) {
     Scratch& s = scratch();
-    s.colsum.resize(std::size_t(m) * std::max(C_ + 1, 2 * (D_ + 1)) * W_);
-    s.cov.resize(std::size_t(m) * D_ * D_ * kLanes);
+    const std::size_t cols = std::size_t(m) * std::max(C_ + 1, 2 * (D_ + 1)) * W_;
+    const std::size_t lanes = std::size_t(m) * D_ * D_ * kLanes;
+    if (s.colsum.size() < cols) s.colsum.resize(cols);
+    if (s.cov.size() < lanes) s.cov.resize(lanes);
     return s;
   }
 
