@@ -223,29 +223,22 @@ inline void recursive_interleaved(float* const* rows, const float* const* a, int
   }
 }
 
-// Row y of planes [first, first + count) to pixel-interleaved `out` (stride dp) and back, in
-// blocks of 8 pixels so the transposes stay in registers.
-void interleave(const Planes& p, int first, int count, int y, float* out, int dp) {
-  const float* src[32];
+// Moves row y of planes [first, first + count) to the pixel-interleaved row `il` (stride dp),
+// or back when kBack, in blocks of 8 pixels so the transposes stay in registers.
+template <bool kBack>
+void interleave(Planes& p, int first, int count, int y, float* il, int dp) {
+  float* rows[32];
   for (int c0 = 0; c0 < count; c0 += 32) {
     const int m = std::min(32, count - c0);
-    for (int c = 0; c < m; ++c) src[c] = p.row(first + c0 + c, y);
+    for (int c = 0; c < m; ++c) rows[c] = p.row(first + c0 + c, y);
     for (int x0 = 0; x0 < p.w; x0 += 8) {
       const int xn = std::min(8, p.w - x0);
       for (int c = 0; c < m; ++c)
-        for (int k = 0; k < xn; ++k) out[std::size_t(x0 + k) * dp + c0 + c] = src[c][x0 + k];
-    }
-  }
-}
-void deinterleave(const float* in, int dp, Planes& p, int first, int count, int y) {
-  float* dst[32];
-  for (int c0 = 0; c0 < count; c0 += 32) {
-    const int m = std::min(32, count - c0);
-    for (int c = 0; c < m; ++c) dst[c] = p.row(first + c0 + c, y);
-    for (int x0 = 0; x0 < p.w; x0 += 8) {
-      const int xn = std::min(8, p.w - x0);
-      for (int c = 0; c < m; ++c)
-        for (int k = 0; k < xn; ++k) dst[c][x0 + k] = in[std::size_t(x0 + k) * dp + c0 + c];
+        for (int k = 0; k < xn; ++k) {
+          float& v = il[std::size_t(x0 + k) * dp + c0 + c];
+          if constexpr (kBack) rows[c][x0 + k] = v;
+          else v = rows[c][x0 + k];
+        }
     }
   }
 }
@@ -270,18 +263,23 @@ void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
       const int y0 = g * kRowGroup, n = std::min(kRowGroup, h - y0);
       for (int r = 0; r < n; ++r) {
         a[r] = wh(y0 + r);
-        interleave(p, first, count, y0 + r, rows[r], dp);
+        interleave<false>(p, first, count, y0 + r, rows[r], dp);
       }
       recursive_interleaved(rows, a, w, nb, n);
-      for (int r = 0; r < n; ++r) deinterleave(rows[r], dp, p, first, count, y0 + r);
+      for (int r = 0; r < n; ++r) interleave<true>(p, first, count, y0 + r, rows[r], dp);
     }
   });
   recursive_filter_vertical(p, first, count, wv);
 }
 
-// Their h_filter: the recursive filter with a constant feedback exp(-sqrt 2 / sigma).
+// Their h_filter's edge weights: the constant feedback exp(-sqrt 2 / sigma), for rows of n pixels.
+std::vector<float> low_pass_weights(int n, double sigma) {
+  return std::vector<float>(std::max(n, 1), float(std::exp(-std::sqrt(2.0) / sigma)));
+}
+
+// Their h_filter: the recursive filter with that constant feedback.
 void low_pass(Planes& p, int first, int count, double sigma) {
-  std::vector<float> a(std::max(p.w, 1), float(std::exp(-std::sqrt(2.0) / sigma)));
+  const std::vector<float> a = low_pass_weights(p.w, sigma);
   auto same = [&](int) { return a.data(); };
   recursive_filter(p, first, count, same, same);
 }
@@ -322,12 +320,13 @@ class AmRun {
 
     guide_ = Planes(W_, H_, D_);
     src_ = Planes(W_, H_, C_);
-    // One pass over the interleaved input: planar copies of the guide and source, and the
-    // first manifold's horizontal low-pass (done interleaved, see recursive_interleaved), in
-    // pairs of rows. The vertical half follows in run().
+    // The first manifold, the guide low-passed at full resolution: one pass over the
+    // interleaved input makes planar copies of the guide and source and runs the horizontal
+    // low-pass on the interleaved rows (recursive_interleaved), in pairs of rows; then the
+    // vertical half.
     eta_full_ = Planes(W_, H_, D_);
     const int nb = (D_ + 7) / 8, dp = 8 * nb;
-    const std::vector<float> a_first(std::max(W_, 1), float(std::exp(-std::sqrt(2.0) / s.sigma_s)));
+    const std::vector<float> a_first = low_pass_weights(W_, s.sigma_s);
     tbb::parallel_for(tbb::blocked_range<int>(0, (H_ + 1) / 2), [&](const tbb::blocked_range<int>& range) {
       std::vector<float> buf(std::size_t(2) * W_ * dp, 0.0f);
       float* rows[2] = {buf.data(), buf.data() + std::size_t(W_) * dp};
@@ -355,6 +354,7 @@ class AmRun {
           }
       }
     });
+    recursive_filter_vertical(eta_full_, 0, D_, [&](int) { return a_first.data(); });
     acc_ = Planes(W_, H_, C_ + 1);
     label_.assign(std::size_t(W_) * H_, 1);
     if (s.adjust_outliers) min_d2_ = pooled(std::size_t(W_) * H_, INFINITY);
@@ -388,9 +388,6 @@ class AmRun {
   AmRun& operator=(const AmRun&) = delete;
 
   Image run(std::vector<float>* query_out) {
-    // The first manifold: the guide low-passed at full resolution.
-    std::vector<float> a_first(std::max(W_, 1), float(std::exp(-std::sqrt(2.0) / s_.sigma_s)));
-    recursive_filter_vertical(eta_full_, 0, D_, [&](int) { return a_first.data(); });
     tree();
     eta_full_ = Planes();
 
@@ -531,16 +528,6 @@ class AmRun {
     return a + t.fy * (b - a);
   }
 
-  Scratch& scratch() {
-    Scratch& s = scratch_.local();
-    s.eta.resize(std::size_t(D_) * W_);
-    s.x.resize(std::size_t(D_) * W_);
-    s.d2.resize(W_);
-    s.w.resize(W_);
-    s.tmp.resize(sw_);
-    s.blur.resize(std::size_t(C_ + 1) * W_);
-    return s;
-  }
 
   // One manifold: splat, blur, slice, and (above the leaves) split into two children.
   // One manifold of the tree: its id (children 2 id and 2 id + 1), its eta on the reduced grid
@@ -580,7 +567,13 @@ class AmRun {
   // ever grown: resizing down and up again would zero them on every call (the passes clear
   // what they use).
   Scratch& scratch(int m) {
-    Scratch& s = scratch();
+    Scratch& s = scratch_.local();
+    s.eta.resize(std::size_t(D_) * W_);
+    s.x.resize(std::size_t(D_) * W_);
+    s.d2.resize(W_);
+    s.w.resize(W_);
+    s.tmp.resize(sw_);
+    s.blur.resize(std::size_t(C_ + 1) * W_);
     const std::size_t cols = std::size_t(m) * std::max(C_ + 1, 2 * (D_ + 1)) * W_;
     const std::size_t lanes = std::size_t(m) * D_ * D_ * kLanes;
     if (s.colsum.size() < cols) s.colsum.resize(cols);

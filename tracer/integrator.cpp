@@ -82,13 +82,19 @@ Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx) const {
   return direct_white(hit, ctx, u0, u1, u2);
 }
 
+bool PathTracer::white_light_term(const SurfaceHit& hit, float u0, float u1, float u2, LightSample& ls, Vec3& c) const {
+  if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return false;
+  float cos_s = dot(ls.wi, hit.ns);
+  if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return false;
+  c = ls.radiance * (kInvPi * cos_s / ls.pdf);
+  return true;
+}
+
 Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx, float u0, float u1, float u2) const {
   LightSample ls;
-  if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return Vec3(0.0f);
-  float cos_s = dot(ls.wi, hit.ns);
-  if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) return Vec3(0.0f);
-  if (!visible(hit, ls, ctx)) return Vec3(0.0f);
-  return ls.radiance * (kInvPi * cos_s / ls.pdf);
+  Vec3 c;
+  if (!white_light_term(hit, u0, u1, u2, ls, c) || !visible(hit, ls, ctx)) return Vec3(0.0f);
+  return c;
 }
 
 Vec3 PathTracer::direct_white_sum(const SurfaceHit& hit, PathContext& ctx, const std::array<float, 3>* u,
@@ -105,10 +111,8 @@ Vec3 PathTracer::direct_white_sum(const SurfaceHit& hit, PathContext& ctx, const
   contrib.assign(std::size_t(n), Vec3(0.0f));
   for (int i = 0; i < n; ++i) {
     LightSample ls;
-    if (!scene_.sample_light(hit.p, hit.ns, u[i][0], u[i][1], u[i][2], ls)) continue;
-    float cos_s = dot(ls.wi, hit.ns);
-    if (cos_s <= 0 || dot(ls.wi, hit.ng) <= 0 || !(ls.pdf > 0)) continue;
-    const Vec3 c = ls.radiance * (kInvPi * cos_s / ls.pdf);
+    Vec3 c;
+    if (!white_light_term(hit, u[i][0], u[i][1], u[i][2], ls, c)) continue;
     if (ls.sphere_mesh >= 0) {
       if (visible(hit, ls, ctx)) contrib[std::size_t(i)] = c;
       continue;

@@ -134,6 +134,9 @@ class PathTracer {
   Vec3 direct_white_sum(const SurfaceHit& hit, PathContext& ctx, const std::array<float, 3>* u, int n) const;
 
  private:
+  // A light sample for a white Lambertian at hit and its unshadowed term radiance cos / (pi pdf)
+  // in c; false when the sample cannot light the surface (the shadow test is left to the caller).
+  bool white_light_term(const SurfaceHit& hit, float u0, float u1, float u2, LightSample& ls, Vec3& c) const;
   // The MIS-weighted light-sample term of direct light at a base (diffuse) lobe chosen with
   // probability lobe_prob, for a white surface.
   Vec3 nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ctx) const;
