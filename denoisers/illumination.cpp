@@ -54,4 +54,49 @@ Image normalized_depth(const AovFrame& frame, int level) {
   return out;
 }
 
+namespace {
+float luminance(const float* p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
+}  // namespace
+
+void clamp_luminance(float rgb[3], float bound) {
+  const float l = luminance(rgb);
+  if (!(l > bound)) return;
+  const float s = bound / l;
+  for (int c = 0; c < 3; ++c) rgb[c] *= s;
+}
+
+FireflySplit split_fireflies(const Image& layer, float ratio) {
+  const int w = layer.width(), h = layer.height();
+  FireflySplit r;
+  r.kept = layer;
+  if (ratio <= 0) return r;  // excess and bound stay empty
+  r.excess = Image(w, h, 3);
+  r.bound.assign(std::size_t(w) * h, INFINITY);
+  std::vector<float> lum(std::size_t(w) * h);
+  for (std::size_t k = 0; k < lum.size(); ++k) lum[k] = luminance(layer.data() + k * 3);
+  std::vector<std::size_t> cut_rows(std::size_t(h), 0);
+  tbb::parallel_for(0, h, [&](int y) {
+    for (int x = 0; x < w; ++x) {
+      float m = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          if ((dx || dy) && xx >= 0 && yy >= 0 && xx < w && yy < h) m = std::max(m, lum[std::size_t(yy) * w + xx]);
+        }
+      const std::size_t k = std::size_t(y) * w + x;
+      const float b = ratio * m;
+      r.bound[k] = b;
+      if (!(lum[k] > b)) continue;
+      float* kept = r.kept.data() + k * 3;
+      float* ex = r.excess.data() + k * 3;
+      for (int c = 0; c < 3; ++c) ex[c] = kept[c];
+      clamp_luminance(kept, b);
+      for (int c = 0; c < 3; ++c) ex[c] -= kept[c];
+      ++cut_rows[std::size_t(y)];
+    }
+  });
+  for (std::size_t c : cut_rows) r.cut += c;
+  return r;
+}
+
 }  // namespace dnb

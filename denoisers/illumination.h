@@ -35,4 +35,23 @@ std::vector<std::string> reflection_guide_layers();
 // `level` 1 reads refl1.depth (the reflection level's depth) instead.
 Image normalized_depth(const AovFrame& frame, int level = 0);
 
+// Firefly split of an illumination layer: `kept` is the layer with every pixel whose Rec. 709
+// luminance exceeds `ratio` times the largest luminance of its 8 neighbours scaled down to that
+// bound; `excess` = layer - kept (zero except at those pixels); `bound` holds each pixel's bound
+// (luminance), for clamping the pixel's edge sub-pixels alike.
+// Why: a 256-spp frame carries rare paths (a small bright source seen through a specular
+// bounce) as single pixels hundreds of times brighter than their neighbours. An edge-aware
+// filter keeps such a pixel distinct or smears it into a blotch of its own kernel's shape;
+// their expected light is spread thinly over the whole surface, which only a very wide
+// low-pass of `excess` estimates. ratio <= 0: nothing is cut (excess and bound stay empty).
+struct FireflySplit {
+  Image kept, excess;
+  std::vector<float> bound;
+  std::size_t cut = 0;  // pixels cut
+};
+FireflySplit split_fireflies(const Image& layer, float ratio);
+
+// Clamps the luminance of `rgb` to `bound` (scaling all channels alike).
+void clamp_luminance(float rgb[3], float bound);
+
 }  // namespace dnb

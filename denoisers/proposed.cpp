@@ -39,6 +39,13 @@
 //                           0.035-0.05 at 256 spp, 0.2-0.3 at 64, 0.5-0.8 at 16, so 1: it grows
 //                           like the noise variance, not its standard deviation (at low spp the
 //                           NLM vectors are mostly noise and the geometry guides must lead)
+//   firefly_ratio    float  before filtering, a layer's pixel brighter (luminance) than this
+//                           times its brightest 8-neighbour is cut to that bound, its edge
+//                           sub-pixels to the same bound (illumination.h: split_fireflies);
+//                           0: off. Fitted on the training room (docs/method-defaults.md): 3
+//   firefly_sigma    float  the cut light is added back low-passed (Gaussian, this sigma in
+//                           pixels); 0 (default): dropped. Equal on the training room at 64
+//                           and 256 spp, and a wide blur costs 0.2-0.8 s at 1024x768
 //   sigma_normal     float  normal group sigma (unit vectors)
 //   sigma_depth      float  depth group sigma, in units of the median depth
 //   nlm_dims         int    PCA dimensions of the NLM vector
@@ -57,6 +64,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
 
 #include "core/errors.h"
@@ -77,6 +85,8 @@ class Proposed final : public Method {
         outlier_spp_exponent_(float(p.f("outlier_spp_exponent"))),
         sigma_normal_(float(p.f("sigma_normal"))),
         sigma_depth_(float(p.f("sigma_depth"))),
+        firefly_ratio_(float(p.f("firefly_ratio"))),
+        firefly_sigma_(float(p.f("firefly_sigma"))),
         use_nlm_(p.b("nlm_space")),
         use_geometry_(p.b("geometry")),
         use_edges_(p.b("edge_subpixels")),
@@ -255,9 +265,16 @@ class Proposed final : public Method {
   // Filters `src` (a layer of level k) guided by [NLM vector, normal, depth] of that level. With
   // `sub` set (level 0), also answers one slice query per edge sub-pixel, its guide built from
   // the sub-pixel's value of that layer, normal and depth.
-  Filtered filter_layer(const AovFrame& f, int level, const Image& src, const Image& depth, float sigma_nlm,
+  Filtered filter_layer(const AovFrame& f, int level, const Image& layer_in, const Image& depth, float sigma_nlm,
                         const AmSettings& am, MethodStats& stats, float (EdgeSample::*sub)[3]) const {
     const std::string suffix = level == 0 ? "" : "_level" + std::to_string(level);
+    FireflySplit ff;
+    {
+      ScopedPhase p(stats, "fireflies" + suffix);
+      ff = split_fireflies(layer_in, firefly_ratio_);
+      stats.counters["firefly_pixels" + suffix] += double(ff.cut);
+    }
+    const Image& src = ff.kept;
     NlmSpace nlm;
     Image range;
     float range_scale = 1.0f;
@@ -299,20 +316,22 @@ class Proposed final : public Method {
         for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
           const std::size_t q = n * EdgeSubpixels::kPerPixel + s;
           const EdgeSample& e = g.of(n)[s];
+          float v[3] = {(e.*sub)[0], (e.*sub)[1], (e.*sub)[2]};  // the sub-pixel's layer value
+          if (firefly_ratio_ > 0) clamp_luminance(v, ff.bound[std::size_t(px)]);
           float* gq = qguide.data() + q * D;
           int c = 0;
           if (use_nlm_) {
-            nlm.vector_with_center(src, x, y, e.*sub, gq);
+            nlm.vector_with_center(src, x, y, v, gq);
             for (int k = 0; k < nlm.vectors.channels(); ++k) gq[k] *= sr / sigma_nlm;
             c = nlm.vectors.channels();
           } else {
-            for (int k = 0; k < 3; ++k) gq[c++] = std::log1p(std::max(0.0f, (e.*sub)[k]) / range_scale) * sr / sigma_nlm;
+            for (int k = 0; k < 3; ++k) gq[c++] = std::log1p(std::max(0.0f, v[k]) / range_scale) * sr / sigma_nlm;
           }
           if (use_geometry_) {
             for (int k = 0; k < 3; ++k) gq[c++] = e.normal[k] * sr / sigma_normal_;
             gq[c++] = (e.depth > 0 && std::isfinite(e.depth) ? e.depth * depth_scale : 0.0f) * sr / sigma_depth_;
           }
-          for (int k = 0; k < 3; ++k) qsrc[q * 3 + k] = (e.*sub)[k];
+          for (int k = 0; k < 3; ++k) qsrc[q * 3 + k] = v[k];
           // The outlier adjustment (eq. 11) towards the sub-pixel's own value, always (also
           // with adjust_outliers = false, which concerns the image's pixels). Sub-pixel guides
           // (a second surface inside a silhouette pixel) are often far from every manifold,
@@ -324,9 +343,32 @@ class Proposed final : public Method {
       });
     }
     Filtered out;
-    ScopedPhase p(stats, "adaptive_manifolds" + suffix);
-    out.image = opencl_ ? am_filter_opencl(src.cview(), guide.cview(), am, queries, sub ? &out.queries : nullptr)
-                        : am_filter(src.cview(), guide.cview(), am, queries, sub ? &out.queries : nullptr);
+    {
+      ScopedPhase p(stats, "adaptive_manifolds" + suffix);
+      out.image = opencl_ ? am_filter_opencl(src.cview(), guide.cview(), am, queries, sub ? &out.queries : nullptr)
+                          : am_filter(src.cview(), guide.cview(), am, queries, sub ? &out.queries : nullptr);
+    }
+    if (ff.cut > 0 && firefly_sigma_ > 0) {
+      ScopedPhase p(stats, "fireflies" + suffix);
+      const Image spread = low_pass(ff.excess, firefly_sigma_);
+      for (std::size_t k = 0; k < out.image.size(); ++k) out.image.data()[k] += spread.data()[k];
+      if (sub) {
+        const EdgeSubpixels& g = *f.edges;
+        for (std::size_t n = 0; n < g.size(); ++n)
+          for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s)
+            for (int c = 0; c < 3; ++c)
+              out.queries[(n * EdgeSubpixels::kPerPixel + s) * 3 + c] += spread.data()[std::size_t(g.pixels[n]) * 3 + c];
+      }
+    }
+    return out;
+  }
+
+  // Gaussian low-pass (OpenCV), mirrored border so that light near the frame's edge stays.
+  static Image low_pass(const Image& im, float sigma) {
+    Image out(im.width(), im.height(), im.channels());
+    const cv::Mat a(im.height(), im.width(), CV_32FC(im.channels()), const_cast<float*>(im.data()));
+    cv::Mat b(out.height(), out.width(), CV_32FC(out.channels()), out.data());
+    cv::GaussianBlur(a, b, cv::Size(0, 0), sigma, sigma, cv::BORDER_REFLECT);
     return out;
   }
 
@@ -340,7 +382,7 @@ class Proposed final : public Method {
 
   AmSettings am_;
   NlmSpaceSettings nlm_;
-  float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_;
+  float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, firefly_sigma_;
   bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_, opencl_;
 };
 
@@ -368,6 +410,8 @@ MethodInfo proposed_method() {
               {"nlm_radius", ParamType::Int, "3", "NLM patch radius (3: 7x7)", 1.0, 3.0},
               {"nlm_patch_sigma", ParamType::Float, "2", "Gaussian weight of the patch pixels, pixels", 0.1, 100.0},
               {"nlm_samples", ParamType::Int, "4096", "patches drawn to estimate the PCA", 16.0, 1e6},
+              {"firefly_ratio", ParamType::Float, "3", "cut a pixel brighter than this times its brightest neighbour; 0: off", 0.0, 1e6},
+              {"firefly_sigma", ParamType::Float, "0", "the cut light comes back low-passed with this sigma, pixels; 0: dropped", 0.0, 1e4},
               {"nlm_space", ParamType::Bool, "true", "ablation: false guides by the compressed illumination itself"},
               {"geometry", ParamType::Bool, "true", "ablation: false drops the normal and depth guides"},
               {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},

@@ -1,0 +1,68 @@
+// split_fireflies (denoisers/illumination.h): which pixels it cuts, to what, and that nothing
+// is lost between the two parts.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "denoisers/illumination.h"
+
+namespace dnb {
+namespace {
+
+float lum(const Image& im, int x, int y) {
+  const float* p = im.pixel(x, y);
+  return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+}
+
+// A smooth field (a gradient: every pixel within 5% of its neighbours) with two spikes: one
+// 100x its surroundings, one 2.5x. At ratio 3 only the first is cut, to exactly 3x its
+// brightest neighbour, colour ratio kept; kept + excess = the layer everywhere.
+TEST(Fireflies, CutsIsolatedSpikesToTheBoundAndKeepsTheRest) {
+  Image im(32, 24, 3);
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x) {
+      const float v = 0.2f + 0.01f * float(x + y);
+      im.at(x, y, 0) = v, im.at(x, y, 1) = 0.8f * v, im.at(x, y, 2) = 0.5f * v;
+    }
+  for (int c = 0; c < 3; ++c) im.at(10, 8, c) *= 100.0f, im.at(20, 15, c) *= 2.5f;
+  float brightest = 0;  // of the spike's 8 neighbours
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx)
+      if (dx || dy) brightest = std::max(brightest, lum(im, 10 + dx, 8 + dy));
+
+  const FireflySplit s = split_fireflies(im, 3.0f);
+  EXPECT_EQ(s.cut, 1u);
+  EXPECT_NEAR(lum(s.kept, 10, 8), 3.0f * brightest, 1e-5f);
+  EXPECT_NEAR(s.kept.at(10, 8, 1) / s.kept.at(10, 8, 0), 0.8f, 1e-6f) << "the cut changed the colour";
+  EXPECT_NEAR(s.bound[8 * 32 + 10], 3.0f * brightest, 1e-5f);
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x)
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_FLOAT_EQ(s.kept.at(x, y, c) + s.excess.at(x, y, c), im.at(x, y, c)) << x << "," << y;
+        if (x != 10 || y != 8) {
+          EXPECT_EQ(s.kept.at(x, y, c), im.at(x, y, c)) << x << "," << y;
+          EXPECT_EQ(s.excess.at(x, y, c), 0.0f) << x << "," << y;
+        }
+      }
+
+  const FireflySplit off = split_fireflies(im, 0.0f);
+  EXPECT_EQ(off.cut, 0u);
+  EXPECT_EQ(off.kept.at(10, 8, 0), im.at(10, 8, 0));
+  EXPECT_TRUE(off.excess.empty() && off.bound.empty());
+}
+
+// clamp_luminance scales all channels alike and leaves pixels under the bound alone.
+TEST(Fireflies, ClampLuminanceScalesChannelsAlike) {
+  float a[3] = {4.0f, 2.0f, 1.0f};
+  const float l = 0.2126f * 4 + 0.7152f * 2 + 0.0722f * 1;
+  clamp_luminance(a, l / 2);
+  EXPECT_NEAR(a[0], 2.0f, 1e-6f);
+  EXPECT_NEAR(a[1], 1.0f, 1e-6f);
+  EXPECT_NEAR(a[2], 0.5f, 1e-6f);
+  float b[3] = {0.1f, 0.1f, 0.1f};
+  clamp_luminance(b, 1.0f);
+  EXPECT_EQ(b[0], 0.1f);
+}
+
+}  // namespace
+}  // namespace dnb
