@@ -107,12 +107,22 @@ std::vector<float> pooled(std::size_t n, float fill) {
   v.assign(n, fill);
   return v;
 }
+// For a buffer its user overwrites whole: a recycled one keeps its stale values (shrinking a
+// vector writes nothing; only growth beyond its size value-initialises the tail).
+std::vector<float> pooled_uninitialised(std::size_t n) {
+  std::vector<float> v = BufferPool::get().take(n);
+  v.resize(n);
+  return v;
+}
 
 struct Planes {
   int w = 0, h = 0, n = 0;
   std::vector<float> data;
   Planes() = default;
   Planes(int w_, int h_, int n_) : w(w_), h(h_), n(n_), data(pooled(std::size_t(w_) * h_ * n_, 0.0f)) {}
+  // Contents unspecified: for planes the caller writes in full before reading.
+  struct Overwritten {};
+  Planes(int w_, int h_, int n_, Overwritten) : w(w_), h(h_), n(n_), data(pooled_uninitialised(std::size_t(w_) * h_ * n_)) {}
   Planes(const Planes& o) : w(o.w), h(o.h), n(o.n), data(BufferPool::get().take(o.data.size())) {
     data.assign(o.data.begin(), o.data.end());
   }
@@ -378,7 +388,20 @@ class AmRun {
     qacc_.assign(queries_.size() * (C_ + 1), 0.0);
     qmin_.assign(queries_.size(), INFINITY);
     qsite_.resize(queries_.size());
-    for (std::size_t q = 0; q < queries_.size(); ++q) qsite_[q] = site(queries_[q].x, queries_[q].y);
+    for (std::size_t q = 0; q < queries_.size(); ++q) {
+      qsite_[q] = site(queries_[q].x, queries_[q].y);
+      if (q == 0 || queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) qrun_.push_back(q);
+    }
+    qrun_.push_back(queries_.size());
+    // Runs by image row (any query order works), for the slice pass that walks rows.
+    row_runs_.assign(std::size_t(H_) + 1, 0);
+    for (std::size_t k = 0; k + 1 < qrun_.size(); ++k) ++row_runs_[std::size_t(queries_[qrun_[k]].y) + 1];
+    for (int y = 0; y < H_; ++y) row_runs_[std::size_t(y) + 1] += row_runs_[std::size_t(y)];
+    runs_by_row_.resize(qrun_.size() - 1);
+    {
+      std::vector<std::size_t> fill(row_runs_.begin(), row_runs_.end() - 1);
+      for (std::size_t k = 0; k + 1 < qrun_.size(); ++k) runs_by_row_[fill[std::size_t(queries_[qrun_[k]].y)]++] = k;
+    }
   }
 
   ~AmRun() {
@@ -426,6 +449,7 @@ class AmRun {
  private:
   struct Scratch {
     std::vector<float> eta, x, d2, w, tmp, blur;
+    std::vector<float> qeta, qarg, qw;  // one pixel's manifold value and its queries' weights
     std::vector<float> colsum;  // per-column sums over the rows of one reduced-grid row
     std::vector<float> cov;     // lane-split covariance sums (kLanes per entry)
   };
@@ -574,6 +598,7 @@ class AmRun {
     s.w.resize(W_);
     s.tmp.resize(sw_);
     s.blur.resize(std::size_t(C_ + 1) * W_);
+    s.qeta.resize(std::size_t(D_));
     const std::size_t cols = std::size_t(m) * std::max(C_ + 1, 2 * (D_ + 1)) * W_;
     const std::size_t lanes = std::size_t(m) * D_ * D_ * kLanes;
     if (s.colsum.size() < cols) s.colsum.resize(cols);
@@ -587,7 +612,7 @@ class AmRun {
     const bool split = level < height_;
     const int DD = D_ * D_;
     for (int k = 0; k < m; ++k) {
-      nodes[k].splat = Planes(sw_, sh_, C_ + 1);
+      nodes[k].splat = Planes(sw_, sh_, C_ + 1, Planes::Overwritten{});  // every reduced row by pass 1
       nodes[k].cov_rows.assign(split ? std::size_t(sh_) * DD : 0, 0.0);
       nodes[k].w = BufferPool::get().take(std::size_t(W_) * H_);
       nodes[k].w.resize(std::size_t(W_) * H_);
@@ -678,7 +703,6 @@ class AmRun {
       if (n.eta_full) n.eta_small = downsample(*n.eta_full, D_);
       // Blur along the manifold: domain-transform recursive filter at the reduced resolution.
       blur(n.splat, n.eta_small);
-      slice_queries(n);
       if (!split) continue;
       // The split direction: leading eigenvector of the cluster's covariance (power iteration).
       std::vector<double> cov(DD, 0.0);
@@ -687,8 +711,8 @@ class AmRun {
       for (int i = 0; i < D_; ++i)
         for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
       n.v = am_detail::split_direction(cov, D_, seed_, n.id, s_.pca_iterations);
-      n.kids[0] = Planes(sw_, sh_, D_ + 1);
-      n.kids[1] = Planes(sw_, sh_, D_ + 1);
+      n.kids[0] = Planes(sw_, sh_, D_ + 1, Planes::Overwritten{});  // every reduced row by pass 2
+      n.kids[1] = Planes(sw_, sh_, D_ + 1, Planes::Overwritten{});
     }
 
     // Pass 2 (full resolution): slice; above the leaves also split each cluster and splat the
@@ -709,8 +733,12 @@ class AmRun {
             const float* b = sc.blur.data() + std::size_t(c) * W_;
             for (int x = 0; x < W_; ++x) a[x] += wrow[x] * b[x];
           }
-          if (!split) continue;
+          if (!split) {
+            answer_queries(n, y, nullptr, sc.blur.data(), sc);
+            continue;
+          }
           eta_row(n.eta_full, n.eta_small, y, sc.eta.data(), sc.tmp.data());
+          answer_queries(n, y, sc.eta.data(), sc.blur.data(), sc);
           float* dot = sc.d2.data();
           std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
           for (int c = 0; c < D_; ++c) {
@@ -772,15 +800,19 @@ class AmRun {
         low_pass(p, 0, D_ + 1, s_.sigma_s / df_);
         Node child;
         child.id = 2 * n.id + c2;
-        child.eta_small = Planes(sw_, sh_, D_);
+        child.eta_small = Planes(sw_, sh_, D_, Planes::Overwritten{});
         const float* den = p.plane(D_);
-        for (int c = 0; c < D_; ++c) {
-          const float* num = p.plane(c);
-          const float* parent = n.eta_small.plane(c);
-          float* e = child.eta_small.plane(c);
-          // Where the child's cluster left no weight, it keeps its parent's manifold.
-          for (std::size_t i = 0; i < std::size_t(sw_) * sh_; ++i) e[i] = den[i] > 1e-20f ? num[i] / den[i] : parent[i];
-        }
+        tbb::parallel_for(0, sh_, [&](int sy) {
+          const std::size_t row = std::size_t(sy) * sw_;
+          for (int c = 0; c < D_; ++c) {
+            const float* num = p.plane(c) + row;
+            const float* parent = n.eta_small.plane(c) + row;
+            const float* dn = den + row;
+            float* e = child.eta_small.plane(c) + row;
+            // Where the child's cluster left no weight, it keeps its parent's manifold.
+            for (int i = 0; i < sw_; ++i) e[i] = dn[i] > 1e-20f ? num[i] / dn[i] : parent[i];
+          }
+        });
         p = Planes();
         next.push_back(std::move(child));
       }
@@ -788,25 +820,40 @@ class AmRun {
     }
   }
 
-  // Point queries: the same slice with the query's guide value (each query its own sums, so
-  // the parallel split does not change them).
-  void slice_queries(const Node& n) {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries_.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t q = r.begin(); q != r.end(); ++q) {
-        const AmQuery& Q = queries_[q];
-        const Site& t = qsite_[q];
+  // Point queries: the same slice with the query's guide value, answered in the slice pass
+  // for the queries of row y: the splat there is `blur` (the upsampled row the pixels get), the
+  // manifold `eta` (its full-resolution row, or null: sampled from the reduced grid). Each
+  // query keeps its own sums, added manifold by manifold in tree order, so the thread count does
+  // not change them. Consecutive queries at one pixel (an edge pixel's 16 sub-pixels) share
+  // the manifold's value there; only the guide distance is per query.
+  void answer_queries(const Node& n, int y, const float* eta, const float* blur, Scratch& sc) {
+    for (std::size_t i = row_runs_[std::size_t(y)]; i < row_runs_[std::size_t(y) + 1]; ++i) {
+      const std::size_t k = runs_by_row_[i];
+      const std::size_t first = qrun_[k], end = qrun_[k + 1], len = end - first;
+      const int x = queries_[first].x;
+      float* e = sc.qeta.data();
+      for (int c = 0; c < D_; ++c)
+        e[c] = eta ? eta[std::size_t(c) * W_ + x] : n.eta_full ? n.eta_full->row(c, y)[x] : sample(n.eta_small, c, qsite_[first]);
+      sc.qarg.resize(len);
+      sc.qw.resize(len);
+      for (std::size_t q = first; q < end; ++q) {
+        const float* g = queries_[q].guide;
         double d2 = 0;
         for (int c = 0; c < D_; ++c) {
-          const float e = n.eta_full ? n.eta_full->row(c, Q.y)[Q.x] : sample(n.eta_small, c, t);
-          const double d = double(Q.guide[c]) - e;
+          const double d = double(g[c]) - e[c];
           d2 += d * d;
         }
-        // The weight in float, as the image's pixels get it (exp32f); the sums stay double.
-        const double wq = std::exp(float(-d2 * inv_sr2_));
-        for (int c = 0; c <= C_; ++c) qacc_[q * (C_ + 1) + c] += wq * sample(n.splat, c, t);
+        sc.qarg[q - first] = float(-d2 * inv_sr2_);
         qmin_[q] = std::min(qmin_[q], float(d2));
       }
-    });
+      // The weight in float, as the image's pixels get it (exp32f, vectorised; libm's expf
+      // takes a slow path for every weight that underflows); the sums stay double.
+      cv::hal::exp32f(sc.qarg.data(), sc.qw.data(), int(len));
+      for (std::size_t q = first; q < end; ++q) {
+        double* acc = qacc_.data() + q * (C_ + 1);
+        for (int c = 0; c <= C_; ++c) acc[c] += double(sc.qw[q - first]) * blur[std::size_t(c) * W_ + x];
+      }
+    }
   }
 
   Planes downsample(const Planes& full, int n) const {
@@ -878,6 +925,8 @@ class AmRun {
   std::vector<double> qacc_;
   std::vector<float> qmin_;
   std::vector<Site> qsite_;
+  std::vector<std::size_t> qrun_;  // first query of each run of queries at one pixel, then the count
+  std::vector<std::size_t> row_runs_, runs_by_row_;  // runs_by_row_[row_runs_[y] ..) are row y's
   tbb::enumerable_thread_specific<Scratch> scratch_;
 };
 

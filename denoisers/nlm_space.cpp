@@ -17,8 +17,16 @@ namespace {
 float luminance(const float* p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
 
 float mean_luminance(const Image& img) {
+  // Row sums in parallel, added in row order: the same double whatever the thread count.
+  std::vector<double> rows(std::size_t(img.height()), 0.0);
+  tbb::parallel_for(0, img.height(), [&](int y) {
+    double s = 0;
+    const float* p = img.pixel(0, y);
+    for (int x = 0; x < img.width(); ++x) s += std::max(0.0f, luminance(p + std::size_t(x) * 3));
+    rows[std::size_t(y)] = s;
+  });
   double s = 0;
-  for (std::size_t i = 0; i < img.pixel_count(); ++i) s += std::max(0.0f, luminance(img.data() + i * 3));
+  for (double r : rows) s += r;
   const double m = s / double(std::max<std::size_t>(img.pixel_count(), 1));
   return m > 1e-12 ? float(m) : 1.0f;  // a black image: any scale
 }
@@ -47,7 +55,11 @@ float illumination_scale(const Image& illumination) { return mean_luminance(illu
 
 Image compressed_illumination(const Image& illumination, float m) {
   Image out(illumination.width(), illumination.height(), 3);
-  for (std::size_t k = 0; k < out.size(); ++k) out.data()[k] = std::log1p(std::max(0.0f, illumination.data()[k]) / m);
+  tbb::parallel_for(0, out.height(), [&](int y) {
+    const float* in = illumination.pixel(0, y);
+    float* o = out.pixel(0, y);
+    for (int k = 0; k < out.width() * 3; ++k) o[k] = std::log1p(std::max(0.0f, in[k]) / m);
+  });
   return out;
 }
 
@@ -61,8 +73,10 @@ NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& s) {
 
   // The compressed luminance, padded by the patch radius (reflected borders).
   cv::Mat y(h, w, CV_32F);
-  for (int j = 0; j < h; ++j)
-    for (int i = 0; i < w; ++i) y.at<float>(j, i) = out.compress(illumination.pixel(i, j));
+  tbb::parallel_for(0, h, [&](int j) {
+    float* row = y.ptr<float>(j);
+    for (int i = 0; i < w; ++i) row[i] = out.compress(illumination.pixel(i, j));
+  });
   cv::Mat padded;
   cv::copyMakeBorder(y, padded, s.radius, s.radius, s.radius, s.radius,
                      (w > s.radius && h > s.radius) ? cv::BORDER_REFLECT_101 : cv::BORDER_REPLICATE);
@@ -96,23 +110,34 @@ NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& s) {
 
   out.vectors = Image(w, h, dims);
   out.center.resize(dims);
-  std::vector<cv::Mat> comps(dims);
-  tbb::parallel_for(0, dims, [&](int k) {
-    cv::Mat kernel(side, side, CV_32F);
-    double offset = 0;
+  std::vector<cv::Mat> kernels(dims);
+  std::vector<double> offsets(dims, 0.0);
+  for (int k = 0; k < dims; ++k) {
+    kernels[k] = cv::Mat(side, side, CV_32F);
     for (int j = 0; j < P; ++j) {
       const double b = evecs.at<double>(k, j);
-      kernel.at<float>(j / side, j % side) = float(b * weight[j]);
-      offset += b * mean.at<double>(0, j);
+      kernels[k].at<float>(j / side, j % side) = float(b * weight[j]);
+      offsets[k] += b * mean.at<double>(0, j);
     }
-    out.center[k] = kernel.at<float>(s.radius, s.radius);
+    out.center[k] = kernels[k].at<float>(s.radius, s.radius);
+  }
+  // Projections: one task per (dimension, band of rows), each a filter2D over its band of the
+  // padded image (the band plus the patch radius above and below), written into the
+  // interleaved vectors. Bands, not dimensions alone: 3 dimensions do not split well over the
+  // cores. Every output pixel sees the same kernel over the same padded pixels, so the result
+  // does not depend on the banding.
+  const int band = 32, bands = (h + band - 1) / band;
+  tbb::parallel_for(0, dims * bands, [&](int t) {
+    const int k = t / bands, y0 = (t % bands) * band, y1 = std::min(h, y0 + band);
+    const cv::Mat src = padded(cv::Rect(0, y0, w + 2 * s.radius, y1 - y0 + 2 * s.radius));
     cv::Mat full;
-    cv::filter2D(padded, full, CV_32F, kernel, cv::Point(-1, -1), -offset, cv::BORDER_CONSTANT);
-    comps[k] = full(cv::Rect(s.radius, s.radius, w, h)).clone();
+    cv::filter2D(src, full, CV_32F, kernels[k], cv::Point(-1, -1), -offsets[k], cv::BORDER_CONSTANT | cv::BORDER_ISOLATED);
+    for (int yy = y0; yy < y1; ++yy) {
+      const float* r = full.ptr<float>(yy - y0 + s.radius) + s.radius;
+      float* o = out.vectors.pixel(0, yy) + k;
+      for (int x = 0; x < w; ++x) o[std::size_t(x) * dims] = r[x];
+    }
   });
-  cv::Mat merged;
-  cv::merge(comps, merged);
-  std::memcpy(out.vectors.data(), merged.ptr<float>(), sizeof(float) * out.vectors.size());
   return out;
 }
 
