@@ -14,7 +14,7 @@ using rt::kPi;
 
 // ---- Gather (Ward and Heckbert 1992, with Krivanek et al. 2005's translational gradient) ----
 GatherResult gather(Vec3 n, int M, int N, const IncomingFn& incoming,
-                    const std::function<std::array<float, 2>(int cell)>& jitter) {
+                    const std::function<std::array<float, 2>(int cell)>& jitter, float clamp_ratio, int* cut) {
   if (M < 1 || N < 1) throw InputError(fmt::format("gather needs at least 1 x 1 cells (got {} x {})", M, N));
   const Frame f(n);
   std::vector<GatherSample> cells(std::size_t(M) * N);
@@ -30,6 +30,25 @@ GatherResult gather(Vec3 n, int M, int N, const IncomingFn& incoming,
       Vec3 dir = f.to_world({sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
       cells[cell] = incoming(rt::normalize(dir), cell);
     }
+  if (cut) *cut = 0;
+  if (clamp_ratio > 0) {
+    auto lum = [](const Vec3& L) { return 0.2126f * L[0] + 0.7152f * L[1] + 0.0722f * L[2]; };
+    for (int pass = 0; pass < 3; ++pass) {
+      double total = 0;
+      for (const GatherSample& s : cells) total += std::max(0.0f, lum(s.radiance));
+      const float bound = float(clamp_ratio * total / double(cells.size()));
+      int n_cut = 0;
+      for (GatherSample& s : cells) {
+        const float l = lum(s.radiance);
+        if (l > bound && l > 0) {
+          s.radiance = s.radiance * (bound / l);
+          ++n_cut;
+        }
+      }
+      if (cut && pass == 0) *cut = n_cut;
+      if (n_cut == 0) break;
+    }
+  }
 
   GatherResult g;
   double sum[3] = {0, 0, 0};  // double: E is exact for constant radiance (white furnace)

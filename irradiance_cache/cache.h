@@ -84,8 +84,15 @@ struct GatherResult {
 // Gathers M (polar) x N (azimuth) cells about the unit normal n: one cosine-distributed
 // direction per cell, jittered by (u, v) from `jitter(cell)` (two numbers in [0, 1)); pass
 // nullptr for cell centres. The irradiance estimate is pi / (MN) sum L (exact for constant L).
+// clamp_ratio > 0: before anything is computed from them, cells whose luminance exceeds
+// clamp_ratio times the mean cell luminance are cut to that bound (colour kept), the mean
+// taken again after each cut, 3 times. Why: one gather ray that finds a rare bright path (a
+// small light through a specular bounce) carries radiance thousands of times the rest; the
+// record then shows that one sample as a bright disc of its radius. A cut cell keeps at most
+// clamp_ratio / (M N) of the record's irradiance. `cut` (optional): the cells over the first bound.
 GatherResult gather(Vec3 n, int M, int N, const IncomingFn& incoming,
-                    const std::function<std::array<float, 2>(int cell)>& jitter = nullptr);
+                    const std::function<std::array<float, 2>(int cell)>& jitter = nullptr,
+                    float clamp_ratio = 0.0f, int* cut = nullptr);
 
 struct Record {
   Vec3 p, n;           // position and unit normal

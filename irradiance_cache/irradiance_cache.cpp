@@ -41,6 +41,11 @@
 // 256x192, 256 spp, 2048-spp reference), each candidate held to the path-traced input's render
 // time: 16 light samples x 64 camera samples and 15 px beat the earlier 2 x 64 and 30 px
 // (8-bit MSE 6.88 -> 3.89; docs/method-defaults.md). Direct-light noise was the larger part.
+//   gather_clamp         float  a gather cell brighter (luminance) than this times the gather's
+//                               mean is cut to that bound (ic::gather); 0: off. 300: the largest
+//                               value tried that fixes sponza's sun-caustic discs (1024x768 MSE
+//                               60.4 -> 29.2; 100 gives the same), neutral on the training room
+//                               (3.654 -> 3.651; 100: 3.728, 30: 5.69; docs/method-defaults.md)
 //   gradients            bool   gradient extrapolation and the gradient radius limit
 //   neighbor_clamp       bool   neighbour clamping of radii
 #include <algorithm>
@@ -85,7 +90,8 @@ class IrradianceCacheRenderer final : public Method {
         max_spacing_(float(p.f("max_pixel_spacing"))),
         stride_(p.i("overture_stride")),
         min_stride_(p.i("overture_min_stride")),
-        max_depth_(p.i("max_depth")) {
+        max_depth_(p.i("max_depth")),
+        gather_clamp_(float(p.f("gather_clamp"))) {
     cache_.kappa = float(p.f("kappa"));
     cache_.max_angle_degrees = float(p.f("max_angle_degrees"));
     cache_.use_gradients = p.b("gradients");
@@ -119,11 +125,12 @@ class IrradianceCacheRenderer final : public Method {
 
     MethodResult result;
     IrradianceCache global(scene.bounds_min(), scene.bounds_max(), cache_);
-    std::atomic<std::int64_t> gathers{0}, wasted{0}, rays{0};
+    std::atomic<std::int64_t> gathers{0}, wasted{0}, rays{0}, clamped_cells{0};
 
     // One record's gather at a diffuse point; `key` makes its random numbers unique.
     auto gather_at = [&](const ShadePoint& sp, std::uint64_t key) {
       std::uint64_t local_rays = 0;
+      int cut = 0;
       ic::GatherResult g = ic::gather(
           sp.hit.ns, M_, N_,
           [&](Vec3 dir, int cell) -> ic::GatherSample {
@@ -139,8 +146,10 @@ class IrradianceCacheRenderer final : public Method {
           [&](int cell) {
             rt::Sampler rng(seed ^ 0xbb67ae8584caa73bULL, key, std::uint64_t(cell));
             return std::array<float, 2>{rng.next(), rng.next()};
-          });
+          },
+          gather_clamp_, &cut);
       ++gathers;
+      clamped_cells += cut;
       rays += std::int64_t(local_rays);
       return g;
     };
@@ -259,6 +268,7 @@ class IrradianceCacheRenderer final : public Method {
     c["records_overture"] = double(overture_records);
     c["records_final"] = double(final_records.load());
     c["gathers"] = double(gathers.load());
+    c["gather_cells_clamped"] = double(clamped_cells.load());
     c["gathers_wasted"] = double(wasted.load());
     c["gather_and_shadow_rays"] = double(rays.load());
     return result;
@@ -307,6 +317,7 @@ class IrradianceCacheRenderer final : public Method {
   int pixel_samples_, direct_samples_, M_, N_;
   float min_spacing_, max_spacing_;
   int stride_, min_stride_, max_depth_;
+  float gather_clamp_;
   ic::CacheSettings cache_;
 };
 
@@ -330,6 +341,7 @@ MethodInfo irradiance_cache_method() {
               {"overture_stride", ParamType::Int, "32", "pixel stride of the first overture pass", 1.0, 4096.0},
               {"overture_min_stride", ParamType::Int, "4", "pixel stride of the last overture pass (strides halve)", 1.0, 4096.0},
               {"max_depth", ParamType::Int, "8", "path length of gather paths and specular chains", 1.0, 64.0},
+              {"gather_clamp", ParamType::Float, "300", "cut gather cells brighter than this times the gather's mean; 0: off", 0.0, 1e9},
               {"gradients", ParamType::Bool, "true", "extrapolate with rotational and translational gradients"},
               {"neighbor_clamp", ParamType::Bool, "true", "clamp radii against neighbouring records"},
           },

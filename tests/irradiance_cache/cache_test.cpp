@@ -43,6 +43,35 @@ TEST(Gather, WhiteFurnaceGivesExactIrradiance) {
   }
 }
 
+// The gather clamp (a rare bright path caught by one cell). 16 x 32 cells of radiance 1, one
+// of 1e5: unclamped E = pi (511 + 1e5) / 512, 196x the rest's. With clamp_ratio 10 the bound
+// is taken three times from the mean (196.3 -> 4.83 -> 1.09), so the cell ends at 10.9 and E
+// at pi (511 + 10.9) / 512 = 1.019 pi; the one cell is reported. A constant gather (white
+// furnace) and a broad bright region (a tenth of the cells at 20x: a caustic seen by many
+// cells) are not touched at ratio 300.
+TEST(Gather, ClampCutsOneBrightCellButNotBroadLight) {
+  const Vec3 n(0.0f, 0.0f, 1.0f);
+  auto one_bright = [](Vec3, int cell) { return GatherSample{Vec3(cell == 77 ? 1e5f : 1.0f), 3.0f}; };
+  int cut = -1;
+  const GatherResult raw = gather(n, 16, 32, one_bright, nullptr, 0.0f, &cut);
+  EXPECT_EQ(cut, 0);
+  EXPECT_NEAR(raw.irradiance[0], kPi * (511.0f + 1e5f) / 512.0f, 1e-3f * raw.irradiance[0]);
+  const GatherResult clamped = gather(n, 16, 32, one_bright, nullptr, 10.0f, &cut);
+  EXPECT_EQ(cut, 1);
+  const double m1 = (511.0 + 1e5) / 512, b1 = 10 * m1, m2 = (511 + b1) / 512, b2 = 10 * m2, m3 = (511 + b2) / 512;
+  const double expected = kPi * (511 + 10 * m3) / 512;
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(clamped.irradiance[c], expected, 1e-5 * expected);
+
+  const GatherResult furnace = gather(n, 16, 32, constant(Vec3(0.7f, 0.5f, 0.3f), 2.0f), nullptr, 300.0f, &cut);
+  EXPECT_EQ(cut, 0);
+  EXPECT_NEAR(furnace.irradiance[0], kPi * 0.7f, 1e-6f * kPi);
+  auto broad = [](Vec3, int cell) { return GatherSample{Vec3(cell % 10 == 0 ? 20.0f : 1.0f), 3.0f}; };
+  const GatherResult b0 = gather(n, 16, 32, broad, nullptr, 0.0f, nullptr);
+  const GatherResult b1g = gather(n, 16, 32, broad, nullptr, 300.0f, &cut);
+  EXPECT_EQ(cut, 0);
+  EXPECT_EQ(b0.irradiance[0], b1g.irradiance[0]);
+}
+
 TEST(Cache, WhiteFurnaceInterpolatesExactly) {
   // Records of a constant environment interpolate to the same constant anywhere they apply:
   // sum w E / sum w with equal E (gradient terms ~1e-6 of E, see above).
