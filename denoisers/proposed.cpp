@@ -46,6 +46,15 @@
 //   firefly_sigma    float  the cut light is added back low-passed (Gaussian, this sigma in
 //                           pixels); 0 (default): dropped. Equal on the training room at 64
 //                           and 256 spp, and a wide blur costs 0.2-0.8 s at 1024x768
+//   sigma_nlm_direct float  the NLM group sigma of level 0's direct layer at 256 spp; 0:
+//                           sigma_nlm (reflection levels keep sigma_nlm: the same on the
+//                           training room, 16 spp 9.56 against 9.61). Direct light (next-event estimation) is far
+//                           less noisy than indirect, so a much tighter sigma keeps its thin
+//                           features (contact shadows 1-2 pixels wide, which a 7x7 patch
+//                           blurs into its neighbours'). Fitted on the training room
+//                           (docs/method-defaults.md): 0.0075, against 0.05 for indirect
+//   nlm_direct_spp_exponent float  sigma_nlm_direct follows the frame's spp as
+//                           (256 / spp)^this; fitted with it: 0.25
 //   sigma_normal     float  normal group sigma (unit vectors)
 //   sigma_depth      float  depth group sigma, in units of the median depth
 //   nlm_dims         int    PCA dimensions of the NLM vector
@@ -86,6 +95,8 @@ class Proposed final : public Method {
         sigma_normal_(float(p.f("sigma_normal"))),
         sigma_depth_(float(p.f("sigma_depth"))),
         firefly_ratio_(float(p.f("firefly_ratio"))),
+        sigma_nlm_direct_(float(p.f("sigma_nlm_direct"))),
+        nlm_direct_spp_exponent_(float(p.f("nlm_direct_spp_exponent"))),
         firefly_sigma_(float(p.f("firefly_sigma"))),
         use_nlm_(p.b("nlm_space")),
         use_geometry_(p.b("geometry")),
@@ -122,6 +133,10 @@ class Proposed final : public Method {
     const AovFrame& f = *in.frame;
     const float sigma_nlm = nlm_sigma_for(f.meta.spp);
     r.stats.counters["sigma_nlm"] = sigma_nlm;
+    // Level 0's direct layer: its own sigma when given (sigma_nlm_direct > 0).
+    const float sigma_direct =
+        sigma_nlm_direct_ > 0 ? sigma_nlm_direct_ * float(spp_scale(f.meta.spp, nlm_direct_spp_exponent_)) : sigma_nlm;
+    r.stats.counters["sigma_nlm_direct"] = sigma_direct;
     AmSettings am = am_;
     am.outlier_scale = spp_scale(f.meta.spp, -outlier_spp_exponent_);
     r.stats.counters["outlier_scale"] = am.outlier_scale;
@@ -149,7 +164,7 @@ class Proposed final : public Method {
           ScopedPhase p(r.stats, "depth");
           depth = normalized_depth(f, k);
         }
-        fd = filter_layer(f, k, d, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::direct : nullptr);
+        fd = filter_layer(f, k, d, depth, sigma_direct, am, r.stats, edges ? &EdgeSample::direct : nullptr);
         fi = filter_layer(f, k, i, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::indirect : nullptr);
       } else {
         // Level k only shows where its tint is non-zero (it enters the level above as
@@ -382,7 +397,7 @@ class Proposed final : public Method {
 
   AmSettings am_;
   NlmSpaceSettings nlm_;
-  float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, firefly_sigma_;
+  float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, sigma_nlm_direct_, nlm_direct_spp_exponent_, firefly_sigma_;
   bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_, opencl_;
 };
 
@@ -410,6 +425,8 @@ MethodInfo proposed_method() {
               {"nlm_radius", ParamType::Int, "3", "NLM patch radius (3: 7x7)", 1.0, 3.0},
               {"nlm_patch_sigma", ParamType::Float, "2", "Gaussian weight of the patch pixels, pixels", 0.1, 100.0},
               {"nlm_samples", ParamType::Int, "4096", "patches drawn to estimate the PCA", 16.0, 1e6},
+              {"sigma_nlm_direct", ParamType::Float, "0.0075", "NLM-vector group sigma of level 0's direct layer at 256 spp; 0: sigma_nlm", 0.0, 1e3},
+              {"nlm_direct_spp_exponent", ParamType::Float, "0.25", "sigma_nlm_direct scales as (256 / frame spp)^this", 0.0, 4.0},
               {"firefly_ratio", ParamType::Float, "3", "cut a pixel brighter than this times its brightest neighbour; 0: off", 0.0, 1e6},
               {"firefly_sigma", ParamType::Float, "0", "the cut light comes back low-passed with this sigma, pixels; 0: dropped", 0.0, 1e4},
               {"nlm_space", ParamType::Bool, "true", "ablation: false guides by the compressed illumination itself"},

@@ -317,12 +317,13 @@ TEST(Proposed, ReflectionLevelFilteredOnlyWhereVisible) {
   EXPECT_NEAR(out_mean, in_mean, 0.05 * in_mean);
 }
 
-// sigma_nlm and the outlier adjustment's strength are the values at 256 spp and follow the
-// frame's sample count (its metadata): sigma_nlm as (256 / spp)^nlm_spp_exponent, eq. 11's
-// strength as (spp / 256)^outlier_spp_exponent. A 16-spp frame is filtered exactly as a 256-spp
-// frame with sigma_nlm 16x larger (the outlier scaling off in both), exponents 0 turn the
-// scalings off, and a frame without a sample count (spp 0, a hand-made frame) is filtered with
-// the parameters as given.
+// sigma_nlm, the direct layer's sigma_nlm_direct and the outlier adjustment's strength are the
+// values at 256 spp and follow the frame's sample count (its metadata): sigma_nlm as
+// (256 / spp)^nlm_spp_exponent, sigma_nlm_direct as (256 / spp)^nlm_direct_spp_exponent, eq.
+// 11's strength as (spp / 256)^outlier_spp_exponent. A 16-spp frame is filtered exactly as a
+// 256-spp frame with the sigmas scaled by hand (the outlier scaling off in both), exponents 0
+// turn the scalings off, and a frame without a sample count (spp 0, a hand-made frame) is
+// filtered with the parameters as given.
 TEST(Proposed, ParametersFollowTheFrameSampleCount) {
   Image clean;
   AovFrame f16 = textured_plane(48, 40, 0.3f, &clean);
@@ -332,10 +333,11 @@ TEST(Proposed, ParametersFollowTheFrameSampleCount) {
   AovFrame f0 = f16;
   f0.meta.spp = 0;
   const std::map<std::string, std::string> no_outlier{{"outlier_spp_exponent", "0"}};
+  // Defaults: sigma_nlm 0.05 x 16 = 0.8; sigma_nlm_direct 0.0075 x 16^0.25 = 0.015.
   EXPECT_EQ(test::mse(run("proposed", f16, no_outlier),
-                      run("proposed", f256, {{"sigma_nlm", "0.8"}, {"outlier_spp_exponent", "0"}})),
+                      run("proposed", f256, {{"sigma_nlm", "0.8"}, {"sigma_nlm_direct", "0.015"}, {"outlier_spp_exponent", "0"}})),
             0.0);
-  const Image fixed = run("proposed", f16, {{"nlm_spp_exponent", "0"}, {"outlier_spp_exponent", "0"}});
+  const Image fixed = run("proposed", f16, {{"nlm_spp_exponent", "0"}, {"nlm_direct_spp_exponent", "0"}, {"outlier_spp_exponent", "0"}});
   EXPECT_EQ(test::mse(fixed, run("proposed", f256)), 0.0);
   EXPECT_EQ(test::mse(fixed, run("proposed", f0)), 0.0);
   const Image scaled = run("proposed", f16);
