@@ -275,6 +275,18 @@ std::size_t IrradianceCache::insert(Vec3 p, Vec3 n, const GatherResult& g, Radiu
   r.radius = std::clamp(R, r.radius_min, r.radius_max);
   r.placed_radius = r.radius / settings_.kappa;
   if (!settings_.use_gradients) r.rot_grad = r.trans_grad = {};
+  // A radius the pixel-footprint minimum raised above the gradient limit: the gradient is
+  // scaled down so that R_i |grad_t E_i| <= E_i still holds (Krivanek et al. 2006). Without
+  // this, a record beside a bright source (E small, gradient steep) extrapolated to ramps of
+  // hundreds of times E over its clamped radius (bedroom: streaks of 13 against 0.02).
+  for (int c = 0; c < 3 && settings_.use_gradients; ++c) {
+    const float len = rt::length(Vec3{r.trans_grad[0][c], r.trans_grad[1][c], r.trans_grad[2][c]});
+    const float e = std::max(0.0f, r.irradiance[c]);
+    if (len * r.radius > e) {
+      const float s = len > 0 ? e / (len * r.radius) : 0.0f;
+      for (int a = 0; a < 3; ++a) r.trans_grad[a][c] *= s;
+    }
+  }
   records_.push_back(r);
   place(index);
   return index;

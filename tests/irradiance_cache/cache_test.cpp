@@ -168,7 +168,9 @@ TEST(Cache, ExtrapolationIsClampedToNonNegative) {
   g.harmonic_mean_distance = 1.0f;
   CacheSettings s;
   s.use_gradients = true;
-  std::size_t i = cache.insert(Vec3(0.0f), Vec3(0, 0, 1), g, {0.5f, 0.5f});
+  // No pixel bounds (which would scale the gradient down, see below): the radius is the
+  // gradient limit 0.01 and the point 0.1 away would get 1 - 10 = -9.
+  std::size_t i = cache.insert(Vec3(0.0f), Vec3(0, 0, 1), g, {0.0f, 1e30f});
   Vec3 e = cache.extrapolate(cache.records()[i], Vec3(0.1f, 0, 0), Vec3(0, 0, 1));
   EXPECT_EQ(e.x, 0.0f);
   EXPECT_GE(e.y, 0.0f);
@@ -193,6 +195,28 @@ TEST(Cache, RadiusIsLimitedByGradientPixelBoundsAndNeighbours) {
   g.harmonic_mean_distance = 0.02f;
   cache.insert(Vec3(0.2f, 0, 0), Vec3(0, 0, 1), g, {0.0f, 1e30f});
   EXPECT_NEAR(cache.records()[c].radius, 0.12f, 1e-6f);
+}
+
+// The pixel-footprint minimum can raise a radius above the gradient limit E / |grad_t E|; the
+// gradient is then scaled so that the extrapolation changes E by at most E over the radius.
+// E = 2, gradient 10 along x (limit 0.2), minimum radius 1: the gradient becomes 2, so E
+// extrapolates to 4 at +1 and 0 at -1 (unscaled: 12 and -8).
+TEST(Cache, GradientScaledWhenThePixelBoundRaisesTheRadius) {
+  IrradianceCache cache(Vec3(-4.0f), Vec3(4.0f), {});
+  GatherResult g;
+  g.irradiance = Vec3(2.0f);
+  g.harmonic_mean_distance = 5.0f;
+  g.trans_grad[0] = Vec3(10.0f);
+  const std::size_t i = cache.insert(Vec3(0.0f), Vec3(0, 0, 1), g, {1.0f, 1e30f});
+  const Record& r = cache.records()[i];
+  EXPECT_NEAR(r.radius, 1.0f, 1e-6f);
+  EXPECT_NEAR(r.trans_grad[0].x, 2.0f, 1e-5f);
+  EXPECT_NEAR(cache.extrapolate(r, Vec3(1.0f, 0, 0), Vec3(0, 0, 1)).x, 4.0f, 1e-5f);
+  EXPECT_NEAR(cache.extrapolate(r, Vec3(-1.0f, 0, 0), Vec3(0, 0, 1)).x, 0.0f, 1e-5f);
+  // Within its own limit (no raise) the gradient is kept as gathered.
+  const std::size_t j = cache.insert(Vec3(3.0f, 0, 0), Vec3(0, 0, 1), g, {0.0f, 1e30f});
+  EXPECT_NEAR(cache.records()[j].radius, 0.2f, 1e-6f);
+  EXPECT_EQ(cache.records()[j].trans_grad[0].x, 10.0f);
 }
 
 TEST(Cache, AngleThresholdIsInRadians) {
