@@ -32,6 +32,10 @@
 //   filter_reflection  bool    also filter the reflection R (what mirrors show) with the same
 //                              passes, its edge-stopping on the first reflection level's normal and
 //                              depth (refl1.normal, refl1.depth); otherwise R passes through
+//   firefly_ratio      float   before filtering, pixels of L = D + I brighter than this times
+//                              their brightest neighbour are cut to that bound (the same cut as
+//                              proposed's, denoisers/illumination.h); 0: off. 3 from the training
+//                              room (docs/method-defaults.md): the baseline gets it too
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -115,7 +119,8 @@ class Atrous final : public Method {
         sigma_depth_(float(p.f("sigma_depth"))),
         halve_(p.b("halve_color_sigma")),
         map_(parse_range_map(p.s("range_map"))),
-        filter_reflection_(p.b("filter_reflection")) {}
+        filter_reflection_(p.b("filter_reflection")),
+        firefly_ratio_(float(p.f("firefly_ratio"))) {}
 
   std::vector<std::string> required_layers() const override {
     auto layers = illumination_layers();
@@ -133,6 +138,7 @@ class Atrous final : public Method {
     {
       ScopedPhase p(r.stats, "prepare");
       light = illumination(f);
+      if (firefly_ratio_ > 0) light = split_fireflies(light, firefly_ratio_).kept;  // as proposed's
     }
     {
       ScopedPhase p(r.stats, "atrous");
@@ -216,6 +222,7 @@ class Atrous final : public Method {
   bool halve_;
   RangeMap map_;
   bool filter_reflection_;
+  float firefly_ratio_;
 };
 
 }  // namespace
@@ -235,6 +242,7 @@ MethodInfo atrous_method() {
               {"range_map", ParamType::String, "reinhard", "domain of the colour distance (denoisers/hdr_mapping.h)", {}, {},
                range_map_names()},
               {"filter_reflection", ParamType::Bool, "false", "also filter R, stopping on the refl1 normal/depth"},
+              {"firefly_ratio", ParamType::Float, "3", "cut pixels of L brighter than this times their brightest neighbour first (as proposed does); 0: off", 0.0, 1e6},
           },
       .create = [](const Params& p) { return std::make_unique<Atrous>(p); },
   };

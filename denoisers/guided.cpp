@@ -31,6 +31,10 @@
 //   filter_reflection bool  also filter the reflection R (what mirrors show), with the same
 //                  filter guided by the first reflection level's layers (refl1.albedo, normal,
 //                  depth: the hit seen through the mirror); otherwise R passes through
+//   firefly_ratio  float  before filtering, pixels of L = D + I brighter than this times
+//                  their brightest neighbour are cut to that bound (the same cut as
+//                  proposed's, denoisers/illumination.h); 0: off. 3 from the training
+//                  room (docs/method-defaults.md): the baseline gets it too
 #include <algorithm>
 #include <cmath>
 
@@ -90,7 +94,8 @@ class Guided final : public Method {
         albedo_weight_(float(p.f("albedo_weight"))),
         normal_weight_(float(p.f("normal_weight"))),
         depth_weight_(float(p.f("depth_weight"))),
-        filter_reflection_(p.b("filter_reflection")) {}
+        filter_reflection_(p.b("filter_reflection")),
+        firefly_ratio_(float(p.f("firefly_ratio"))) {}
 
   std::vector<std::string> required_layers() const override {
     auto layers = illumination_layers();
@@ -109,6 +114,7 @@ class Guided final : public Method {
       ScopedPhase p(r.stats, "prepare");
       guide = make_guide(f, 0);
       light = illumination(f);
+      if (firefly_ratio_ > 0) light = split_fireflies(light, firefly_ratio_).kept;  // as proposed's
     }
     Image filtered, reflection;
     {
@@ -248,6 +254,7 @@ class Guided final : public Method {
   double eps_;
   float albedo_weight_, normal_weight_, depth_weight_;
   bool filter_reflection_;
+  float firefly_ratio_;
 };
 
 }  // namespace
@@ -265,6 +272,7 @@ MethodInfo guided_method() {
               {"normal_weight", ParamType::Float, "1", "scale of the normal guide channels (0: unused)", 0.0, 1e3},
               {"depth_weight", ParamType::Float, "3", "scale of the median-normalised depth guide (0: unused)", 0.0, 1e3},
               {"filter_reflection", ParamType::Bool, "false", "also filter R, guided by the refl1 albedo/normal/depth"},
+              {"firefly_ratio", ParamType::Float, "3", "cut pixels of L brighter than this times their brightest neighbour first (as proposed does); 0: off", 0.0, 1e6},
           },
       .create = [](const Params& p) { return std::make_unique<Guided>(p); },
   };

@@ -5,6 +5,8 @@
 #include <cmath>
 
 #include "denoisers/illumination.h"
+#include "denoisers/method.h"
+#include "denoisers/synthetic_frame.h"
 
 namespace dnb {
 namespace {
@@ -62,6 +64,38 @@ TEST(Fireflies, ClampLuminanceScalesChannelsAlike) {
   float b[3] = {0.1f, 0.1f, 0.1f};
   clamp_luminance(b, 1.0f);
   EXPECT_EQ(b[0], 0.1f);
+}
+
+// The methods that take firefly_ratio use it: a constant frame with one pixel's indirect light
+// 300x brighter. With the cut the pixel's neighbours stay within 5% of the constant colour and
+// the pixel itself within 4x (the bound: 3x its neighbours' illumination); without it the
+// filter spreads the firefly (neighbours raised by more than 5%) or keeps it (over 4x).
+TEST(Fireflies, MethodsThatFilterIlluminationCutThem) {
+  AovFrame f = test::constant_frame(32, 32);
+  for (int c = 0; c < 3; ++c) {
+    f.layer(layer::kIndirect).at(16, 16, c) *= 300.0f;
+    f.layer(layer::kColor).at(16, 16, c) =
+        (f.layer(layer::kDirect).at(16, 16, c) + f.layer(layer::kIndirect).at(16, 16, c)) * f.layer(layer::kAlbedo).at(16, 16, c) +
+        f.layer(layer::kReflection).at(16, 16, c);
+  }
+  for (const char* name : {"proposed", "atrous", "guided"}) {
+    auto run = [&](const char* ratio) {
+      auto m = MethodRegistry::global().create(name, {{"firefly_ratio", ratio}});
+      return run_method(*m, {.frame = &f}).image;
+    };
+    auto worst = [](const Image& im) {  // largest relative excess: neighbours, and the pixel
+      double nb = 0;
+      for (int y = 13; y <= 19; ++y)
+        for (int x = 13; x <= 19; ++x)
+          if (x != 16 || y != 16) nb = std::max(nb, double(im.at(x, y, 1)) / test::kConstantColor - 1.0);
+      return std::pair{nb, double(im.at(16, 16, 1)) / test::kConstantColor};
+    };
+    const auto [nb_cut, px_cut] = worst(run("3"));
+    const auto [nb_off, px_off] = worst(run("0"));
+    EXPECT_LT(nb_cut, 0.05) << name;
+    EXPECT_LT(px_cut, 4.0) << name;
+    EXPECT_TRUE(nb_off > 0.05 || px_off > 4.0) << name << ": the firefly did not show without the cut";
+  }
 }
 
 }  // namespace
