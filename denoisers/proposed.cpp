@@ -47,12 +47,12 @@
 //                           pixels); 0 (default): dropped. Equal on the training room at 64
 //                           and 256 spp, and a wide blur costs 0.2-0.8 s at 1024x768
 //   sigma_nlm_direct float  the NLM group sigma of level 0's direct layer at 256 spp; 0:
-//                           sigma_nlm (reflection levels keep sigma_nlm: the same on the
-//                           training room, 16 spp 9.56 against 9.61). Direct light (next-event estimation) is far
-//                           less noisy than indirect, so a much tighter sigma keeps its thin
-//                           features (contact shadows 1-2 pixels wide, which a 7x7 patch
-//                           blurs into its neighbours'). Fitted on the training room
-//                           (docs/method-defaults.md): 0.0075, against 0.05 for indirect
+//                           sigma_nlm. Direct light (next-event estimation) is far less noisy
+//                           than indirect, so a much tighter sigma keeps its thin features
+//                           (contact shadows 1-2 pixels wide, which a 7x7 patch blurs into its
+//                           neighbours'). Fitted on the training room (docs/method-defaults.md):
+//                           0.0075, against 0.05 for indirect. Reflection levels keep
+//                           sigma_nlm (the same on the training room: 16 spp 9.56 against 9.61)
 //   nlm_direct_spp_exponent float  sigma_nlm_direct follows the frame's spp as
 //                           (256 / spp)^this; fitted with it: 0.25
 //   sigma_normal     float  normal group sigma (unit vectors)
