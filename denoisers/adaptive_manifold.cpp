@@ -385,11 +385,18 @@ class AmRun {
     frac_.resize(df_);
     // Output pixel df sx + df/2 + k sits at sx + (df/2 + k + 0.5) / df - 0.5 on the reduced grid.
     for (int k = 0; k < df_; ++k) frac_[k] = (df_ / 2 + k + 0.5f) / df_ - 0.5f;
-    qacc_.assign(queries_.size() * (C_ + 1), 0.0);
-    qmin_.assign(queries_.size(), INFINITY);
-    qsite_.resize(queries_.size());
+    nq_ = queries_.size();
+    // Query buffers from the pool (tens of megabytes at 1024x768: fresh ones cost more in page
+    // faults than the queries' arithmetic).
+    qacc_ = pooled(nq_ * (C_ + 1), 0.0f);
+    qmin_ = pooled(nq_, INFINITY);
+    // The queries' guides by channel (planar), so that the distances of a run of queries
+    // vectorise across the queries.
+    qg_ = pooled_uninitialised(nq_ * D_);
+    tbb::parallel_for(std::size_t(0), nq_, [&](std::size_t q) {
+      for (int c = 0; c < D_; ++c) qg_[std::size_t(c) * nq_ + q] = queries_[q].guide[c];
+    });
     for (std::size_t q = 0; q < queries_.size(); ++q) {
-      qsite_[q] = site(queries_[q].x, queries_[q].y);
       if (q == 0 || queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) qrun_.push_back(q);
     }
     qrun_.push_back(queries_.size());
@@ -406,6 +413,7 @@ class AmRun {
 
   ~AmRun() {
     BufferPool::get().give(std::move(min_d2_));
+    for (auto* v : {&qacc_, &qmin_, &qg_}) BufferPool::get().give(std::move(*v));
   }
   AmRun(const AmRun&) = delete;
   AmRun& operator=(const AmRun&) = delete;
@@ -433,12 +441,12 @@ class AmRun {
     if (query_out) {
       query_out->assign(queries_.size() * C_, 0.0f);
       for (std::size_t q = 0; q < queries_.size(); ++q) {
-        const double den = qacc_[q * (C_ + 1) + C_];
+        const float den = qacc_[std::size_t(C_) * nq_ + q];
         const float alpha = queries_[q].adjust_outliers ? std::exp(alpha_k * qmin_[q]) : 1.0f;
         for (int c = 0; c < C_; ++c) {
           const float f = queries_[q].src ? queries_[q].src[c]
                                            : src_.row(c, queries_[q].y)[queries_[q].x];
-          const float g = den > kAmMinWeight ? float(qacc_[q * (C_ + 1) + c] / den) : f;
+          const float g = den > kAmMinWeight ? qacc_[std::size_t(c) * nq_ + q] / den : f;
           (*query_out)[q * C_ + c] = f + alpha * (g - f);
         }
       }
@@ -450,6 +458,7 @@ class AmRun {
   struct Scratch {
     std::vector<float> eta, x, d2, w, tmp, blur;
     std::vector<float> qeta, qarg, qw;  // one pixel's manifold value and its queries' weights
+    std::vector<float> qrow;            // a reduced eta row blended vertically (D x sw)
     std::vector<float> colsum;  // per-column sums over the rows of one reduced-grid row
     std::vector<float> cov;     // lane-split covariance sums (kLanes per entry)
   };
@@ -534,24 +543,6 @@ class AmRun {
       out[full] = s * inv_rows / float(W_ - full * df);
     }
   }
-
-  // Where a full-resolution pixel reads the reduced grid: the four bilinear taps' offsets in a
-  // plane and the fractions (the same for every manifold, so the queries keep one each).
-  struct Site {
-    std::uint32_t o00, o01, o10, o11;
-    float fx, fy;
-  };
-  Site site(int x, int y) const {
-    const std::uint32_t r0 = std::uint32_t(y0_[y]) * sw_, r1 = std::uint32_t(y1_[y]) * sw_;
-    return {r0 + x0_[x], r0 + x1_[x], r1 + x0_[x], r1 + x1_[x], fx_[x], fy_[y]};
-  }
-  static float sample(const Planes& p, int c, const Site& t) {
-    const float* q = p.plane(c);
-    const float a = q[t.o00] + t.fx * (q[t.o01] - q[t.o00]);
-    const float b = q[t.o10] + t.fx * (q[t.o11] - q[t.o10]);
-    return a + t.fy * (b - a);
-  }
-
 
   // One manifold: splat, blur, slice, and (above the leaves) split into two children.
   // One manifold of the tree: its id (children 2 id and 2 id + 1), its eta on the reduced grid
@@ -838,31 +829,58 @@ class AmRun {
   // not change them. Consecutive queries at one pixel (an edge pixel's 16 sub-pixels) share
   // the manifold's value there; only the guide distance is per query.
   void answer_queries(const Node& n, int y, const float* eta, const float* blur, Scratch& sc) {
-    for (std::size_t i = row_runs_[std::size_t(y)]; i < row_runs_[std::size_t(y) + 1]; ++i) {
+    const std::size_t r0 = row_runs_[std::size_t(y)], r1 = row_runs_[std::size_t(y) + 1];
+    if (r0 == r1) return;
+    // Without a full-resolution eta row: the reduced grid's two rows, blended vertically once
+    // per row (read in order), then sampled horizontally per run (random reads of the grid at
+    // every run were cache misses: 14 per run and manifold).
+    const float* vrow = nullptr;
+    if (!eta && !n.eta_full) {
+      sc.qrow.resize(std::size_t(D_) * sw_);
+      const float fy = fy_[y];
+      for (int c = 0; c < D_; ++c) {
+        const float* a = n.eta_small.row(c, y0_[y]);
+        const float* b = n.eta_small.row(c, y1_[y]);
+        float* o = sc.qrow.data() + std::size_t(c) * sw_;
+        for (int x = 0; x < sw_; ++x) o[x] = a[x] + fy * (b[x] - a[x]);
+      }
+      vrow = sc.qrow.data();
+    }
+    for (std::size_t i = r0; i < r1; ++i) {
       const std::size_t k = runs_by_row_[i];
       const std::size_t first = qrun_[k], end = qrun_[k + 1], len = end - first;
       const int x = queries_[first].x;
       float* e = sc.qeta.data();
-      for (int c = 0; c < D_; ++c)
-        e[c] = eta ? eta[std::size_t(c) * W_ + x] : n.eta_full ? n.eta_full->row(c, y)[x] : sample(n.eta_small, c, qsite_[first]);
+      for (int c = 0; c < D_; ++c) {
+        if (eta) {
+          e[c] = eta[std::size_t(c) * W_ + x];
+        } else if (n.eta_full) {
+          e[c] = n.eta_full->row(c, y)[x];
+        } else {
+          const float* v = vrow + std::size_t(c) * sw_;
+          e[c] = v[x0_[x]] + fx_[x] * (v[x1_[x]] - v[x0_[x]]);
+        }
+      }
       sc.qarg.resize(len);
       sc.qw.resize(len);
-      for (std::size_t q = first; q < end; ++q) {
-        const float* g = queries_[q].guide;
-        double d2 = 0;
-        for (int c = 0; c < D_; ++c) {
-          const double d = double(g[c]) - e[c];
-          d2 += d * d;
-        }
-        sc.qarg[q - first] = float(-d2 * inv_sr2_);
-        qmin_[q] = std::min(qmin_[q], float(d2));
+      float* d2 = sc.qarg.data();
+      std::fill(d2, d2 + len, 0.0f);
+      for (int c = 0; c < D_; ++c) {
+        const float ec = e[c];
+        const float* g = qg_.data() + std::size_t(c) * nq_ + first;
+        for (std::size_t q = 0; q < len; ++q) d2[q] += (g[q] - ec) * (g[q] - ec);
       }
-      // The weight in float, as the image's pixels get it (exp32f, vectorised; libm's expf
-      // takes a slow path for every weight that underflows); the sums stay double.
-      cv::hal::exp32f(sc.qarg.data(), sc.qw.data(), int(len));
-      for (std::size_t q = first; q < end; ++q) {
-        double* acc = qacc_.data() + q * (C_ + 1);
-        for (int c = 0; c <= C_; ++c) acc[c] += double(sc.qw[q - first]) * blur[std::size_t(c) * W_ + x];
+      float* mn = qmin_.data() + first;
+      for (std::size_t q = 0; q < len; ++q) {
+        mn[q] = std::min(mn[q], d2[q]);
+        d2[q] = -d2[q] * inv_sr2_;  // now the exponent, as the pixels' (pass 1)
+      }
+      // Weights and sums in float, as the image's pixels get them (exp32f; acc_).
+      cv::hal::exp32f(d2, sc.qw.data(), int(len));
+      for (int c = 0; c <= C_; ++c) {
+        const float b = blur[std::size_t(c) * W_ + x];
+        float* acc = qacc_.data() + std::size_t(c) * nq_ + first;
+        for (std::size_t q = 0; q < len; ++q) acc[q] += sc.qw[q] * b;
       }
     }
   }
@@ -933,9 +951,10 @@ class AmRun {
   std::vector<std::int32_t> label_;
   std::vector<int> x0_, x1_, y0_, y1_;
   std::vector<float> fx_, fy_, frac_;
-  std::vector<double> qacc_;
+  std::size_t nq_ = 0;
+  std::vector<float> qacc_;  // planar: channel c of query q at c * nq_ + q (C sums, then the weight)
+  std::vector<float> qg_;     // planar: the queries' guides
   std::vector<float> qmin_;
-  std::vector<Site> qsite_;
   std::vector<std::size_t> qrun_;  // first query of each run of queries at one pixel, then the count
   std::vector<std::size_t> row_runs_, runs_by_row_;  // runs_by_row_[row_runs_[y] ..) are row y's
   tbb::enumerable_thread_specific<Scratch> scratch_;
