@@ -370,7 +370,8 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
         r["kind"] = to_string(info.kind);
         r["params"] = params.as_strings();
         const std::string key = cell_key({{"method", m.method}, {"params", r["params"]}, {"input", fkey.digest()},
-                                          {"ref", c.reference_spp}, {"repeats", c.repeats}, {"build", build_id()}});
+                                          {"ref", c.reference_spp}, {"repeats", c.repeats},
+                                          {"repeat_below", c.repeat_below_seconds}, {"build", build_id()}});
         if (const json* old = store.finished(key); old && fs::exists(opt.out_dir + "/" + (*old)["files"]["image"].get<std::string>())) {
           store.reuse(*old);
           progress.add(1);

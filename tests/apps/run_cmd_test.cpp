@@ -121,6 +121,17 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
   const auto res3 = nlohmann::json::parse(slurp(out + "/results.json"));
   EXPECT_EQ(res3["records"].size(), 5u);
   EXPECT_NE(res3["build"]["build_id"], res["build"]["build_id"]);
+
+  // The timing settings are part of a method cell: a run with another repeat threshold times
+  // the filters again instead of keeping times taken under the old one.
+  const auto timed_before = fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr");
+  std::string retimed = kTinyConfig;
+  retimed.replace(retimed.find("repeats = 2"), 11, "repeats = 2\nrepeat_below_seconds = 5.0");
+  write(dir.path() / "retimed.toml", retimed);
+  auto rt = test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + other.string() + "' run " +
+                              dir.file("retimed.toml") + " -o " + out);
+  ASSERT_EQ(rt.exit_code, 0) << rt.output;
+  EXPECT_NE(fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr"), timed_before);
 }
 
 TEST(RunCommand, RefusesUnknownMethodsAndKeys) {
