@@ -75,6 +75,7 @@
 
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include "core/errors.h"
 #include "denoisers/adaptive_manifold.h"
@@ -164,8 +165,14 @@ class Proposed final : public Method {
           ScopedPhase p(r.stats, "depth");
           depth = normalized_depth(f, k);
         }
-        fd = filter_layer(f, k, d, depth, sigma_direct, am, r.stats, edges ? &EdgeSample::direct : nullptr);
-        fi = filter_layer(f, k, i, depth, sigma_nlm, am, r.stats, edges ? &EdgeSample::indirect : nullptr);
+        // D and I concurrently: each run is parallel inside, but its serial steps between
+        // passes leave a core idle; the two runs fill each other's gaps. Each keeps its own
+        // stats (phases then overlap in time), merged in order D, I.
+        MethodStats sd, si;
+        tbb::parallel_invoke(
+            [&] { fd = filter_layer(f, k, d, depth, sigma_direct, am, sd, edges ? &EdgeSample::direct : nullptr); },
+            [&] { fi = filter_layer(f, k, i, depth, sigma_nlm, am, si, edges ? &EdgeSample::indirect : nullptr); });
+        merge_stats(r.stats, sd, si);
       } else {
         // Level k only shows where its tint is non-zero (it enters the level above as
         // tint_k * F'_k): filter the bounding box of those pixels plus a margin of 6 sigma_s
@@ -189,8 +196,11 @@ class Proposed final : public Method {
             ScopedPhase p(r.stats, "depth_level" + std::to_string(k));
             sub_depth = normalized_depth(sub, k);
           }
-          paste(filter_layer(sub, k, cropped(d, box), sub_depth, sigma_nlm, am, r.stats, nullptr).image, box, fd.image);
-          paste(filter_layer(sub, k, cropped(i, box), sub_depth, sigma_nlm, am, r.stats, nullptr).image, box, fi.image);
+          MethodStats sd, si;  // D and I concurrently, as at level 0
+          tbb::parallel_invoke(
+              [&] { paste(filter_layer(sub, k, cropped(d, box), sub_depth, sigma_nlm, am, sd, nullptr).image, box, fd.image); },
+              [&] { paste(filter_layer(sub, k, cropped(i, box), sub_depth, sigma_nlm, am, si, nullptr).image, box, fi.image); });
+          merge_stats(r.stats, sd, si);
         }
       }
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
@@ -232,6 +242,17 @@ class Proposed final : public Method {
   struct Box {
     int x = 0, y = 0, w = 0, h = 0;
   };
+  // The stats of the D and I runs into the method's, D first: phases appended (they overlapped
+  // in time), counters summed (firefly pixels) except the guide's channel count, which is set.
+  static void merge_stats(MethodStats& into, const MethodStats& d, const MethodStats& i) {
+    for (const MethodStats* st : {&d, &i}) {
+      for (const auto& ph : st->phases) into.phases.push_back(ph);
+      for (const auto& [name, v] : st->counters) {
+        if (name == "guide_channels") into.counters[name] = v;
+        else into.counters[name] += v;
+      }
+    }
+  }
   // Bounding box of the pixels with a non-zero channel, grown by `margin` and clipped to the
   // image; empty when there are none.
   static Box visible_box(const Image& tint, int margin) {
