@@ -9,6 +9,9 @@
 
 namespace dnb {
 
+// Rec. 709 luminance of a linear RGB pixel (three floats).
+inline float luminance(const float* rgb) { return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2]; }
+
 template <typename T>
 struct BasicImageView {
   T* data = nullptr;

@@ -472,13 +472,18 @@ class AmRun {
     upsample_rows(eta_small, 0, D_, y, eta, tmp);
   }
 
-  void upsample_rows(const Planes& p, int first, int count, int y, float* out, float* tmp) const {
-    const int ya = y0_[y], yb = y1_[y];
+  // The vertical half of bilinear upsampling: plane c's two reduced rows around full row y,
+  // blended into one reduced row (sw floats).
+  void blend_rows(const Planes& p, int c, int y, float* out) const {
+    const float* r0 = p.row(c, y0_[y]);
+    const float* r1 = p.row(c, y1_[y]);
     const float fy = fy_[y];
+    for (int x = 0; x < sw_; ++x) out[x] = r0[x] + fy * (r1[x] - r0[x]);
+  }
+
+  void upsample_rows(const Planes& p, int first, int count, int y, float* out, float* tmp) const {
     for (int c = 0; c < count; ++c) {
-      const float* r0 = p.row(first + c, ya);
-      const float* r1 = p.row(first + c, yb);
-      for (int x = 0; x < sw_; ++x) tmp[x] = r0[x] + fy * (r1[x] - r0[x]);
+      blend_rows(p, first + c, y, tmp);
       float* o = out + std::size_t(c) * W_;
       upsample_x(tmp, o);
     }
@@ -837,13 +842,7 @@ class AmRun {
     const float* vrow = nullptr;
     if (!eta && !n.eta_full) {
       sc.qrow.resize(std::size_t(D_) * sw_);
-      const float fy = fy_[y];
-      for (int c = 0; c < D_; ++c) {
-        const float* a = n.eta_small.row(c, y0_[y]);
-        const float* b = n.eta_small.row(c, y1_[y]);
-        float* o = sc.qrow.data() + std::size_t(c) * sw_;
-        for (int x = 0; x < sw_; ++x) o[x] = a[x] + fy * (b[x] - a[x]);
-      }
+      for (int c = 0; c < D_; ++c) blend_rows(n.eta_small, c, y, sc.qrow.data() + std::size_t(c) * sw_);
       vrow = sc.qrow.data();
     }
     for (std::size_t i = r0; i < r1; ++i) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <tbb/parallel_for.h>
 
@@ -54,10 +55,6 @@ Image normalized_depth(const AovFrame& frame, int level) {
   return out;
 }
 
-namespace {
-float luminance(const float* p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
-}  // namespace
-
 void clamp_luminance(float rgb[3], float bound) {
   const float l = luminance(rgb);
   if (!(l > bound)) return;
@@ -65,15 +62,20 @@ void clamp_luminance(float rgb[3], float bound) {
   for (int c = 0; c < 3; ++c) rgb[c] *= s;
 }
 
-FireflySplit split_fireflies(const Image& layer, float ratio) {
+FireflySplit split_fireflies(Image layer, float ratio) {
   const int w = layer.width(), h = layer.height();
   FireflySplit r;
-  r.kept = layer;
+  r.kept = std::move(layer);
   if (ratio <= 0) return r;  // excess and bound stay empty
   r.excess = Image(w, h, 3);
   r.bound.assign(std::size_t(w) * h, INFINITY);
   std::vector<float> lum(std::size_t(w) * h);
-  for (std::size_t k = 0; k < lum.size(); ++k) lum[k] = luminance(layer.data() + k * 3);
+  tbb::parallel_for(0, h, [&](int y) {
+    for (int x = 0; x < w; ++x) {
+      const std::size_t k = std::size_t(y) * w + x;
+      lum[k] = luminance(r.kept.data() + k * 3);
+    }
+  });
   std::vector<std::size_t> cut_rows(std::size_t(h), 0);
   tbb::parallel_for(0, h, [&](int y) {
     for (int x = 0; x < w; ++x) {

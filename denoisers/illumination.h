@@ -49,7 +49,7 @@ struct FireflySplit {
   std::vector<float> bound;
   std::size_t cut = 0;  // pixels cut
 };
-FireflySplit split_fireflies(const Image& layer, float ratio);
+FireflySplit split_fireflies(Image layer, float ratio);
 
 // Clamps the luminance of `rgb` to `bound` (scaling all channels alike).
 void clamp_luminance(float rgb[3], float bound);

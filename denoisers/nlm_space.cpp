@@ -14,8 +14,6 @@
 namespace dnb {
 namespace {
 
-float luminance(const float* p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
-
 float mean_luminance(const Image& img) {
   // Row sums in parallel, added in row order: the same double whatever the thread count.
   std::vector<double> rows(std::size_t(img.height()), 0.0);

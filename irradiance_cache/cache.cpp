@@ -32,14 +32,13 @@ GatherResult gather(Vec3 n, int M, int N, const IncomingFn& incoming,
     }
   if (cut) *cut = 0;
   if (clamp_ratio > 0) {
-    auto lum = [](const Vec3& L) { return 0.2126f * L[0] + 0.7152f * L[1] + 0.0722f * L[2]; };
     for (int pass = 0; pass < 3; ++pass) {
       double total = 0;
-      for (const GatherSample& s : cells) total += std::max(0.0f, lum(s.radiance));
+      for (const GatherSample& s : cells) total += std::max(0.0f, rt::luminance(s.radiance));
       const float bound = float(clamp_ratio * total / double(cells.size()));
       int n_cut = 0;
       for (GatherSample& s : cells) {
-        const float l = lum(s.radiance);
+        const float l = rt::luminance(s.radiance);
         if (l > bound && l > 0) {
           s.radiance = s.radiance * (bound / l);
           ++n_cut;
