@@ -287,11 +287,58 @@ std::vector<float> low_pass_weights(int n, double sigma) {
   return std::vector<float>(std::max(n, 1), float(std::exp(-std::sqrt(2.0) / sigma)));
 }
 
-// Their h_filter: the recursive filter with that constant feedback.
-void low_pass(Planes& p, int first, int count, double sigma) {
+// Pixel-interleaved float image: row y holds w pixels of dp floats (n channels, then zeros up
+// to dp, a multiple of 8), so that both halves of a constant-feedback recursive filter run in
+// place: the horizontal one as recursive_interleaved over the rows themselves, the vertical one
+// as one vector loop along each row (no per-column weights). Planar planes had to be
+// transposed to interleaved rows and back for the horizontal half: that transpose cost more
+// than the filtering.
+struct Interleaved {
+  int w = 0, h = 0, n = 0, dp = 8;
+  std::vector<float> data;
+  Interleaved() = default;
+  Interleaved(int w_, int h_, int n_)
+      : w(w_), h(h_), n(n_), dp(8 * ((n_ + 7) / 8)), data(pooled_uninitialised(std::size_t(w_) * h_ * dp)) {}
+  Interleaved(Interleaved&&) = default;
+  Interleaved& operator=(Interleaved&& o) {
+    BufferPool::get().give(std::move(data));
+    w = o.w, h = o.h, n = o.n, dp = o.dp, data = std::move(o.data);
+    return *this;
+  }
+  ~Interleaved() { BufferPool::get().give(std::move(data)); }
+  float* row(int y) { return data.data() + std::size_t(y) * w * dp; }
+  const float* row(int y) const { return data.data() + std::size_t(y) * w * dp; }
+};
+
+// Their h_filter: the recursive filter with a constant feedback, on an interleaved image (every
+// element sees the operations recursive_filter() would apply to its plane, in the same order).
+void low_pass(Interleaved& p, double sigma) {
   const std::vector<float> a = low_pass_weights(p.w, sigma);
-  auto same = [&](int) { return a.data(); };
-  recursive_filter(p, first, count, same, same);
+  const int w = p.w, h = p.h, nb = p.dp / 8;
+  const int groups = (h + kRowGroup - 1) / kRowGroup;
+  tbb::parallel_for(0, groups, [&](int g) {
+    const int y0 = g * kRowGroup, n = std::min(kRowGroup, h - y0);
+    float* rows[kRowGroup];
+    const float* ar[kRowGroup];
+    for (int r = 0; r < n; ++r) rows[r] = p.row(y0 + r), ar[r] = a.data();
+    recursive_interleaved(rows, ar, w, nb, n);
+  });
+  const float k = a[0];
+  const std::size_t len = std::size_t(w) * p.dp;
+  constexpr std::size_t kChunk = 512;
+  tbb::parallel_for(std::size_t(0), (len + kChunk - 1) / kChunk, [&](std::size_t chunk) {
+    const std::size_t i0 = chunk * kChunk, i1 = std::min(len, i0 + kChunk);
+    for (int y = 1; y < h; ++y) {
+      float* __restrict r = p.row(y);
+      const float* __restrict q = p.row(y - 1);
+      for (std::size_t i = i0; i < i1; ++i) r[i] += k * (q[i] - r[i]);
+    }
+    for (int y = h - 2; y >= 0; --y) {
+      float* __restrict r = p.row(y);
+      const float* __restrict q = p.row(y + 1);
+      for (std::size_t i = i0; i < i1; ++i) r[i] += k * (q[i] - r[i]);
+    }
+  });
 }
 
 std::uint64_t hash_guide(ConstImageView g) {
@@ -560,7 +607,7 @@ class AmRun {
     std::vector<double> cov_rows;  // per reduced row, the D x D covariance sums (split levels)
     std::vector<float> v;          // the split direction
     std::vector<float> w;          // every pixel's weight for this manifold, full resolution
-    Planes kids[2];                // the children's (1 - w)-weighted guide splats and weights
+    Interleaved kids[2];           // the children's (1 - w)-weighted guide splats and weights
   };
   // Manifolds of one level processed together: the full-resolution passes are bound by
   // reading the guide, the source and the accumulators from memory, so each pass reads them
@@ -707,8 +754,8 @@ class AmRun {
       for (int i = 0; i < D_; ++i)
         for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
       n.v = am_detail::split_direction(cov, D_, seed_, n.id, s_.pca_iterations);
-      n.kids[0] = Planes(sw_, sh_, D_ + 1, Planes::Overwritten{});  // every reduced row by pass 2
-      n.kids[1] = Planes(sw_, sh_, D_ + 1, Planes::Overwritten{});
+      n.kids[0] = Interleaved(sw_, sh_, D_ + 1);  // every reduced row by pass 2
+      n.kids[1] = Interleaved(sw_, sh_, D_ + 1);
     }
 
     // Pass 2 (full resolution): slice; above the leaves also split each cluster and splat the
@@ -774,9 +821,15 @@ class AmRun {
       const float inv_rows = 1.0f / float(yb - ya);
       for (int k = 0; k < m; ++k) {
         const float* col = sc.colsum.data() + std::size_t(k) * kid_cols;
-        for (int c = 0; c <= D_; ++c) {
-          reduce_columns(col + std::size_t(c) * W_, nodes[k].kids[0].row(c, sy), inv_rows);
-          reduce_columns(col + std::size_t(D_ + 1 + c) * W_, nodes[k].kids[1].row(c, sy), inv_rows);
+        for (int side = 0; side < 2; ++side) {
+          Interleaved& kid = nodes[k].kids[side];
+          float* out = kid.row(sy);
+          for (int c = 0; c <= D_; ++c) {
+            reduce_columns(col + std::size_t(side * (D_ + 1) + c) * W_, sc.tmp.data(), inv_rows);
+            for (int sx = 0; sx < sw_; ++sx) out[std::size_t(sx) * kid.dp + c] = sc.tmp[std::size_t(sx)];
+          }
+          for (int sx = 0; sx < sw_; ++sx)
+            for (int c = D_ + 1; c < kid.dp; ++c) out[std::size_t(sx) * kid.dp + c] = 0.0f;
         }
       }
     });
@@ -787,24 +840,25 @@ class AmRun {
       n.splat = Planes();
       if (!split) continue;
       for (int c2 = 0; c2 < 2; ++c2) {
-        Planes& p = n.kids[c2];
-        low_pass(p, 0, D_ + 1, s_.sigma_s / df_);
+        Interleaved& p = n.kids[c2];
+        low_pass(p, s_.sigma_s / df_);
         Node child;
         child.id = 2 * n.id + c2;
         child.eta_small = Planes(sw_, sh_, D_, Planes::Overwritten{});
-        const float* den = p.plane(D_);
         tbb::parallel_for(0, sh_, [&](int sy) {
-          const std::size_t row = std::size_t(sy) * sw_;
+          const float* px = p.row(sy);
+          const int dp = p.dp;
           for (int c = 0; c < D_; ++c) {
-            const float* num = p.plane(c) + row;
-            const float* parent = n.eta_small.plane(c) + row;
-            const float* dn = den + row;
-            float* e = child.eta_small.plane(c) + row;
+            const float* parent = n.eta_small.row(c, sy);
+            float* e = child.eta_small.row(c, sy);
             // Where the child's cluster left no weight, it keeps its parent's manifold.
-            for (int i = 0; i < sw_; ++i) e[i] = dn[i] > 1e-20f ? num[i] / dn[i] : parent[i];
+            for (int i = 0; i < sw_; ++i) {
+              const float num = px[std::size_t(i) * dp + c], dn = px[std::size_t(i) * dp + D_];
+              e[i] = dn > 1e-20f ? num / dn : parent[i];
+            }
           }
         });
-        p = Planes();
+        p = Interleaved();
         next.push_back(std::move(child));
       }
       n.eta_small = Planes();
