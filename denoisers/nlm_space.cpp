@@ -6,6 +6,7 @@
 #include <random>
 
 #include <opencv2/core.hpp>
+#include <opencv2/core/hal/hal.hpp>
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
 
@@ -41,12 +42,39 @@ std::uint64_t hash_image(const Image& img) {
 
 }  // namespace
 
-float NlmSpace::compress(const float* rgb) const { return std::log1p(std::max(0.0f, luminance(rgb)) / mean_luminance); }
+// log(1 + x) through OpenCV's vectorised log32f, for whole rows (libm's log1pf, one pixel at a
+// time, was a tenth of nlm_space's time), and through the same function for single values, so
+// that compress() of a pixel equals its entry in the compressed image (log32f's vector and
+// scalar paths agree bit for bit; checked on 4M values). Next to log1p it loses relative
+// precision only for x below about 1e-4, where the absolute error (1e-7) is far under any sigma.
+float NlmSpace::compress(const float* rgb) const {
+  const float x = 1.0f + std::max(0.0f, luminance(rgb)) / mean_luminance;
+  float y;
+  cv::hal::log32f(&x, &y, 1);
+  return y;
+}
 
 void NlmSpace::vector_with_center(const Image& illumination, int x, int y, const float* rgb, float* out) const {
-  const float delta = compress(rgb) - compress(illumination.pixel(x, y));
+  vectors_with_centers(illumination, x, y, rgb, 1, out, vectors.channels());
+}
+
+void NlmSpace::vectors_with_centers(const Image& illumination, int x, int y, const float* rgb, int n, float* out,
+                                    int stride) const {
+  constexpr int kBatch = 32;
+  float ys[kBatch + 1];
   const float* v = vectors.pixel(x, y);
-  for (int k = 0; k < vectors.channels(); ++k) out[k] = v[k] + center[k] * delta;
+  for (int first = 0; first < n; first += kBatch) {
+    const int m = std::min(kBatch, n - first);
+    // The pixel's own value first, then the batch: one log32f call, as compress() computes each.
+    ys[0] = 1.0f + std::max(0.0f, luminance(illumination.pixel(x, y))) / mean_luminance;
+    for (int i = 0; i < m; ++i) ys[1 + i] = 1.0f + std::max(0.0f, luminance(rgb + 3 * (first + i))) / mean_luminance;
+    cv::hal::log32f(ys, ys, m + 1);
+    for (int i = 0; i < m; ++i) {
+      const float delta = ys[1 + i] - ys[0];
+      float* o = out + std::size_t(first + i) * stride;
+      for (int k = 0; k < vectors.channels(); ++k) o[k] = v[k] + center[k] * delta;
+    }
+  }
 }
 
 float illumination_scale(const Image& illumination) { return mean_luminance(illumination); }
@@ -73,7 +101,8 @@ NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& s) {
   cv::Mat y(h, w, CV_32F);
   tbb::parallel_for(0, h, [&](int j) {
     float* row = y.ptr<float>(j);
-    for (int i = 0; i < w; ++i) row[i] = out.compress(illumination.pixel(i, j));
+    for (int i = 0; i < w; ++i) row[i] = 1.0f + std::max(0.0f, luminance(illumination.pixel(i, j))) / out.mean_luminance;
+    cv::hal::log32f(row, row, w);  // as compress()
   });
   cv::Mat padded;
   cv::copyMakeBorder(y, padded, s.radius, s.radius, s.radius, s.radius,

@@ -42,6 +42,10 @@ struct NlmSpace {
   // only the centre pixel of the patch changes, so the change is linear in y (paper 3.1, a
   // sub-pixel's NLM vector). Writes dims floats.
   void vector_with_center(const Image& illumination, int x, int y, const float* rgb, float* out) const;
+  // The same for n values at one pixel (an edge pixel's sub-pixels): rgb holds n RGB triples,
+  // vector i goes to out + i * stride. Equal to n calls of vector_with_center, in one pass.
+  void vectors_with_centers(const Image& illumination, int x, int y, const float* rgb, int n, float* out,
+                            int stride) const;
 };
 
 NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& settings);

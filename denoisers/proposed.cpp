@@ -349,15 +349,21 @@ class Proposed final : public Method {
       tbb::parallel_for(std::size_t(0), g.size(), [&](std::size_t n) {
         const int px = g.pixels[n];
         const int x = px % f.width(), y = px / f.width();
-        for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
-          const std::size_t q = n * EdgeSubpixels::kPerPixel + s;
-          const EdgeSample& e = g.of(n)[s];
-          float v[3] = {(e.*sub)[0], (e.*sub)[1], (e.*sub)[2]};  // the sub-pixel's layer value
+        constexpr int kSub = EdgeSubpixels::kPerPixel;
+        const std::size_t q0 = n * kSub;
+        for (int s = 0; s < kSub; ++s) {  // the sub-pixels' layer values
+          float* v = qsrc.data() + (q0 + s) * 3;
+          for (int k = 0; k < 3; ++k) v[k] = (g.of(n)[s].*sub)[k];
           if (firefly_ratio_ > 0) clamp_luminance(v, ff.bound[std::size_t(px)]);
+        }
+        if (use_nlm_) nlm.vectors_with_centers(src, x, y, qsrc.data() + q0 * 3, kSub, qguide.data() + q0 * D, D);
+        for (int s = 0; s < kSub; ++s) {
+          const std::size_t q = q0 + s;
+          const EdgeSample& e = g.of(n)[s];
+          const float* v = qsrc.data() + q * 3;
           float* gq = qguide.data() + q * D;
           int c = 0;
           if (use_nlm_) {
-            nlm.vector_with_center(src, x, y, v, gq);
             for (int k = 0; k < nlm.vectors.channels(); ++k) gq[k] *= sr / sigma_nlm;
             c = nlm.vectors.channels();
           } else {
@@ -367,7 +373,6 @@ class Proposed final : public Method {
             for (int k = 0; k < 3; ++k) gq[c++] = e.normal[k] * sr / sigma_normal_;
             gq[c++] = (e.depth > 0 && std::isfinite(e.depth) ? e.depth * depth_scale : 0.0f) * sr / sigma_depth_;
           }
-          for (int k = 0; k < 3; ++k) qsrc[q * 3 + k] = v[k];
           // The outlier adjustment (eq. 11) towards the sub-pixel's own value, always (also
           // with adjust_outliers = false, which concerns the image's pixels). Sub-pixel guides
           // (a second surface inside a silhouette pixel) are often far from every manifold,
