@@ -606,6 +606,7 @@ class AmRun {
     Planes splat;                  // C + 1 planes on the reduced grid: the splat, then blurred
     std::vector<double> cov_rows;  // per reduced row, the D x D covariance sums (split levels)
     std::vector<float> v;          // the split direction
+    Planes veta;                   // v . eta on the reduced grid (split levels below the root)
     std::vector<float> w;          // every pixel's weight for this manifold, full resolution
     Interleaved kids[2];           // the children's (1 - w)-weighted guide splats and weights
   };
@@ -754,6 +755,18 @@ class AmRun {
       for (int i = 0; i < D_; ++i)
         for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
       n.v = am_detail::split_direction(cov, D_, seed_, n.id, s_.pca_iterations);
+      if (!n.eta_full) {
+        n.veta = Planes(sw_, sh_, 1, Planes::Overwritten{});
+        tbb::parallel_for(0, sh_, [&](int sy) {
+          float* o = n.veta.row(0, sy);
+          std::fill(o, o + sw_, 0.0f);
+          for (int c = 0; c < D_; ++c) {
+            const float* e = n.eta_small.row(c, sy);
+            const float vc = n.v[c];
+            for (int x = 0; x < sw_; ++x) o[x] += vc * e[x];
+          }
+        });
+      }
       n.kids[0] = Interleaved(sw_, sh_, D_ + 1);  // every reduced row by pass 2
       n.kids[1] = Interleaved(sw_, sh_, D_ + 1);
     }
@@ -780,15 +793,28 @@ class AmRun {
             answer_queries(n, y, nullptr, sc.blur.data(), sc);
             continue;
           }
-          eta_row(n.eta_full, n.eta_small, y, sc.eta.data(), sc.tmp.data());
-          answer_queries(n, y, sc.eta.data(), sc.blur.data(), sc);
           float* dot = sc.d2.data();
-          std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
-          for (int c = 0; c < D_; ++c) {
-            const float* g = guide_.row(c, y);
-            const float* e = sc.eta.data() + std::size_t(c) * W_;
-            const float vc = n.v[c];
-            for (int x = 0; x < W_; ++x) dot[x] += vc * (g[x] - e[x]);
+          if (n.eta_full) {
+            eta_row(n.eta_full, n.eta_small, y, sc.eta.data(), sc.tmp.data());
+            answer_queries(n, y, sc.eta.data(), sc.blur.data(), sc);
+            std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
+            for (int c = 0; c < D_; ++c) {
+              const float* g = guide_.row(c, y);
+              const float* e = sc.eta.data() + std::size_t(c) * W_;
+              const float vc = n.v[c];
+              for (int x = 0; x < W_; ++x) dot[x] += vc * (g[x] - e[x]);
+            }
+          } else {
+            // v . (g - eta) = v . g - v . eta, and v . eta is linear in eta, so it is
+            // upsampled as one plane (n.veta) instead of upsampling the D planes of eta.
+            answer_queries(n, y, nullptr, sc.blur.data(), sc);
+            upsample_rows(n.veta, 0, 1, y, dot, sc.tmp.data());
+            for (int x = 0; x < W_; ++x) dot[x] = -dot[x];
+            for (int c = 0; c < D_; ++c) {
+              const float* g = guide_.row(c, y);
+              const float vc = n.v[c];
+              for (int x = 0; x < W_; ++x) dot[x] += vc * g[x];
+            }
           }
           float* tl = sc.w.data();  // (1 - w) for pixels going left, else 0
           float* tr = sc.x.data();  // the same for pixels going right
@@ -862,6 +888,7 @@ class AmRun {
         next.push_back(std::move(child));
       }
       n.eta_small = Planes();
+      n.veta = Planes();
     }
   }
 
