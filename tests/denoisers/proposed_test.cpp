@@ -86,9 +86,9 @@ TEST(Proposed, KeepsTextureWhileRemovingNoise) {
 // (so (D + I) T is the mean of the sub-pixels' (D_s + I_s) T_s), normal and depth are means.
 // The 16 sub-pixels carry each side's own values; D and I carry noise, sub-pixel values more
 // (a sixteenth of the samples each).
-AovFrame edge_frame(int w, int h, float noise, Image* clean, std::vector<char>* is_edge) {
+AovFrame edge_frame(int w, int h, float noise, Image* clean, std::vector<char>* is_edge, std::uint64_t seed = 11) {
   AovFrame f = test::constant_frame(w, h);
-  std::mt19937_64 rng(11);
+  std::mt19937_64 rng(seed);
   std::normal_distribution<float> g(0.0f, 1.0f);
   Image& color = f.layer(layer::kColor);
   Image& d = f.layer(layer::kDirect);
@@ -176,21 +176,27 @@ double mse_on(const Image& a, const Image& b, const std::vector<char>& mask) {
   return s / double(std::max<std::size_t>(n, 1));
 }
 
-// The sub-pixel resolve lowers the error on the pixels of G: measured MSE 1.0e-4 with it,
-// 1.2e-2 without (the mixed pixels' blended guide pulls in both sides' illumination, and the
-// product of pixel means is not the mean of products). Sub-pixel slices far from every manifold
-// fall back towards the sub-pixel's own value (eq. 11), which carries 4x the noise of the pixel
-// here, so the gain is 0.6x, not more; bound 0.8x leaves room for the split's random start.
+// The sub-pixel resolve lowers the error on the pixels of G (the mixed pixels' blended guide
+// pulls in both sides' illumination, and the product of pixel means is not the mean of
+// products). Sub-pixel slices far from every manifold fall back towards the sub-pixel's own
+// value (eq. 11), which carries 4x the noise of the pixel here, so the gain is about 0.6x, not
+// more. One frame is not enough to say so: the tree's split directions start from a random
+// vector seeded by the guide, and over 16 noise seeds one frame's ratio ranged 0.49-0.92 (two
+// above 0.8; a rounding change in the NLM vectors moved seed 11 from 0.49 to 0.87). Pooled over
+// 8 frames it was 0.58-0.63 across those code versions, so the bound 0.8 is far from both.
 TEST(Proposed, EdgeSubpixelResolveLowersErrorOnEdgePixels) {
-  Image clean;
-  std::vector<char> g;
-  const AovFrame f = edge_frame(96, 64, 0.2f, &clean, &g);
-  ASSERT_GT(f.edges->size(), 50u);
-  const double with = mse_on(run("proposed", f), clean, g);
-  const double without = mse_on(run("proposed", f, {{"edge_subpixels", "false"}}), clean, g);
-  RecordProperty("mse_edge_with_resolve", sci(with));
-  RecordProperty("mse_edge_without_resolve", sci(without));
-  EXPECT_LT(with, 0.8 * without) << "with " << with << " without " << without;
+  double with = 0, without = 0;
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    Image clean;
+    std::vector<char> g;
+    const AovFrame f = edge_frame(96, 64, 0.2f, &clean, &g, seed);
+    ASSERT_GT(f.edges->size(), 50u);
+    with += mse_on(run("proposed", f), clean, g);
+    without += mse_on(run("proposed", f, {{"edge_subpixels", "false"}}), clean, g);
+  }
+  RecordProperty("mse_edge_with_resolve", sci(with / 8));
+  RecordProperty("mse_edge_without_resolve", sci(without / 8));
+  EXPECT_LT(with, 0.8 * without) << "with " << with / 8 << " without " << without / 8;
 }
 
 // On a rendered scene the resolve must not raise the error on G. Before the outlier adjustment
