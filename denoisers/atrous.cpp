@@ -138,7 +138,7 @@ class Atrous final : public Method {
     {
       ScopedPhase p(r.stats, "prepare");
       light = illumination(f);
-      if (firefly_ratio_ > 0) light = split_fireflies(std::move(light), firefly_ratio_).kept;  // as proposed's
+      if (firefly_ratio_ > 0) light = split_fireflies(std::move(light), firefly_ratio_, false).kept;  // as proposed's
     }
     {
       ScopedPhase p(r.stats, "atrous");

@@ -114,7 +114,7 @@ class Guided final : public Method {
       ScopedPhase p(r.stats, "prepare");
       guide = make_guide(f, 0);
       light = illumination(f);
-      if (firefly_ratio_ > 0) light = split_fireflies(std::move(light), firefly_ratio_).kept;  // as proposed's
+      if (firefly_ratio_ > 0) light = split_fireflies(std::move(light), firefly_ratio_, false).kept;  // as proposed's
     }
     Image filtered, reflection;
     {

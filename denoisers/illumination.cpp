@@ -62,38 +62,54 @@ void clamp_luminance(float rgb[3], float bound) {
   for (int c = 0; c < 3; ++c) rgb[c] *= s;
 }
 
-FireflySplit split_fireflies(Image layer, float ratio) {
+FireflySplit split_fireflies(Image layer, float ratio, bool with_excess) {
   const int w = layer.width(), h = layer.height();
   FireflySplit r;
   r.kept = std::move(layer);
   if (ratio <= 0) return r;  // excess and bound stay empty
-  r.excess = Image(w, h, 3);
-  r.bound.assign(std::size_t(w) * h, INFINITY);
+  if (with_excess) r.excess = Image(w, h, 3);
+  r.bound.resize(std::size_t(w) * h);
   std::vector<float> lum(std::size_t(w) * h);
   tbb::parallel_for(0, h, [&](int y) {
-    for (int x = 0; x < w; ++x) {
-      const std::size_t k = std::size_t(y) * w + x;
-      lum[k] = luminance(r.kept.data() + k * 3);
-    }
+    const float* p = r.kept.pixel(0, y);
+    float* l = lum.data() + std::size_t(y) * w;
+    for (int x = 0; x < w; ++x) l[x] = luminance(p + std::size_t(x) * 3);
   });
   std::vector<std::size_t> cut_rows(std::size_t(h), 0);
   tbb::parallel_for(0, h, [&](int y) {
-    for (int x = 0; x < w; ++x) {
+    // Each pixel's bound: ratio times the largest luminance of its 8 neighbours (those inside
+    // the image). The interior without bounds tests, so that it vectorises.
+    const float* cur = lum.data() + std::size_t(y) * w;
+    const float* up = y > 0 ? cur - w : nullptr;
+    const float* dn = y + 1 < h ? cur + w : nullptr;
+    float* b = r.bound.data() + std::size_t(y) * w;
+    auto at = [&](int x) {
       float m = 0;
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           const int xx = x + dx, yy = y + dy;
           if ((dx || dy) && xx >= 0 && yy >= 0 && xx < w && yy < h) m = std::max(m, lum[std::size_t(yy) * w + xx]);
         }
-      const std::size_t k = std::size_t(y) * w + x;
-      const float b = ratio * m;
-      r.bound[k] = b;
-      if (!(lum[k] > b)) continue;
-      float* kept = r.kept.data() + k * 3;
-      float* ex = r.excess.data() + k * 3;
-      for (int c = 0; c < 3; ++c) ex[c] = kept[c];
-      clamp_luminance(kept, b);
-      for (int c = 0; c < 3; ++c) ex[c] -= kept[c];
+      return ratio * m;
+    };
+    if (up && dn && w > 2) {
+      b[0] = at(0);
+      for (int x = 1; x + 1 < w; ++x) {
+        const float m = std::max(std::max(std::max(up[x - 1], up[x]), std::max(up[x + 1], cur[x - 1])),
+                                 std::max(std::max(cur[x + 1], dn[x - 1]), std::max(dn[x], dn[x + 1])));
+        b[x] = ratio * std::max(0.0f, m);
+      }
+      b[w - 1] = at(w - 1);
+    } else {
+      for (int x = 0; x < w; ++x) b[x] = at(x);
+    }
+    for (int x = 0; x < w; ++x) {
+      if (!(cur[x] > b[x])) continue;
+      float* kept = r.kept.pixel(x, y);
+      float before[3] = {kept[0], kept[1], kept[2]};
+      clamp_luminance(kept, b[x]);
+      if (with_excess)
+        for (int c = 0; c < 3; ++c) r.excess.pixel(x, y)[c] = before[c] - kept[c];
       ++cut_rows[std::size_t(y)];
     }
   });

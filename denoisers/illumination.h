@@ -44,12 +44,13 @@ Image normalized_depth(const AovFrame& frame, int level = 0);
 // filter keeps such a pixel distinct or smears it into a blotch of its own kernel's shape;
 // their expected light is spread thinly over the whole surface, which only a very wide
 // low-pass of `excess` estimates. ratio <= 0: nothing is cut (excess and bound stay empty).
+// with_excess = false leaves `excess` empty (for callers that drop the cut light).
 struct FireflySplit {
   Image kept, excess;
   std::vector<float> bound;
   std::size_t cut = 0;  // pixels cut
 };
-FireflySplit split_fireflies(Image layer, float ratio);
+FireflySplit split_fireflies(Image layer, float ratio, bool with_excess = true);
 
 // Clamps the luminance of `rgb` to `bound` (scaling all channels alike).
 void clamp_luminance(float rgb[3], float bound);

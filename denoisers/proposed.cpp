@@ -307,7 +307,7 @@ class Proposed final : public Method {
     FireflySplit ff;
     {
       ScopedPhase p(stats, "fireflies" + suffix);
-      ff = split_fireflies(layer_in, firefly_ratio_);
+      ff = split_fireflies(layer_in, firefly_ratio_, firefly_sigma_ > 0);  // excess only to give back
       stats.counters["firefly_pixels" + suffix] += double(ff.cut);
     }
     const Image& src = ff.kept;
