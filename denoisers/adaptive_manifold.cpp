@@ -5,8 +5,9 @@
 // power iteration restarts from the random vector every step, and it is about 3x slower here
 // (bench/am_bench.cpp): it splits every image into planes with a separate full-resolution pass
 // per operation. Here every full-resolution pass is fused (distance, weight, splat, covariance
-// in one; slice, split, child splat in the other), rows are planar so the loops vectorise, and
-// the exponentials go through OpenCV's vectorised cv::hal::exp32f.
+// in one; slice, split, child splat in the other), rows are planar so the loops vectorise (the
+// children's reduced splats are pixel-interleaved instead, for their low-pass: see Interleaved),
+// and the exponentials go through OpenCV's vectorised cv::hal::exp32f.
 #include "denoisers/adaptive_manifold.h"
 
 #include <algorithm>
