@@ -15,6 +15,7 @@
 #include <cstring>
 #include <mutex>
 #include <random>
+#include <type_traits>
 
 #include <opencv2/core/hal/hal.hpp>
 #include <tbb/blocked_range.h>
@@ -537,17 +538,20 @@ class AmRun {
     }
   }
 
+  // Calls f with std::integral_constant<int, W> for the W among Widths equal to df, else with
+  // the constant 0 (the loop then reads df_): the block width as a compile-time constant, so
+  // that the loops over a block unroll into vector code.
+  template <int... Widths, typename F>
+  static void with_block_width(int df, F&& f) {
+    const bool done = ((df == Widths ? (f(std::integral_constant<int, Widths>{}), true) : false) || ...);
+    if (!done) f(std::integral_constant<int, 0>{});
+  }
+
   // Horizontal bilinear upsampling of one reduced row. Inside the image, output pixel
   // df sx + df/2 + k lies between reduced pixels sx and sx + 1 at fraction
   // (df/2 + k + 0.5) / df - 0.5 for every sx ((k + 0.5) / df for even df, 0 for df = 1), so the interior needs no index tables (and vectorises); the borders use them.
   void upsample_x(const float* tmp, float* o) const {
-    switch (df_) {  // the block width as a constant, so the interior unrolls into vector code
-      case 2: return upsample_x<2>(tmp, o);
-      case 4: return upsample_x<4>(tmp, o);
-      case 8: return upsample_x<8>(tmp, o);
-      case 16: return upsample_x<16>(tmp, o);
-      default: return upsample_x<0>(tmp, o);
-    }
+    with_block_width<2, 4, 8, 16>(df_, [&](auto df) { upsample_x<decltype(df)::value>(tmp, o); });
   }
   template <int DF>
   void upsample_x(const float* tmp, float* o) const {
@@ -572,13 +576,7 @@ class AmRun {
 
   // Adds the df-wide blocks of `col` (W floats) to the reduced row `out`, scaled by inv_rows.
   void reduce_columns(const float* col, float* out, float inv_rows) const {
-    switch (df_) {  // the block width as a constant, so the block sums unroll
-      case 1: return reduce_columns<1>(col, out, inv_rows);
-      case 2: return reduce_columns<2>(col, out, inv_rows);
-      case 4: return reduce_columns<4>(col, out, inv_rows);
-      case 8: return reduce_columns<8>(col, out, inv_rows);
-      default: return reduce_columns<0>(col, out, inv_rows);
-    }
+    with_block_width<1, 2, 4, 8>(df_, [&](auto df) { reduce_columns<decltype(df)::value>(col, out, inv_rows); });
   }
   template <int DF>
   void reduce_columns(const float* col, float* out, float inv_rows) const {
@@ -980,11 +978,7 @@ class AmRun {
   }
   // Adds the sums of row r's df-wide blocks to o (a partial block may end the row).
   void add_blocks(const float* r, float* o) const {
-    switch (df_) {  // the block width as a constant, so the block sums vectorise
-      case 2: return add_blocks<2>(r, o);
-      case 4: return add_blocks<4>(r, o);
-      default: return add_blocks<0>(r, o);
-    }
+    with_block_width<2, 4>(df_, [&](auto df) { add_blocks<decltype(df)::value>(r, o); });
   }
   template <int DF>
   void add_blocks(const float* r, float* o) const {
