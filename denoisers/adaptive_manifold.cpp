@@ -297,19 +297,12 @@ std::vector<float> low_pass_weights(int n, double sigma) {
 // than the filtering.
 struct Interleaved {
   int w = 0, h = 0, n = 0, dp = 8;
-  std::vector<float> data;
+  Planes storage;  // one plane of w * dp floats by h rows (the pool's buffers, as planes use)
   Interleaved() = default;
   Interleaved(int w_, int h_, int n_)
-      : w(w_), h(h_), n(n_), dp(8 * ((n_ + 7) / 8)), data(pooled_uninitialised(std::size_t(w_) * h_ * dp)) {}
-  Interleaved(Interleaved&&) = default;
-  Interleaved& operator=(Interleaved&& o) {
-    BufferPool::get().give(std::move(data));
-    w = o.w, h = o.h, n = o.n, dp = o.dp, data = std::move(o.data);
-    return *this;
-  }
-  ~Interleaved() { BufferPool::get().give(std::move(data)); }
-  float* row(int y) { return data.data() + std::size_t(y) * w * dp; }
-  const float* row(int y) const { return data.data() + std::size_t(y) * w * dp; }
+      : w(w_), h(h_), n(n_), dp(8 * ((n_ + 7) / 8)), storage(w_ * dp, h_, 1, Planes::Overwritten{}) {}
+  float* row(int y) { return storage.row(0, y); }
+  const float* row(int y) const { return storage.row(0, y); }
 };
 
 // Their h_filter: the recursive filter with a constant feedback, on an interleaved image (every

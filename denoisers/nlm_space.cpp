@@ -47,8 +47,13 @@ std::uint64_t hash_image(const Image& img) {
 // that compress() of a pixel equals its entry in the compressed image (log32f's vector and
 // scalar paths agree bit for bit; checked on 4M values). Next to log1p it loses relative
 // precision only for x below about 1e-4, where the absolute error (1e-7) is far under any sigma.
+namespace {
+// The argument of compress()'s log: 1 + max(0, lum) / m.
+float log_argument(const float* rgb, float m) { return 1.0f + std::max(0.0f, luminance(rgb)) / m; }
+}  // namespace
+
 float NlmSpace::compress(const float* rgb) const {
-  const float x = 1.0f + std::max(0.0f, luminance(rgb)) / mean_luminance;
+  const float x = log_argument(rgb, mean_luminance);
   float y;
   cv::hal::log32f(&x, &y, 1);
   return y;
@@ -66,8 +71,8 @@ void NlmSpace::vectors_with_centers(const Image& illumination, int x, int y, con
   for (int first = 0; first < n; first += kBatch) {
     const int m = std::min(kBatch, n - first);
     // The pixel's own value first, then the batch: one log32f call, as compress() computes each.
-    ys[0] = 1.0f + std::max(0.0f, luminance(illumination.pixel(x, y))) / mean_luminance;
-    for (int i = 0; i < m; ++i) ys[1 + i] = 1.0f + std::max(0.0f, luminance(rgb + 3 * (first + i))) / mean_luminance;
+    ys[0] = log_argument(illumination.pixel(x, y), mean_luminance);
+    for (int i = 0; i < m; ++i) ys[1 + i] = log_argument(rgb + 3 * (first + i), mean_luminance);
     cv::hal::log32f(ys, ys, m + 1);
     for (int i = 0; i < m; ++i) {
       const float delta = ys[1 + i] - ys[0];
@@ -101,7 +106,7 @@ NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& s) {
   cv::Mat y(h, w, CV_32F);
   tbb::parallel_for(0, h, [&](int j) {
     float* row = y.ptr<float>(j);
-    for (int i = 0; i < w; ++i) row[i] = 1.0f + std::max(0.0f, luminance(illumination.pixel(i, j))) / out.mean_luminance;
+    for (int i = 0; i < w; ++i) row[i] = log_argument(illumination.pixel(i, j), out.mean_luminance);
     cv::hal::log32f(row, row, w);  // as compress()
   });
   cv::Mat padded;

@@ -165,14 +165,9 @@ class Proposed final : public Method {
           ScopedPhase p(r.stats, "depth");
           depth = normalized_depth(f, k);
         }
-        // D and I concurrently: each run is parallel inside, but its serial steps between
-        // passes leave a core idle; the two runs fill each other's gaps. Each keeps its own
-        // stats (phases then overlap in time), merged in order D, I.
-        MethodStats sd, si;
-        tbb::parallel_invoke(
-            [&] { fd = filter_layer(f, k, d, depth, sigma_direct, am, sd, edges ? &EdgeSample::direct : nullptr); },
-            [&] { fi = filter_layer(f, k, i, depth, sigma_nlm, am, si, edges ? &EdgeSample::indirect : nullptr); });
-        merge_stats(r.stats, sd, si);
+        concurrently(
+            r.stats, [&](MethodStats& st) { fd = filter_layer(f, k, d, depth, sigma_direct, am, st, edges ? &EdgeSample::direct : nullptr); },
+            [&](MethodStats& st) { fi = filter_layer(f, k, i, depth, sigma_nlm, am, st, edges ? &EdgeSample::indirect : nullptr); });
       } else {
         // Level k only shows where its tint is non-zero (it enters the level above as
         // tint_k * F'_k): filter the bounding box of those pixels plus a margin of 6 sigma_s
@@ -196,11 +191,9 @@ class Proposed final : public Method {
             ScopedPhase p(r.stats, "depth_level" + std::to_string(k));
             sub_depth = normalized_depth(sub, k);
           }
-          MethodStats sd, si;  // D and I concurrently, as at level 0
-          tbb::parallel_invoke(
-              [&] { paste(filter_layer(sub, k, cropped(d, box), sub_depth, sigma_nlm, am, sd, nullptr).image, box, fd.image); },
-              [&] { paste(filter_layer(sub, k, cropped(i, box), sub_depth, sigma_nlm, am, si, nullptr).image, box, fi.image); });
-          merge_stats(r.stats, sd, si);
+          concurrently(
+              r.stats, [&](MethodStats& st) { paste(filter_layer(sub, k, cropped(d, box), sub_depth, sigma_nlm, am, st, nullptr).image, box, fd.image); },
+              [&](MethodStats& st) { paste(filter_layer(sub, k, cropped(i, box), sub_depth, sigma_nlm, am, st, nullptr).image, box, fi.image); });
         }
       }
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
@@ -242,10 +235,15 @@ class Proposed final : public Method {
   struct Box {
     int x = 0, y = 0, w = 0, h = 0;
   };
-  // The stats of the D and I runs into the method's, D first: phases appended (they overlapped
-  // in time), counters summed (firefly pixels) except the guide's channel count, which is set.
-  static void merge_stats(MethodStats& into, const MethodStats& d, const MethodStats& i) {
-    for (const MethodStats* st : {&d, &i}) {
+  // Runs the D and I filters, each with its own stats, concurrently: each run is parallel
+  // inside, but its serial steps between passes leave a core idle, which the other fills. Their
+  // stats go into `into`, D first: phases appended (they overlapped in time), counters summed
+  // (firefly pixels) except the guide's channel count, which is set.
+  template <typename D, typename I>
+  static void concurrently(MethodStats& into, D&& run_d, I&& run_i) {
+    MethodStats sd, si;
+    tbb::parallel_invoke([&] { run_d(sd); }, [&] { run_i(si); });
+    for (const MethodStats* st : {&sd, &si}) {
       for (const auto& ph : st->phases) into.phases.push_back(ph);
       for (const auto& [name, v] : st->counters) {
         if (name == "guide_channels") into.counters[name] = v;
