@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "apps/commands.h"
+#include "core/aov_frame.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "metrics/metrics.h"
@@ -19,19 +20,35 @@ void add_metrics(CLI::App& app, Action& action) {
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("IMAGE", o->image, "image to score (EXR with R,G,B)")->required();
-  cmd->add_option("REF", o->reference, "reference (EXR with R,G,B)")->required();
+  cmd->add_option("REF", o->reference,
+                  "reference (EXR with R,G,B; with variance.R/G/B, as `denoisebench reference` writes it, "
+                  "mse_converged is scored too)")
+      ->required();
   cmd->add_flag("--json", o->json, "print one JSON object (non-finite values, e.g. the psnr of identical images, as null)");
   cmd->callback([&action, o] {
     action = [o] {
       Image a = read_rgb(o->image);  // InputError naming the file and the missing channel
       Image b = read_rgb(o->reference);
       metrics::check_pair(a, b, "'" + o->image + "'", "'" + o->reference + "'");
+      // The reference's variance of the mean, when the file has it (mse_converged needs it).
+      const AovFrame ref_frame = read_frame(o->reference);
+      const Image* variance = ref_frame.has(layer::kVariance) ? &ref_frame.layer(layer::kVariance) : nullptr;
+      if (variance) {
+        try {
+          metrics::unconverged_mask(b, *variance);
+        } catch (const InputError& e) {
+          throw InputError(fmt::format("'{}': {}", o->reference, e.what()));
+        }
+      }
       nlohmann::json j = nlohmann::json::object();
       for (const auto& m : metrics::all_metrics()) {
-        double v = m.compute(a, b).value;
+        double v = m.compute(a, b, variance).value;
         if (o->json) j[m.name] = std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-        else fmt::print("{:<8} {:.9g}\n", m.name, v);
+        else if (m.name == "mse_converged" && !variance)
+          fmt::print("{:<14} n/a ('{}' has no variance.R/G/B channels)\n", m.name, o->reference);
+        else fmt::print("{:<14} {:.9g}\n", m.name, v);
       }
+      if (variance && o->json) j["reference_unconverged_share"] = metrics::unconverged_share(b, *variance);
       if (o->json) fmt::print("{}\n", j.dump());
       return 0;
     };

@@ -143,6 +143,15 @@ const json* find(const json& res, const std::string& scene, const std::string& m
 std::string fmt_metric(const json& v) { return v.is_number() ? fmt::format("{:.4g}", v.get<double>()) : "n/a"; }
 std::string fmt_time(double s) { return fmt::format("{:.2f}", s); }
 
+// The share of the scene's reference pixels mse_converged leaves out, as the run recorded it.
+std::string unconverged_cell(const json& res, const std::string& scene) {
+  for (const auto& r : res.at("records"))
+    if (r.at("scene") == scene && r.contains("reference") && r["reference"].contains("unconverged_share") &&
+        r["reference"]["unconverged_share"].is_number())
+      return fmt::format("{:.3f}%", 100.0 * r["reference"]["unconverged_share"].get<double>());
+  return "n/a";
+}
+
 }  // namespace
 
 Table table1(const json& res, const std::string& metric) {
@@ -161,11 +170,49 @@ Table table1(const json& res, const std::string& metric) {
     }
     const json* in = find(res, s, "input", spp);
     row.push_back(in ? fmt_metric(in->at("metrics").value(metric, json(nullptr))) : "n/a");
+    if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
     t.rows.push_back(row);
   }
+  if (metric == "mse_converged") t.header.push_back("reference pixels left out");
   const auto& info = metrics::metric(metric);
   t.note = fmt::format("{}; {} is better. From results.json.", info.description, info.lower_is_better ? "lower" : "higher");
   return t;
+}
+
+Table ratio_table(const json& res, const std::string& method) {
+  Table t;
+  const int spp = table_spp(res);
+  std::vector<std::string> others;
+  for (const auto& m : methods_of(res, "method"))
+    if (m != method) others.push_back(m);
+  t.title = fmt::format("Ratios: {}'s error over each method's at {} spp input", method, spp);
+  t.header = {"scene", "metric"};
+  for (const auto& m : others) t.header.push_back(m);
+  for (const auto& s : scenes_of(res)) {
+    const json* p = find(res, s, method, spp);
+    for (const char* metric : {"mse", "mse_converged"}) {
+      std::vector<std::string> row{s, metric};
+      for (const auto& m : others) {
+        const json* r = find(res, s, m, spp);
+        const json a = p ? p->at("metrics").value(metric, json(nullptr)) : json(nullptr);
+        const json b = r ? r->at("metrics").value(metric, json(nullptr)) : json(nullptr);
+        row.push_back(a.is_number() && b.is_number() && b.get<double>() > 0
+                          ? fmt::format("{:.2f}", a.get<double>() / b.get<double>())
+                          : "n/a");
+      }
+      t.rows.push_back(row);
+    }
+  }
+  t.note = fmt::format("Below 1: {} has the lower error. mse_converged leaves out the reference's unconverged "
+                       "pixels (Table 1, mse_converged). From results.json.",
+                       method);
+  return t;
+}
+
+std::string table2_cpu_method(const json& res) {
+  if (res.contains("config") && res["config"].contains("table2"))
+    return res["config"]["table2"].value("filter_cpu", std::string("proposed"));
+  return "proposed";
 }
 
 Table table2(const json& res) {
@@ -266,11 +313,6 @@ Table ablation_table(const json& res, const std::string& metric) {
         cell += fmt::format(" ({:+.0f}%)", 100.0 * (r->at("metrics").at(metric).get<double>() / base->at("metrics").at(metric).get<double>() - 1));
       row.push_back(cell);
     }
-    for (const auto& r : res.at("records"))
-      if (r.at("method") == m && r.contains("params") && r.value("role", "") == "ablation") {
-        row[0] += "";
-        break;
-      }
     t.rows.push_back(row);
   }
   t.note = variants.empty() ? "No ablation variants in this run ([[variant]] group = \"ablation\")."
@@ -365,11 +407,10 @@ void write_report(const std::string& dir, const ReportOptions& opt) {
   for (const auto& m : metrics::metric_names()) tables.emplace_back("table1_" + m, table1(res, m));
   tables.emplace_back("table2_time", table2(res));
   for (const auto& [stem, t] : tables) write_table(dir, stem, t);
-  const Table sp = speedup_table(res), ab = ablation_table(res);
-  write_text_atomic(dir + "/speedup.md", sp.markdown());
-  write_text_atomic(dir + "/ablation.md", ab.markdown());
+  const Table sp = speedup_table(res), ab = ablation_table(res), ra = ratio_table(res, table2_cpu_method(res));
   write_table(dir, "speedup", sp);
   write_table(dir, "ablation", ab);
+  write_table(dir, "ratios", ra);
   spdlog::info("tables written to {}", dir);
 
   std::vector<std::string> plots;
@@ -469,7 +510,7 @@ void write_report(const std::string& dir, const ReportOptions& opt) {
   std::string tables_html;
   for (const auto& [stem, t] : tables)
     if (stem == "table1_mse" || stem == "table2_time") tables_html += html_table(t);
-  tables_html += html_table(sp) + html_table(ab);
+  tables_html += html_table(ra) + html_table(sp) + html_table(ab);
   std::string other_html;
   for (const auto& [stem, t] : tables)
     if (stem != "table1_mse" && stem != "table2_time") other_html += html_table(t);

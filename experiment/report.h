@@ -43,6 +43,10 @@ Table table1(const nlohmann::json& results, const std::string& metric);
 Table table2(const nlohmann::json& results);
 Table speedup_table(const nlohmann::json& results, const std::string& metric = "mse");
 Table ablation_table(const nlohmann::json& results, const std::string& metric = "mse");
+// `method`'s mse and mse_converged over every other method's, per scene (Table 1's methods).
+Table ratio_table(const nlohmann::json& results, const std::string& method);
+// The method of Table 2's CPU column (config [table2] filter_cpu, else "proposed").
+std::string table2_cpu_method(const nlohmann::json& results);
 
 struct ReportOptions {
   bool plots = true;   // run reports/plots.py

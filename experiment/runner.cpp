@@ -175,10 +175,12 @@ std::string safe(const std::string& s) {
 }
 
 // Scores `image` against the reference with every metric; writes the error maps the report shows.
-json score(const Image& image, const Image& reference, const std::string& out_dir, const std::string& stem, json& files) {
+json score(const Image& image, const Reference& reference, const std::string& out_dir, const std::string& stem,
+           json& files) {
   json m;
+  const Image* variance = reference.variance.empty() ? nullptr : &reference.variance;
   for (const auto& info : metrics::all_metrics()) {
-    metrics::MetricResult r = info.compute(image, reference);
+    metrics::MetricResult r = info.compute(image, reference.color, variance);
     m[info.name] = number_or_null(r.value);
     if (info.name == "flip" || info.name == "relmse") {
       Image rgb(r.map.width(), r.map.height(), 3);
@@ -282,6 +284,10 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
     const double reference_seconds = ref.convergence.empty() ? ref.render_seconds : ref.convergence.back().seconds;
     const std::string ref_rel = img_dir + "/reference.exr";
     if (!fs::exists(opt.out_dir + "/" + ref_rel)) write_rgb(ref.color, opt.out_dir + "/" + ref_rel);
+    // The reference's own unconverged pixels (fireflies carried by a few samples): mse_converged
+    // leaves them out; the report names their share beside it.
+    const json unconverged = ref.variance.empty() ? json(nullptr)
+                                                   : json(metrics::unconverged_share(ref.color, ref.variance));
 
     auto base_record = [&](const std::string& method, int spp) {
       json r;
@@ -293,7 +299,8 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
       r["height"] = c.height;
       r["seed"] = c.seed;
       r["reference"] = {{"spp", c.reference_spp}, {"seed", c.reference_seed}, {"seconds", reference_seconds},
-                        {"cache_hit", ref.cache_hit}, {"image", ref_rel}};
+                        {"cache_hit", ref.cache_hit}, {"image", ref_rel},
+                        {"unconverged_share", unconverged}, {"unconverged_rse", metrics::kUnconvergedRse}};
       return r;
     };
     // Everything that determines a cell's result: a finished cell with the same key is reused.
@@ -320,7 +327,7 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
       const std::string stem = img_dir + "/path_tracing_" + std::to_string(spp);
       write_rgb(img, opt.out_dir + "/" + stem + ".exr");
       files["image"] = stem + ".exr";
-      r["metrics"] = score(img, ref.color, opt.out_dir, stem, files);
+      r["metrics"] = score(img, ref, opt.out_dir, stem, files);
       r["times"] = {{"input_render", t}, {"filter", 0.0}, {"total", t}, {"reference", reference_seconds}};
       r["files"] = files;
       r["cell_key"] = key;
@@ -350,7 +357,7 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
           const std::string stem = img_dir + "/input_" + std::to_string(spp);
           write_rgb(input, opt.out_dir + "/" + stem + ".exr");
           files["image"] = stem + ".exr";
-          r["metrics"] = score(input, ref.color, opt.out_dir, stem, files);
+          r["metrics"] = score(input, ref, opt.out_dir, stem, files);
           r["times"] = {{"input_render", input_seconds}, {"filter", 0.0}, {"total", input_seconds},
                         {"reference", reference_seconds}};
           r["input_cache_hit"] = hit;
@@ -398,7 +405,7 @@ nlohmann::json run_experiment(const ExperimentConfig& c, const RunOptions& opt) 
         const std::string stem = img_dir + "/" + safe(m.name) + "_" + std::to_string(spp);
         write_rgb(first.image, opt.out_dir + "/" + stem + ".exr");
         files["image"] = stem + ".exr";
-        r["metrics"] = score(first.image, ref.color, opt.out_dir, stem, files);
+        r["metrics"] = score(first.image, ref, opt.out_dir, stem, files);
         // Renderer-type methods render the scene themselves: their total is their own time.
         const bool renderer = info.kind == MethodKind::Renderer;
         const double input_used = renderer ? 0.0 : input_seconds;

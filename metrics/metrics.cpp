@@ -74,6 +74,59 @@ MetricResult mse(const Image& image, const Image& reference) {
   return per_sample(to_srgb8(image), to_srgb8(reference), [](double x, double y) { return (x - y) * (x - y); });
 }
 
+Image unconverged_mask(const Image& reference, const Image& variance, double max_rse) {
+  if (variance.channels() != 3 || variance.width() != reference.width() || variance.height() != reference.height())
+    throw InputError(fmt::format("the reference's variance is {}x{} with {} channels: expected {}x{} with 3 "
+                                 "(variance.R, variance.G, variance.B)",
+                                 variance.width(), variance.height(), variance.channels(), reference.width(),
+                                 reference.height()));
+  Image mask(reference.width(), reference.height(), 1);
+  for (std::size_t p = 0; p < reference.pixel_count(); ++p) {
+    double mean = 0, var = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double v = variance.data()[3 * p + c];
+      if (!(v >= 0) || !std::isfinite(v)) {
+        throw InputError(fmt::format("the reference's variance at pixel ({}, {}) channel {} is {}: expected a finite "
+                                     "value >= 0",
+                                     p % reference.width(), p / reference.width(), "RGB"[c], v));
+      }
+      mean = std::max(mean, double(reference.data()[3 * p + c]));
+      var = std::max(var, v);
+    }
+    const bool unconverged = mean > 0 ? std::sqrt(var) > max_rse * mean : var > 0;
+    mask.data()[p] = unconverged ? 1.0f : 0.0f;
+  }
+  return mask;
+}
+
+double unconverged_share(const Image& reference, const Image& variance, double max_rse) {
+  const Image mask = unconverged_mask(reference, variance, max_rse);
+  double n = 0;
+  for (std::size_t p = 0; p < mask.pixel_count(); ++p) n += mask.data()[p];
+  return mask.pixel_count() ? n / double(mask.pixel_count()) : 0.0;
+}
+
+MetricResult mse_converged(const Image& image, const Image& reference, const Image* variance) {
+  MetricResult r = mse(image, reference);
+  if (!variance) {
+    r.value = std::numeric_limits<double>::quiet_NaN();
+    return r;
+  }
+  const Image mask = unconverged_mask(reference, *variance);
+  double total = 0;
+  std::size_t kept = 0;
+  for (std::size_t p = 0; p < mask.pixel_count(); ++p) {
+    if (mask.data()[p] != 0) {
+      r.map.data()[p] = 0;
+    } else {
+      total += r.map.data()[p];  // the map holds the mean over the 3 channels
+      ++kept;
+    }
+  }
+  r.value = kept ? total / double(kept) : std::numeric_limits<double>::quiet_NaN();
+  return r;
+}
+
 MetricResult mse_hdr_map(const Image& image, const Image& reference) {
   return per_sample(image, reference, [](double x, double y) { return (x - y) * (x - y); });
 }
@@ -267,14 +320,21 @@ MetricResult flip(const Image& image, const Image& reference, double ppd) {
 }
 
 const std::vector<MetricInfo>& all_metrics() {
+  // Metrics that do not use the reference's variance ignore it.
+  using Plain = MetricResult (*)(const Image&, const Image&);
+  auto plain = [](Plain f) { return [f](const Image& a, const Image& b, const Image*) { return f(a, b); }; };
   static const std::vector<MetricInfo> list = {
-      {"mse", "mean squared error of the 8-bit sRGB images (0..255): Table 1's scale", true, mse},
-      {"mse_hdr", "mean squared error of the linear radiance", true, mse_hdr_map},
-      {"relmse", "relative MSE, (x - y)^2 / (y^2 + 0.01), linear radiance", true, relmse},
-      {"psnr", "peak signal-to-noise ratio of the 8-bit images, dB", false, psnr},
-      {"ssim", "structural similarity (Wang et al. 2004) of the 8-bit images", false, ssim},
+      {"mse", "mean squared error of the 8-bit sRGB images (0..255): Table 1's scale", true, plain(mse)},
+      {"mse_hdr", "mean squared error of the linear radiance", true, plain(mse_hdr_map)},
+      {"relmse", "relative MSE, (x - y)^2 / (y^2 + 0.01), linear radiance", true, plain(relmse)},
+      {"psnr", "peak signal-to-noise ratio of the 8-bit images, dB", false, plain(psnr)},
+      {"ssim", "structural similarity (Wang et al. 2004) of the 8-bit images", false, plain(ssim)},
       {"flip", "mean LDR-FLIP (Andersson et al. 2020), 67 pixels per degree", true,
-       [](const Image& a, const Image& b) { return flip(a, b); }},
+       [](const Image& a, const Image& b, const Image*) { return flip(a, b); }},
+      {"mse_converged",
+       "8-bit mse over the pixels whose reference has converged (relative standard error at most 1/2: "
+       "more than about 4 samples carry the pixel); n/a without the reference's variance",
+       true, mse_converged},
   };
   return list;
 }

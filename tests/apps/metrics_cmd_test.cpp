@@ -26,6 +26,37 @@ TEST(MetricsCommand, PrintsEveryMetricAsJson) {
   auto same = test::run_denoisebench("metrics --json " + dir.file("a.exr") + " " + dir.file("a.exr") + " 2>/dev/null");
   ASSERT_EQ(same.exit_code, 0) << same.output;
   EXPECT_TRUE(nlohmann::json::parse(same.output)["psnr"].is_null());
+  // b.exr has no variance channels: mse_converged cannot be scored and says so.
+  EXPECT_TRUE(j["mse_converged"].is_null());
+  auto plain = test::run_denoisebench("metrics " + dir.file("a.exr") + " " + dir.file("b.exr") + " 2>/dev/null");
+  EXPECT_THAT(plain.output, ::testing::ContainsRegex("mse_converged +n/a .*b\\.exr.*variance"));
+}
+
+TEST(MetricsCommand, ScoresMseConvergedFromTheReferencesVariance) {
+  // A reference as `denoisebench reference` writes it: R,G,B plus variance.R/G/B. Pixel (0, 0)
+  // is a firefly (sd 0.9 on a mean of 1: unconverged), every other pixel has no noise.
+  test::TempDir dir;
+  AovFrame ref(8, 6);
+  Image color(8, 6, 3, 0.25f), var(8, 6, 3, 0.0f);
+  for (int c = 0; c < 3; ++c) { color.at(0, 0, c) = 1.0f; var.at(0, 0, c) = 0.81f; }
+  ref.set(layer::kColor, color);
+  ref.set(layer::kVariance, var);
+  write_frame(ref, dir.file("ref.exr"));
+  write_rgb(Image(8, 6, 3, 0.25f), dir.file("flat.exr"));  // right everywhere but on the firefly
+  auto r = test::run_denoisebench("metrics --json " + dir.file("flat.exr") + " " + dir.file("ref.exr") + " 2>/dev/null");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto j = nlohmann::json::parse(r.output);
+  EXPECT_GT(j["mse"].get<double>(), 0.0);
+  EXPECT_EQ(j["mse_converged"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(j["reference_unconverged_share"].get<double>(), 1.0 / 48);
+  // A negative variance is refused, naming the file and the pixel.
+  var.at(3, 2, 1) = -0.5f;
+  ref.set(layer::kVariance, var);
+  write_frame(ref, dir.file("bad.exr"));
+  auto bad = test::run_denoisebench("metrics " + dir.file("flat.exr") + " " + dir.file("bad.exr"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_THAT(bad.output, HasSubstr("bad.exr"));
+  EXPECT_THAT(bad.output, HasSubstr("(3, 2)"));
 }
 
 TEST(MetricsCommand, RefusesUnequalSizesNamingTheFiles) {

@@ -53,6 +53,21 @@ TEST_F(ReportTables, SpeedupIsTheHandComputedOne) {
   EXPECT_THAT(slurp(dir.path() / "ablation.md"), HasSubstr("| proposed-no-nlm | 12.5 (+25%) | 25 (+25%) |"));
 }
 
+TEST_F(ReportTables, RatiosAndTheConvergedMseComeFromTheResults) {
+  // Fixture: cornell-box proposed mse 10, bilateral 50 (0.20); mse_converged 4 against 40
+  // (0.10), its reference leaving out 1.25% of the pixels. bedroom's records predate
+  // mse_converged: n/a, not a made-up number.
+  const std::string ra = slurp(dir.path() / "ratios.md");
+  EXPECT_THAT(ra, HasSubstr("| cornell-box | mse | 0.20 |"));
+  EXPECT_THAT(ra, HasSubstr("| cornell-box | mse_converged | 0.10 |"));
+  EXPECT_THAT(ra, HasSubstr("| bedroom | mse | 0.20 |"));
+  EXPECT_THAT(ra, HasSubstr("| bedroom | mse_converged | n/a |"));
+  const std::string t1 = slurp(dir.path() / "table1_mse_converged.md");
+  EXPECT_THAT(t1, HasSubstr("| cornell-box | 4 | 40 | 90 | 1.250% |"));
+  EXPECT_THAT(t1, HasSubstr("| bedroom | n/a | n/a | n/a | n/a |"));
+  EXPECT_THAT(slurp(dir.path() / "index.html"), HasSubstr("Ratios: proposed"));
+}
+
 TEST(ReportCommand, RefusesAFolderWithoutResults) {
   test::TempDir dir;
   auto r = test::run_denoisebench("report " + dir.path().string());

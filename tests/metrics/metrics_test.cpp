@@ -23,15 +23,17 @@ Image pattern(int w, int h) {
 }
 
 TEST(Metrics, RegistryListsTheContractMetrics) {
-  EXPECT_EQ(metric_names(), (std::vector<std::string>{"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip"}));
+  EXPECT_EQ(metric_names(),
+            (std::vector<std::string>{"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip", "mse_converged"}));
   EXPECT_THROW(metric("nope"), InputError);
   EXPECT_FALSE(metric("ssim").lower_is_better);
 }
 
 TEST(Metrics, IdenticalImagesScorePerfectly) {
   const Image a = pattern(24, 20);
+  const Image no_noise(24, 20, 3, 0.0f);  // a reference without variance: every pixel converged
   for (const auto& m : all_metrics()) {
-    MetricResult r = m.compute(a, a);
+    MetricResult r = m.compute(a, a, &no_noise);
     if (m.name == "ssim") EXPECT_DOUBLE_EQ(r.value, 1.0) << m.name;
     else if (m.name == "psnr") EXPECT_TRUE(std::isinf(r.value) && r.value > 0) << m.name;
     else EXPECT_EQ(r.value, 0.0) << m.name;
@@ -107,8 +109,9 @@ TEST(Metrics, EveryMetricRefusesNanAndUnequalSizes) {
   a.at(3, 2, 1) = std::numeric_limits<float>::quiet_NaN();
   Image inf_ref = pattern(8, 8);
   inf_ref.at(0, 0, 0) = std::numeric_limits<float>::infinity();
+  const Image var(8, 8, 3, 0.0f);
   for (const auto& m : all_metrics()) {
-    EXPECT_THROW(m.compute(a, b), InputError) << m.name;
+    EXPECT_THROW(m.compute(a, b, &var), InputError) << m.name;
     EXPECT_THROW(m.compute(b, inf_ref), InputError) << m.name;
     EXPECT_THROW(m.compute(b, small), InputError) << m.name;
   }
@@ -118,6 +121,86 @@ TEST(Metrics, EveryMetricRefusesNanAndUnequalSizes) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("x.exr"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("(3, 2)"), std::string::npos);
+  }
+}
+
+// The variance of the mean as the tracer writes it (tracer/reference.cpp): the unbiased sample
+// variance over n samples, divided by n.
+std::pair<double, double> mean_and_variance(const std::vector<double>& samples) {
+  double sum = 0, sum_sq = 0;
+  for (double v : samples) { sum += v; sum_sq += v * v; }
+  const double n = double(samples.size()), mean = sum / n;
+  return {mean, std::max(0.0, (sum_sq - sum * mean) / (n - 1)) / n};
+}
+
+TEST(Metrics, UnconvergedMaskFlagsPixelsCarriedByFewSamples) {
+  // Pixel x of a 4096-sample reference: background radiance 0.1 in every sample, plus k firefly
+  // samples of 500. When k equal samples carry a value its relative standard error is about
+  // 1/sqrt(k) (here 0.99, 0.70, 0.50, 0.35, 0.25 for k = 1, 2, 4, 8, 16): the mask's bound of 1/2
+  // flags k = 1 and 2, keeps k = 8 and 16. (k = 4 sits on the bound and is not asserted.)
+  const std::vector<int> ks = {1, 2, 8, 16, 0};
+  Image ref(int(ks.size()), 1, 3), var(int(ks.size()), 1, 3);
+  for (std::size_t x = 0; x < ks.size(); ++x) {
+    std::vector<double> s(4096, 0.1);
+    for (int i = 0; i < ks[x]; ++i) s[std::size_t(i) * 97] = 500.0;
+    auto [m, v] = mean_and_variance(s);
+    for (int c = 0; c < 3; ++c) { ref.at(int(x), 0, c) = float(m); var.at(int(x), 0, c) = float(v); }
+  }
+  const Image mask = unconverged_mask(ref, var);
+  EXPECT_EQ(mask.at(0, 0, 0), 1.0f);  // k = 1
+  EXPECT_EQ(mask.at(1, 0, 0), 1.0f);  // k = 2
+  EXPECT_EQ(mask.at(2, 0, 0), 0.0f);  // k = 8
+  EXPECT_EQ(mask.at(3, 0, 0), 0.0f);  // k = 16
+  EXPECT_EQ(mask.at(4, 0, 0), 0.0f);  // no firefly: variance 0
+  EXPECT_DOUBLE_EQ(unconverged_share(ref, var), 2.0 / 5.0);
+
+  // A dark channel's noise does not flag a pixel: the bound is on the brightest channel's mean.
+  Image r2(2, 1, 3, 1.0f), v2(2, 1, 3, 0.0f);
+  r2.at(0, 0, 2) = 0.001f;
+  v2.at(0, 0, 2) = 0.01f * 0.01f;  // blue: sd 0.01 on a mean of 0.001, the brightest mean is 1
+  v2.at(1, 0, 0) = 0.6f * 0.6f;    // red: sd 0.6 on a mean of 1: unconverged
+  const Image m2 = unconverged_mask(r2, v2);
+  EXPECT_EQ(m2.at(0, 0, 0), 0.0f);
+  EXPECT_EQ(m2.at(1, 0, 0), 1.0f);
+  // Black with variance (cannot come from non-negative samples, but a file may say so): unconverged.
+  Image r3(1, 1, 3, 0.0f), v3(1, 1, 3, 1e-6f);
+  EXPECT_EQ(unconverged_mask(r3, v3).at(0, 0, 0), 1.0f);
+}
+
+TEST(Metrics, MseConvergedLeavesOutTheUnconvergedPixelsOnly) {
+  // 4x1 reference, pixel 3 a firefly (sd 2 on a mean of 3). The image is one 8-bit step off
+  // on pixels 0..2 (100 against 101) and dark where the firefly is.
+  const float v100 = float(srgb_decode(100.0 / 255)), v101 = float(srgb_decode(101.0 / 255));
+  Image ref(4, 1, 3, v100), var(4, 1, 3, 1e-8f), img(4, 1, 3, v101);
+  for (int c = 0; c < 3; ++c) { ref.at(3, 0, c) = 3.0f; var.at(3, 0, c) = 4.0f; img.at(3, 0, c) = v100; }
+  ASSERT_EQ(to_srgb8(ref).at(0, 0, 0) + 1, to_srgb8(img).at(0, 0, 0));
+  const double full = mse(img, ref).value;
+  const MetricResult conv = mse_converged(img, ref, &var);
+  EXPECT_DOUBLE_EQ(conv.value, 1.0);  // three pixels, each off by exactly 1 in every channel
+  const double firefly = std::pow(255.0 - to_srgb8(img).at(3, 0, 0), 2);
+  EXPECT_DOUBLE_EQ(full, (3 * 1.0 + firefly) / 4);
+  EXPECT_EQ(conv.map.at(3, 0, 0), 0.0f);
+  EXPECT_EQ(conv.map.at(0, 0, 0), 1.0f);
+  // Without the variance it cannot be computed: NaN (n/a), never the plain mse in disguise.
+  EXPECT_TRUE(std::isnan(mse_converged(img, ref, nullptr).value));
+  EXPECT_TRUE(std::isnan(metric("mse_converged").compute(img, ref).value));
+  // Every pixel unconverged: nothing to average, NaN.
+  Image all_noisy(4, 1, 3, 100.0f);
+  EXPECT_TRUE(std::isnan(mse_converged(img, ref, &all_noisy).value));
+}
+
+TEST(Metrics, MseConvergedRefusesABadVariance) {
+  const Image ref = pattern(6, 4), img = pattern(6, 4);
+  Image neg(6, 4, 3, 0.0f), nan(6, 4, 3, 0.0f), small(6, 3, 3, 0.0f), one(6, 4, 1, 0.0f);
+  neg.at(2, 1, 1) = -1.0f;
+  nan.at(5, 3, 0) = std::numeric_limits<float>::quiet_NaN();
+  for (const Image* v : {&neg, &nan, &small, &one}) EXPECT_THROW(mse_converged(img, ref, v), InputError);
+  try {
+    mse_converged(img, ref, &neg);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(2, 1)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("channel G"), std::string::npos) << e.what();
   }
 }
 
