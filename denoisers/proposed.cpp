@@ -66,12 +66,16 @@
 //   geometry         bool   false: no normal and depth guide groups
 //   edge_subpixels   bool   false: edge pixels are filtered like any other
 //   reflections      bool   false: R passes through unfiltered
+//   reflection_sum   bool   true: a reflection level's D + I are filtered as one layer (one AM
+//                           run instead of two; the paper and level 0 keep them apart): a
+//                           speed option, off by default (docs/method-defaults.md)
 //   filter_color     bool   true: filter the colour F (guide: its NLM vector, normal, depth)
 //                           instead of the illumination, and no composition
 //   device           string cpu, or opencl: the AM core (splat, blur, slice, split, queries)
 //                           as OpenCL kernels (denoisers/adaptive_manifold_cl.h)
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
@@ -103,6 +107,7 @@ class Proposed final : public Method {
         use_geometry_(p.b("geometry")),
         use_edges_(p.b("edge_subpixels")),
         use_reflections_(p.b("reflections")),
+        reflection_sum_(p.b("reflection_sum")),
         filter_color_(p.b("filter_color")),
         opencl_(p.s("device") == "opencl") {
     std::string why;
@@ -153,49 +158,80 @@ class Proposed final : public Method {
       while (has_level(f, levels + 1)) ++levels;
     r.stats.counters["reflection_levels_filtered"] = levels;
 
-    Image below;  // F'_{k+1}: the composed, filtered level under the current one
-    for (int k = levels; k >= 0; --k) {
-      const bool edges = k == 0 && use_edges_ && f.edges && !f.edges->pixels.empty();
+    // Every level's layers are filtered first, all as concurrent jobs (the levels do not depend
+    // on each other: only their composition runs bottom-up). Each job is parallel inside, but
+    // its serial steps between passes leave a core idle, which another job fills.
+    std::vector<Filtered> fd(std::size_t(levels) + 1), fi(std::size_t(levels) + 1);
+    std::vector<Image> depths(std::size_t(levels) + 1);  // each level's depth over its median
+    std::vector<AovFrame> subs;                            // level k >= 1: its box's guides
+    subs.reserve(std::size_t(levels));
+    std::vector<std::function<void(MethodStats&)>> jobs;
+    const bool edges = use_edges_ && f.edges && !f.edges->pixels.empty();
+    for (int k = 0; k <= levels; ++k) {
       const Image& d = f.layer(layer::at_level(k, layer::kDirect));
       const Image& i = f.layer(layer::at_level(k, layer::kIndirect));
-      Filtered fd, fi;
+      Image& depth = depths[std::size_t(k)];
       if (k == 0) {
-        Image depth;  // the level's depth over its median, shared by the D and I guides
         if (use_geometry_) {
           ScopedPhase p(r.stats, "depth");
           depth = normalized_depth(f, k);
         }
-        concurrently(
-            r.stats, [&](MethodStats& st) { fd = filter_layer(f, k, d, depth, sigma_direct, am, st, edges ? &EdgeSample::direct : nullptr); },
-            [&](MethodStats& st) { fi = filter_layer(f, k, i, depth, sigma_nlm, am, st, edges ? &EdgeSample::indirect : nullptr); });
-      } else {
-        // Level k only shows where its tint is non-zero (it enters the level above as
-        // tint_k * F'_k): filter the bounding box of those pixels plus a margin of 6 sigma_s
-        // (the spatial kernel falls to 2e-4 there), and nothing for a level no pixel shows.
-        // Outside the box F'_k stays 0, multiplied by a zero tint. Level 1 covers 10-19% of
-        // the built-in scenes' pixels, level 2 under 2%.
-        const Box box = visible_box(f.layer(layer::at_level(k, layer::kTint)), int(std::ceil(6.0 * am.sigma_s)));
-        r.stats.counters["level" + std::to_string(k) + "_filtered_fraction"] =
-            double(box.w) * box.h / (double(f.width()) * f.height());
-        fd.image = Image(f.width(), f.height(), 3);
-        fi.image = Image(f.width(), f.height(), 3);
-        if (box.w > 0 && box.h > 0) {
-          AovFrame sub(box.w, box.h);
-          sub.meta = f.meta;
-          for (const char* base : {layer::kNormal, layer::kDepth}) {
-            const std::string name = layer::at_level(k, base);
-            sub.set(name, cropped(f.layer(name), box));
-          }
-          Image sub_depth;  // over the median inside the box
-          if (use_geometry_) {
-            ScopedPhase p(r.stats, "depth_level" + std::to_string(k));
-            sub_depth = normalized_depth(sub, k);
-          }
-          concurrently(
-              r.stats, [&](MethodStats& st) { paste(filter_layer(sub, k, cropped(d, box), sub_depth, sigma_nlm, am, st, nullptr).image, box, fd.image); },
-              [&](MethodStats& st) { paste(filter_layer(sub, k, cropped(i, box), sub_depth, sigma_nlm, am, st, nullptr).image, box, fi.image); });
-        }
+        // (The jobs run after this loop: they capture the objects, never the loop's references.)
+        jobs.push_back([&, dp = &d, zp = &depth](MethodStats& st) {
+          fd[0] = filter_layer(f, 0, *dp, *zp, sigma_direct, am, st, edges ? &EdgeSample::direct : nullptr);
+        });
+        jobs.push_back([&, ip = &i, zp = &depth](MethodStats& st) {
+          fi[0] = filter_layer(f, 0, *ip, *zp, sigma_nlm, am, st, edges ? &EdgeSample::indirect : nullptr);
+        });
+        continue;
       }
+      // Level k only shows where its tint is non-zero (it enters the level above as
+      // tint_k * F'_k): filter the bounding box of those pixels plus a margin of 6 sigma_s
+      // (the spatial kernel falls to 2e-4 there), and nothing for a level no pixel shows.
+      // Outside the box F'_k stays 0, multiplied by a zero tint. Level 1 covers 10-19% of
+      // the built-in scenes' pixels, level 2 under 2%.
+      const Box box = visible_box(f.layer(layer::at_level(k, layer::kTint)), int(std::ceil(6.0 * am.sigma_s)));
+      r.stats.counters["level" + std::to_string(k) + "_filtered_fraction"] =
+          double(box.w) * box.h / (double(f.width()) * f.height());
+      Image* out_d = &fd[std::size_t(k)].image;
+      Image* out_i = &fi[std::size_t(k)].image;
+      *out_d = Image(f.width(), f.height(), 3);
+      *out_i = Image(f.width(), f.height(), 3);
+      if (box.w <= 0 || box.h <= 0) continue;
+      AovFrame* sub = &subs.emplace_back(box.w, box.h);  // reserved: the address stays
+      sub->meta = f.meta;
+      for (const char* base : {layer::kNormal, layer::kDepth}) {
+        const std::string name = layer::at_level(k, base);
+        sub->set(name, cropped(f.layer(name), box));
+      }
+      if (use_geometry_) {
+        ScopedPhase p(r.stats, "depth_level" + std::to_string(k));
+        depth = normalized_depth(*sub, k);  // over the median inside the box
+      }
+      const Image *dp = &d, *ip = &i, *zp = &depth;
+      if (reflection_sum_) {
+        jobs.push_back([&, k, box, dp, ip, zp, sub, out_d](MethodStats& st) {
+          Image di = cropped(*dp, box);
+          const Image ci = cropped(*ip, box);
+          for (std::size_t j = 0; j < di.size(); ++j) di.data()[j] += ci.data()[j];
+          paste(filter_layer(*sub, k, di, *zp, sigma_nlm, am, st, nullptr).image, box, *out_d);
+        });
+      } else {
+        jobs.push_back([&, k, box, dp, zp, sub, out_d](MethodStats& st) {
+          paste(filter_layer(*sub, k, cropped(*dp, box), *zp, sigma_nlm, am, st, nullptr).image, box, *out_d);
+        });
+        jobs.push_back([&, k, box, ip, zp, sub, out_i](MethodStats& st) {
+          paste(filter_layer(*sub, k, cropped(*ip, box), *zp, sigma_nlm, am, st, nullptr).image, box, *out_i);
+        });
+      }
+    }
+    run_jobs(r.stats, jobs);
+
+    Image below;  // F'_{k+1}: the composed, filtered level under the current one
+    for (int k = levels; k >= 0; --k) {
+      const bool edges_here = k == 0 && edges;
+      const Filtered& fdk = fd[std::size_t(k)];
+      const Filtered& fik = fi[std::size_t(k)];
       ScopedPhase p(r.stats, k == 0 ? "compose" : "compose_level" + std::to_string(k));
       Image out(f.width(), f.height(), 3);
       const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
@@ -204,9 +240,9 @@ class Proposed final : public Method {
       const Image* tint = k < levels ? &f.layer(layer::at_level(k + 1, layer::kTint)) : nullptr;
       tbb::parallel_for(std::size_t(0), out.size(), [&](std::size_t j) {
         const float rr = tint ? tint->data()[j] * below.data()[j] : refl.data()[j];
-        out.data()[j] = (fd.image.data()[j] + fi.image.data()[j]) * t.data()[j] + rr + e.data()[j];
+        out.data()[j] = (fdk.image.data()[j] + fik.image.data()[j]) * t.data()[j] + rr + e.data()[j];
       });
-      if (edges) {
+      if (edges_here) {
         // Formula 1 per sub-pixel: mean over s of (D'_s + I'_s) T_s, plus the pixel's R' + E.
         const EdgeSubpixels& g = *f.edges;
         tbb::parallel_for(std::size_t(0), g.size(), [&](std::size_t n) {
@@ -217,7 +253,7 @@ class Proposed final : public Method {
             float sum = 0;
             for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
               const std::size_t q = (n * EdgeSubpixels::kPerPixel + s) * 3 + c;
-              sum += (fd.queries[q] + fi.queries[q]) * sub[s].albedo[c];
+              sum += (fdk.queries[q] + fik.queries[q]) * sub[s].albedo[c];
             }
             const float rr = tint ? tint->data()[px * 3 + c] * below.data()[px * 3 + c] : refl.data()[px * 3 + c];
             o[c] = sum / EdgeSubpixels::kPerPixel + rr + e.data()[px * 3 + c];
@@ -235,17 +271,15 @@ class Proposed final : public Method {
   struct Box {
     int x = 0, y = 0, w = 0, h = 0;
   };
-  // Runs the D and I filters, each with its own stats, concurrently: each run is parallel
-  // inside, but its serial steps between passes leave a core idle, which the other fills. Their
-  // stats go into `into`, D first: phases appended (they overlapped in time), counters summed
-  // (firefly pixels) except the guide's channel count, which is set.
-  template <typename D, typename I>
-  static void concurrently(MethodStats& into, D&& run_d, I&& run_i) {
-    MethodStats sd, si;
-    tbb::parallel_invoke([&] { run_d(sd); }, [&] { run_i(si); });
-    for (const MethodStats* st : {&sd, &si}) {
-      for (const auto& ph : st->phases) into.phases.push_back(ph);
-      for (const auto& [name, v] : st->counters) {
+  // Runs the jobs concurrently, each with its own stats; their stats go into `into` in job
+  // order: phases appended (they overlapped in time), counters summed (firefly pixels) except
+  // the guide's channel count, which is set.
+  static void run_jobs(MethodStats& into, const std::vector<std::function<void(MethodStats&)>>& jobs) {
+    std::vector<MethodStats> stats(jobs.size());
+    tbb::parallel_for(std::size_t(0), jobs.size(), [&](std::size_t j) { jobs[j](stats[j]); }, tbb::simple_partitioner());
+    for (const MethodStats& st : stats) {
+      for (const auto& ph : st.phases) into.phases.push_back(ph);
+      for (const auto& [name, v] : st.counters) {
         if (name == "guide_channels") into.counters[name] = v;
         else into.counters[name] += v;
       }
@@ -422,7 +456,7 @@ class Proposed final : public Method {
   AmSettings am_;
   NlmSpaceSettings nlm_;
   float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, sigma_nlm_direct_, nlm_direct_spp_exponent_, firefly_sigma_;
-  bool use_nlm_, use_geometry_, use_edges_, use_reflections_, filter_color_, opencl_;
+  bool use_nlm_, use_geometry_, use_edges_, use_reflections_, reflection_sum_, filter_color_, opencl_;
 };
 
 }  // namespace
@@ -457,6 +491,7 @@ MethodInfo proposed_method() {
               {"geometry", ParamType::Bool, "true", "ablation: false drops the normal and depth guides"},
               {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},
               {"reflections", ParamType::Bool, "true", "ablation: false leaves R unfiltered"},
+              {"reflection_sum", ParamType::Bool, "false", "reflection levels: filter D + I as one layer (half the work)"},
               {"filter_color", ParamType::Bool, "false", "ablation: filter the colour instead of the illumination"},
               {"device", ParamType::String, "cpu", "where the adaptive-manifold core runs: cpu, or opencl (kernels, e.g. PoCL or a GPU)", {}, {},
                {"cpu", "opencl"}},

@@ -254,11 +254,26 @@ TEST(Proposed, ReflectionLevelIsFiltered) {
       f.layer(layer::kNormal).at(x, y, 0) = 1;
       f.layer(layer::kNormal).at(x, y, 2) = 0;
     }
-  const double with = mse_on(run("proposed", f), clean, mirror);
+  const Image split = run("proposed", f);
+  const double with = mse_on(split, clean, mirror);
   const double without = mse_on(run("proposed", f, {{"reflections", "false"}}), clean, mirror);
   RecordProperty("mse_mirror_with_levels", sci(with));
   RecordProperty("mse_mirror_without_levels", sci(without));
   EXPECT_LT(with, 0.3 * without) << "with " << with << " without " << without;
+  // The speed option reflection_sum filters the level's D + I as one layer: the mirror is as
+  // well filtered (same bound), and nothing but the mirror changes, to the bit.
+  const Image summed = run("proposed", f, {{"reflection_sum", "true"}});
+  const double with_sum = mse_on(summed, clean, mirror);
+  RecordProperty("mse_mirror_reflection_sum", sci(with_sum));
+  EXPECT_LT(with_sum, 0.3 * without) << "summed " << with_sum << " without " << without;
+  bool mirror_changed = false;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) {
+        if (mirror[std::size_t(y) * w + x]) mirror_changed |= split.at(x, y, c) != summed.at(x, y, c);
+        else ASSERT_EQ(split.at(x, y, c), summed.at(x, y, c)) << x << "," << y;
+      }
+  EXPECT_TRUE(mirror_changed) << "reflection_sum did not change the level at all";
 }
 
 // A reflection level is filtered only over the box where its tint is non-zero, plus a margin
