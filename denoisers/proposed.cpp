@@ -66,6 +66,9 @@
 //   geometry         bool   false: no normal and depth guide groups
 //   edge_subpixels   bool   false: edge pixels are filtered like any other
 //   reflections      bool   false: R passes through unfiltered
+//   tint_sigma       float  a reflection level's tint averaged over same-surface neighbours
+//                           (Gaussian sigma, pixels; 0: the raw tint): the tracer's per-sample
+//                           lobe choice makes a coated surface's tint noisy (illumination.h)
 //   reflection_sum   bool   true: a reflection level's D + I are filtered as one layer (one AM
 //                           run instead of two; the paper and level 0 keep them apart): a
 //                           speed option, off by default (docs/method-defaults.md)
@@ -108,6 +111,7 @@ class Proposed final : public Method {
         use_edges_(p.b("edge_subpixels")),
         use_reflections_(p.b("reflections")),
         reflection_sum_(p.b("reflection_sum")),
+        tint_radius_(p.i("tint_radius")),
         filter_color_(p.b("filter_color")),
         opencl_(p.s("device") == "opencl") {
     std::string why;
@@ -167,6 +171,19 @@ class Proposed final : public Method {
     subs.reserve(std::size_t(levels));
     std::vector<std::function<void(MethodStats&)>> jobs;
     const bool edges = use_edges_ && f.edges && !f.edges->pixels.empty();
+    // The tint of level k's surface (named after the level it leads to: refl<k+1>.tint) carries
+    // the noise of the tracer's per-sample lobe choice (illumination.h, smooth_tint); the level
+    // under it is filtered, so that noise would reach the image unfiltered. tints[k] is it
+    // smoothed (empty: the raw tint is used), also computed by a job.
+    std::vector<Image> tints(static_cast<std::size_t>(levels));
+    std::vector<char> edge_mask;  // level 0's edge pixels: their tints stay their own
+    if (levels > 0 && tint_radius_ > 0 && f.edges && !f.edges->pixels.empty()) {
+      edge_mask.assign(std::size_t(f.width()) * f.height(), 0);
+      for (int px : f.edges->pixels) edge_mask[std::size_t(px)] = 1;
+    }
+    // The noise band: 3 standard deviations of the lobe choice's noise at its largest (pc 0.2).
+    const float tint_band = f.meta.spp > 0 ? 3.0f * 2.0f / std::sqrt(float(f.meta.spp)) : 0.0f;
+    const bool smooth_tints = tint_radius_ > 0 && tint_band > 0;
     for (int k = 0; k <= levels; ++k) {
       const Image& d = f.layer(layer::at_level(k, layer::kDirect));
       const Image& i = f.layer(layer::at_level(k, layer::kIndirect));
@@ -183,6 +200,15 @@ class Proposed final : public Method {
         jobs.push_back([&, ip = &i, zp = &depth](MethodStats& st) {
           fi[0] = filter_layer(f, 0, *ip, *zp, sigma_nlm, am, st, edges ? &EdgeSample::indirect : nullptr);
         });
+        if (levels > 0 && smooth_tints) {
+          jobs.push_back([&, zp = &depth](MethodStats& st) {
+            ScopedPhase p(st, "tint_level1");
+            const Image z = zp->empty() ? normalized_depth(f, 0) : Image();
+            tints[0] = smooth_tint(f.layer(layer::at_level(1, layer::kTint)), f.layer(layer::kNormal), zp->empty() ? z : *zp,
+                                   tint_radius_, tint_band, kTintNormalDistance, kTintDepthDistance,
+                                   edge_mask.empty() ? nullptr : &edge_mask);
+          });
+        }
         continue;
       }
       // Level k only shows where its tint is non-zero (it enters the level above as
@@ -224,6 +250,27 @@ class Proposed final : public Method {
           paste(filter_layer(*sub, k, cropped(*ip, box), *zp, sigma_nlm, am, st, nullptr).image, box, *out_i);
         });
       }
+      if (k < levels && smooth_tints) {
+        // Level k+1 shows only where level k does, so its tint is zero outside level k's box:
+        // smoothed on the box, with the box's guides (the depth over the box's median).
+        jobs.push_back([&, k, box, zp, sub](MethodStats& st) {
+          ScopedPhase p(st, "tint_level" + std::to_string(k + 1));
+          const Image& full = f.layer(layer::at_level(k + 1, layer::kTint));
+          const Image z = zp->empty() ? normalized_depth(*sub, k) : Image();
+          std::vector<char> keep;
+          if (!edge_mask.empty()) {
+            keep.resize(std::size_t(box.w) * box.h);
+            for (int y = 0; y < box.h; ++y)
+              std::copy_n(edge_mask.begin() + std::ptrdiff_t(std::size_t(box.y + y) * f.width() + box.x), box.w,
+                          keep.begin() + std::ptrdiff_t(std::size_t(y) * box.w));
+          }
+          Image out = full;
+          paste(smooth_tint(cropped(full, box), sub->layer(layer::at_level(k, layer::kNormal)), zp->empty() ? z : *zp,
+                            tint_radius_, tint_band, kTintNormalDistance, kTintDepthDistance, keep.empty() ? nullptr : &keep),
+                box, out);
+          tints[std::size_t(k)] = std::move(out);
+        });
+      }
     }
     run_jobs(r.stats, jobs);
 
@@ -238,6 +285,7 @@ class Proposed final : public Method {
       const Image& e = f.layer(layer::at_level(k, layer::kEmission));
       const Image& refl = f.layer(layer::at_level(k, layer::kReflection));
       const Image* tint = k < levels ? &f.layer(layer::at_level(k + 1, layer::kTint)) : nullptr;
+      if (tint && !tints[std::size_t(k)].empty()) tint = &tints[std::size_t(k)];
       tbb::parallel_for(std::size_t(0), out.size(), [&](std::size_t j) {
         const float rr = tint ? tint->data()[j] * below.data()[j] : refl.data()[j];
         out.data()[j] = (fdk.image.data()[j] + fik.image.data()[j]) * t.data()[j] + rr + e.data()[j];
@@ -268,6 +316,11 @@ class Proposed final : public Method {
   }
 
  private:
+  // smooth_tint's same-surface test: unit normals within 0.1 (about 6 degrees) and depths
+  // within 1% of the median depth. A coated surface's expected tint (its Fresnel term) changes
+  // slowly within such a neighbourhood; across a crease or a silhouette the test fails.
+  static constexpr float kTintNormalDistance = 0.1f;
+  static constexpr float kTintDepthDistance = 0.01f;
   struct Box {
     int x = 0, y = 0, w = 0, h = 0;
   };
@@ -457,6 +510,7 @@ class Proposed final : public Method {
   NlmSpaceSettings nlm_;
   float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, sigma_nlm_direct_, nlm_direct_spp_exponent_, firefly_sigma_;
   bool use_nlm_, use_geometry_, use_edges_, use_reflections_, reflection_sum_, filter_color_, opencl_;
+  int tint_radius_;
 };
 
 }  // namespace
@@ -491,6 +545,7 @@ MethodInfo proposed_method() {
               {"geometry", ParamType::Bool, "true", "ablation: false drops the normal and depth guides"},
               {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},
               {"reflections", ParamType::Bool, "true", "ablation: false leaves R unfiltered"},
+              {"tint_radius", ParamType::Int, "2", "reflection tints: median over the same-surface pixels of a (2r+1)^2 window; 0: raw", 0.0, 8.0},
               {"reflection_sum", ParamType::Bool, "false", "reflection levels: filter D + I as one layer (half the work)"},
               {"filter_color", ParamType::Bool, "false", "ablation: filter the colour instead of the illumination"},
               {"device", ParamType::String, "cpu", "where the adaptive-manifold core runs: cpu, or opencl (kernels, e.g. PoCL or a GPU)", {}, {},
