@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <utility>
 
 #include <tbb/parallel_for.h>
@@ -57,59 +58,124 @@ Image normalized_depth(const AovFrame& frame, int level) {
 
 Image smooth_tint(const Image& tint, const Image& normal, const Image& depth, int radius, float max_relative_deviation,
                   float max_normal_distance, float max_depth_distance, const std::vector<char>* keep) {
-  const int w = tint.width(), h = tint.height();
-  if (radius <= 0 || max_relative_deviation <= 0 || tint.empty()) return tint;
+  const int W = tint.width(), H = tint.height();
+  Image out = tint;
+  if (radius <= 0 || max_relative_deviation <= 0 || tint.empty()) return out;
+  // Only the bounding box of the non-zero tints (plus the window's reach) is read or written.
+  std::vector<int> row_lo(std::size_t(H), W), row_hi(std::size_t(H), -1);
+  tbb::parallel_for(0, H, [&](int y) {
+    const float* t = tint.pixel(0, y);
+    for (int x = 0; x < W; ++x)
+      if (t[3 * x] != 0.0f || t[3 * x + 1] != 0.0f || t[3 * x + 2] != 0.0f) {
+        row_lo[std::size_t(y)] = std::min(row_lo[std::size_t(y)], x);
+        row_hi[std::size_t(y)] = x;
+      }
+  });
+  int bx0 = W, by0 = H, bx1 = -1, by1 = -1;
+  for (int y = 0; y < H; ++y)
+    if (row_hi[std::size_t(y)] >= 0) {
+      bx0 = std::min(bx0, row_lo[std::size_t(y)]), bx1 = std::max(bx1, row_hi[std::size_t(y)]);
+      by0 = std::min(by0, y), by1 = y;
+    }
+  if (bx1 < 0) return out;
+  bx0 = std::max(0, bx0 - radius), by0 = std::max(0, by0 - radius);
+  bx1 = std::min(W - 1, bx1 + radius), by1 = std::min(H - 1, by1 + radius);
+  const int w = bx1 - bx0 + 1, h = by1 - by0 + 1;
+  const std::size_t n = std::size_t(w) * h;
   const float n2 = max_normal_distance * max_normal_distance;
-  auto sum3 = [](const Image& im, std::size_t p) {
-    const float* t = im.data() + 3 * p;
-    return t[0] + t[1] + t[2];
-  };
+  // Planes of the box (one float per pixel each, not zero-filled: every element is written
+  // next), so that the loops below run along rows with unit stride and vectorise: the tint's
+  // channels and their sum, the normal, the depth, 1 for the pixels that take part (0 for the
+  // kept ones), and the centre value of the pass.
+  std::unique_ptr<float[]> planes(new float[10 * n]);
+  float* const tr = planes.get();
+  float* const tg = tr + n;
+  float* const tb = tg + n;
+  float* const ts = tb + n;
+  float* const nx = ts + n;
+  float* const ny = nx + n;
+  float* const nz = ny + n;
+  float* const z = nz + n;
+  float* const part = z + n;
+  float* const centre = part + n;
+  tbb::parallel_for(0, h, [&](int y) {
+    for (int x = 0; x < w; ++x) {
+      const std::size_t p = std::size_t(y) * w + x;
+      const float* t = tint.pixel(bx0 + x, by0 + y);
+      const float* nn = normal.pixel(bx0 + x, by0 + y);
+      tr[p] = t[0], tg[p] = t[1], tb[p] = t[2], ts[p] = centre[p] = t[0] + t[1] + t[2];
+      nx[p] = nn[0], ny[p] = nn[1], nz[p] = nn[2], z[p] = depth.at(bx0 + x, by0 + y, 0);
+      part[p] = keep && (*keep)[std::size_t(by0 + y) * W + std::size_t(bx0 + x)] ? 0.0f : 1.0f;
+    }
+  });
   // One pass of a sigma filter (Lee 1983) whose neighbourhood is chosen per pixel by a
   // same-surface test on two guide images (written by hand: no OpenCV filter takes such a
-  // rule): the mean of the raw tints within the band around `centre`'s value.
-  auto pass = [&](const Image& centre) {
-    Image out = tint;
+  // rule): the mean of the raw tints within the band around the centre value. The window is
+  // walked offset by offset, each offset along a row (the sums' order is fixed: the result
+  // does not depend on the thread count). Writes the new means into `out` and their sums into
+  // `next_centre`.
+  auto pass = [&](float* next_centre) {
     tbb::parallel_for(0, h, [&](int y) {
-      for (int x = 0; x < w; ++x) {
-        const std::size_t p = std::size_t(y) * w + x;
-        if (sum3(tint, p) == 0.0f || (keep && (*keep)[p])) continue;
-        const float cp = sum3(centre, p);
-        const float* np = normal.data() + 3 * p;
-        const float zp = depth.data()[p], band = max_relative_deviation * cp;
-        double sum[3] = {0, 0, 0};
-        int n = 0;
-        bool border = false;
-        for (int yy = std::max(0, y - radius); yy <= std::min(h - 1, y + radius) && !border; ++yy)
-          for (int xx = std::max(0, x - radius); xx <= std::min(w - 1, x + radius); ++xx) {
-            const std::size_t q = std::size_t(yy) * w + xx;
-            if (keep && (*keep)[q]) continue;
-            const float* nq = normal.data() + 3 * q;
-            const float a = np[0] - nq[0], b = np[1] - nq[1], c = np[2] - nq[2];
-            if (a * a + b * b + c * c > n2 || std::abs(depth.data()[q] - zp) > max_depth_distance) continue;
-            const float tq = sum3(tint, q);
-            if (tq == 0.0f) {
-              border = true;  // the reflective part of this surface ends here
-              break;
-            }
-            if (std::abs(tq - cp) > band) continue;
-            const float* t = tint.data() + 3 * q;
-            for (int k = 0; k < 3; ++k) sum[k] += t[k];
-            ++n;
+      const std::size_t row = std::size_t(y) * w;
+      int lo = w, hi = -1;  // the row's pixels with a non-zero tint: the only ones that change
+      for (int x = 0; x < w; ++x)
+        if (ts[row + std::size_t(x)] != 0.0f) lo = std::min(lo, x), hi = x;
+      if (next_centre) std::copy(centre + row, centre + row + w, next_centre + row);
+      if (hi < 0) return;
+      const int len = hi - lo + 1;
+      // Sums of the differences to the pixel's own tint (a constant region's mean is then its
+      // value to the bit, and float sums lose nothing that matters).
+      std::vector<float> sr(std::size_t(len), 0.0f), sg(std::size_t(len), 0.0f), sb(std::size_t(len), 0.0f);
+      std::vector<float> cnt(std::size_t(len), 0.0f), border(std::size_t(len), 0.0f);
+      float* const psr = sr.data();
+      float* const psg = sg.data();
+      float* const psb = sb.data();
+      float* const pcnt = cnt.data();
+      float* const pborder = border.data();
+      for (int yy = std::max(0, y - radius); yy <= std::min(h - 1, y + radius); ++yy)
+        for (int dx = -radius; dx <= radius; ++dx) {
+          const int x0 = std::max(lo, -dx), x1 = std::min(hi + 1, w - dx);
+          const std::ptrdiff_t dq = std::ptrdiff_t(yy - y) * w + dx;  // neighbour = pixel + dq
+          // Branch-free (0/1 factors instead of conditions), so that it vectorises; the sums
+          // do not alias the planes (ivdep spares the run-time checks GCC gives up on).
+#pragma GCC ivdep
+          for (int x = x0; x < x1; ++x) {
+            const std::ptrdiff_t p = std::ptrdiff_t(row) + x, q = p + dq;
+            const int i = x - lo;
+            const float a = nx[p] - nx[q], b = ny[p] - ny[q], c = nz[p] - nz[q];
+            const float same = part[q] * (a * a + b * b + c * c <= n2 ? 1.0f : 0.0f) *
+                               (std::abs(z[q] - z[p]) <= max_depth_distance ? 1.0f : 0.0f);
+            const float nonzero = ts[q] != 0.0f ? 1.0f : 0.0f;
+            const float in = same * nonzero *
+                             (std::abs(ts[q] - centre[p]) <= max_relative_deviation * centre[p] ? 1.0f : 0.0f);
+            pborder[i] += same * (1.0f - nonzero);
+            psr[i] += in * (tr[q] - tr[p]);
+            psg[i] += in * (tg[q] - tg[p]);
+            psb[i] += in * (tb[q] - tb[p]);
+            pcnt[i] += in;
           }
-        // Near the end of the surface's reflective part (a mirror's border on a coplanar wall:
-        // partly covered pixels, a step not noise) and where no raw tint lies near the centre
-        // value, the pixel keeps its own tint.
-        if (border || n == 0) continue;
-        for (int k = 0; k < 3; ++k) out.data()[3 * p + k] = float(sum[k] / n);
+        }
+      // Kept: zero tints, kept pixels, the border of a reflective region (a same-surface
+      // neighbour with a zero tint: a mirror's partly covered pixels on a coplanar wall are a
+      // step, not noise), and pixels with no raw tint near the centre value.
+      for (int x = lo; x <= hi; ++x) {
+        const std::size_t p = row + std::size_t(x), i = std::size_t(x - lo);
+        if (ts[p] == 0.0f || part[p] == 0.0f || border[i] > 0.0f || cnt[i] == 0.0f) continue;
+        float* o = out.pixel(bx0 + x, by0 + int(y));
+        o[0] = tr[p] + sr[i] / cnt[i], o[1] = tg[p] + sg[i] / cnt[i], o[2] = tb[p] + sb[i] / cnt[i];
+        if (next_centre) next_centre[p] = o[0] + o[1] + o[2];
       }
     });
-    return out;
   };
   // Centred on the pixel's own (noisy) tint, the band takes more neighbours on its side of the
   // expectation than on the other, which pulls the mean towards the pixel's noise; the second
   // pass centres the band on the first pass's estimate instead (RMS error against the
   // expectation: 0.28x of the raw tint's after one pass, see tests/denoisers/tint_test.cpp).
-  return pass(pass(tint));
+  std::unique_ptr<float[]> first(new float[n]);
+  pass(first.get());
+  std::copy(first.get(), first.get() + n, centre);
+  pass(nullptr);
+  return out;
 }
 
 void clamp_luminance(float rgb[3], float bound) {

@@ -172,7 +172,7 @@ class Proposed final : public Method {
     std::vector<Image> depths(std::size_t(levels) + 1);  // each level's depth over its median
     std::vector<AovFrame> subs;                            // level k >= 1: its box's guides
     subs.reserve(std::size_t(levels));
-    std::vector<std::function<void(MethodStats&)>> jobs;
+    std::vector<std::function<void(MethodStats&)>> jobs, tint_jobs;
     const bool edges = use_edges_ && f.edges && !f.edges->pixels.empty();
     // The tint of level k's surface (named after the level it leads to: refl<k+1>.tint) carries
     // the noise of the tracer's per-sample lobe choice (illumination.h, smooth_tint); the level
@@ -204,7 +204,7 @@ class Proposed final : public Method {
           fi[0] = filter_layer(f, 0, *ip, *zp, sigma_nlm, am, st, edges ? &EdgeSample::indirect : nullptr);
         });
         if (levels > 0 && smooth_tints) {
-          jobs.push_back([&, zp = &depth](MethodStats& st) {
+          tint_jobs.push_back([&, zp = &depth](MethodStats& st) {
             ScopedPhase p(st, "tint_level1");
             const Image z = zp->empty() ? normalized_depth(f, 0) : Image();
             tints[0] = smooth_tint(f.layer(layer::at_level(1, layer::kTint)), f.layer(layer::kNormal), zp->empty() ? z : *zp,
@@ -261,7 +261,7 @@ class Proposed final : public Method {
       if (k < levels && smooth_tints) {
         // Level k+1 shows only where level k does, so its tint is zero outside level k's box:
         // smoothed on the box, with the box's guides (the depth over the box's median).
-        jobs.push_back([&, k, box, zp, sub](MethodStats& st) {
+        tint_jobs.push_back([&, k, box, zp, sub](MethodStats& st) {
           ScopedPhase p(st, "tint_level" + std::to_string(k + 1));
           const Image& full = f.layer(layer::at_level(k + 1, layer::kTint));
           const Image z = zp->empty() ? normalized_depth(*sub, k) : Image();
@@ -280,6 +280,7 @@ class Proposed final : public Method {
         });
       }
     }
+    jobs.insert(jobs.begin(), tint_jobs.begin(), tint_jobs.end());
     run_jobs(r.stats, jobs);
 
     Image below;  // F'_{k+1}: the composed, filtered level under the current one
