@@ -66,9 +66,10 @@
 //   geometry         bool   false: no normal and depth guide groups
 //   edge_subpixels   bool   false: edge pixels are filtered like any other
 //   reflections      bool   false: R passes through unfiltered
-//   tint_sigma       float  a reflection level's tint averaged over same-surface neighbours
-//                           (Gaussian sigma, pixels; 0: the raw tint): the tracer's per-sample
-//                           lobe choice makes a coated surface's tint noisy (illumination.h)
+//   tint_radius      int    a reflection level's tint averaged over the same-surface pixels
+//                           of a (2r+1)^2 window within its noise band (0: the raw tint): the
+//                           tracer's per-sample lobe choice makes a coated surface's tint noisy
+//                           (illumination.h, smooth_tint)
 //   reflection_downsample int  the adaptive-manifold reduced-grid factor of the reflection
 //                           levels (0: `downsample`)
 //   reflection_sum   bool   true: a reflection level's D + I are filtered as one layer (one AM
@@ -84,7 +85,6 @@
 
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
 
 #include "core/errors.h"
 #include "denoisers/adaptive_manifold.h"
