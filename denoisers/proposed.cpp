@@ -113,10 +113,10 @@ class Proposed final : public Method {
         use_edges_(p.b("edge_subpixels")),
         use_reflections_(p.b("reflections")),
         reflection_sum_(p.b("reflection_sum")),
-        tint_radius_(p.i("tint_radius")),
-        reflection_downsample_(p.i("reflection_downsample")),
         filter_color_(p.b("filter_color")),
-        opencl_(p.s("device") == "opencl") {
+        opencl_(p.s("device") == "opencl"),
+        tint_radius_(p.i("tint_radius")),
+        reflection_downsample_(p.i("reflection_downsample")) {
     std::string why;
     if (opencl_ && !am_opencl_available(&why)) throw InputError("proposed: device=opencl: " + why);
     am_.sigma_s = p.f("sigma_s");
