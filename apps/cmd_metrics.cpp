@@ -28,14 +28,16 @@ void add_metrics(CLI::App& app, Action& action) {
   cmd->callback([&action, o] {
     action = [o] {
       Image a = read_rgb(o->image);  // InputError naming the file and the missing channel
-      Image b = read_rgb(o->reference);
+      // The reference with its variance of the mean when the file has it (mse_converged needs
+      // it), in one read; a missing R, G or B is an InputError naming the file and the channel.
+      const AovFrame ref_frame = read_frame(o->reference, {layer::kColor});
+      const Image& b = ref_frame.layer(layer::kColor);
       metrics::check_pair(a, b, "'" + o->image + "'", "'" + o->reference + "'");
-      // The reference's variance of the mean, when the file has it (mse_converged needs it).
-      const AovFrame ref_frame = read_frame(o->reference);
       const Image* variance = ref_frame.has(layer::kVariance) ? &ref_frame.layer(layer::kVariance) : nullptr;
+      double unconverged = 0;  // also checks the variance before any metric uses it
       if (variance) {
         try {
-          metrics::unconverged_mask(b, *variance);
+          unconverged = metrics::unconverged_share(b, *variance);
         } catch (const InputError& e) {
           throw InputError(fmt::format("'{}': {}", o->reference, e.what()));
         }
@@ -48,7 +50,7 @@ void add_metrics(CLI::App& app, Action& action) {
           fmt::print("{:<14} n/a ('{}' has no variance.R/G/B channels)\n", m.name, o->reference);
         else fmt::print("{:<14} {:.9g}\n", m.name, v);
       }
-      if (variance && o->json) j["reference_unconverged_share"] = metrics::unconverged_share(b, *variance);
+      if (variance && o->json) j["reference_unconverged_share"] = unconverged;
       if (o->json) fmt::print("{}\n", j.dump());
       return 0;
     };

@@ -56,38 +56,46 @@ Image normalized_depth(const AovFrame& frame, int level) {
   return out;
 }
 
+PixelBox nonzero_box(const Image& image, int margin) {
+  const int w = image.width(), h = image.height(), ch = image.channels();
+  std::vector<int> row_lo(std::size_t(h), w), row_hi(std::size_t(h), -1);
+  tbb::parallel_for(0, h, [&](int y) {
+    const float* p = image.pixel(0, y);
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < ch; ++c)
+        if (p[std::size_t(x) * ch + c] != 0.0f) {
+          row_lo[std::size_t(y)] = std::min(row_lo[std::size_t(y)], x), row_hi[std::size_t(y)] = x;
+          break;
+        }
+  });
+  int x0 = w, y0 = h, x1 = -1, y1 = -1;
+  for (int y = 0; y < h; ++y)
+    if (row_hi[std::size_t(y)] >= 0) {
+      x0 = std::min(x0, row_lo[std::size_t(y)]), x1 = std::max(x1, row_hi[std::size_t(y)]);
+      y0 = std::min(y0, y), y1 = y;
+    }
+  if (x1 < 0) return {};
+  x0 = std::max(0, x0 - margin), y0 = std::max(0, y0 - margin);
+  x1 = std::min(w - 1, x1 + margin), y1 = std::min(h - 1, y1 + margin);
+  return {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
+}
+
 Image smooth_tint(const Image& tint, const Image& normal, const Image& depth, int radius, float max_relative_deviation,
                   float max_normal_distance, float max_depth_distance, const std::vector<char>* keep) {
-  const int W = tint.width(), H = tint.height();
+  const int W = tint.width();
   Image out = tint;
   if (radius <= 0 || max_relative_deviation <= 0 || tint.empty()) return out;
   // Only the bounding box of the non-zero tints (plus the window's reach) is read or written.
-  std::vector<int> row_lo(std::size_t(H), W), row_hi(std::size_t(H), -1);
-  tbb::parallel_for(0, H, [&](int y) {
-    const float* t = tint.pixel(0, y);
-    for (int x = 0; x < W; ++x)
-      if (t[3 * x] != 0.0f || t[3 * x + 1] != 0.0f || t[3 * x + 2] != 0.0f) {
-        row_lo[std::size_t(y)] = std::min(row_lo[std::size_t(y)], x);
-        row_hi[std::size_t(y)] = x;
-      }
-  });
-  int bx0 = W, by0 = H, bx1 = -1, by1 = -1;
-  for (int y = 0; y < H; ++y)
-    if (row_hi[std::size_t(y)] >= 0) {
-      bx0 = std::min(bx0, row_lo[std::size_t(y)]), bx1 = std::max(bx1, row_hi[std::size_t(y)]);
-      by0 = std::min(by0, y), by1 = y;
-    }
-  if (bx1 < 0) return out;
-  bx0 = std::max(0, bx0 - radius), by0 = std::max(0, by0 - radius);
-  bx1 = std::min(W - 1, bx1 + radius), by1 = std::min(H - 1, by1 + radius);
-  const int w = bx1 - bx0 + 1, h = by1 - by0 + 1;
+  const PixelBox box = nonzero_box(tint, radius);
+  if (box.empty()) return out;
+  const int bx0 = box.x, by0 = box.y, w = box.w, h = box.h;
   const std::size_t n = std::size_t(w) * h;
   const float n2 = max_normal_distance * max_normal_distance;
   // Planes of the box (one float per pixel each, not zero-filled: every element is written
   // next), so that the loops below run along rows with unit stride and vectorise: the tint's
-  // channels and their sum, the normal, the depth, 1 for the pixels that take part (0 for the
-  // kept ones), and the centre value of the pass.
-  std::unique_ptr<float[]> planes(new float[10 * n]);
+  // channels and their sum, the normal, the depth, and 1 for the pixels that take part (0 for
+  // the kept ones).
+  std::unique_ptr<float[]> planes(new float[9 * n]);
   float* const tr = planes.get();
   float* const tg = tr + n;
   float* const tb = tg + n;
@@ -97,16 +105,23 @@ Image smooth_tint(const Image& tint, const Image& normal, const Image& depth, in
   float* const nz = ny + n;
   float* const z = nz + n;
   float* const part = z + n;
-  float* const centre = part + n;
+  const float* centre = ts;  // the pass's centre values: first the raw tints' sums
   tbb::parallel_for(0, h, [&](int y) {
     for (int x = 0; x < w; ++x) {
       const std::size_t p = std::size_t(y) * w + x;
       const float* t = tint.pixel(bx0 + x, by0 + y);
       const float* nn = normal.pixel(bx0 + x, by0 + y);
-      tr[p] = t[0], tg[p] = t[1], tb[p] = t[2], ts[p] = centre[p] = t[0] + t[1] + t[2];
+      tr[p] = t[0], tg[p] = t[1], tb[p] = t[2], ts[p] = t[0] + t[1] + t[2];
       nx[p] = nn[0], ny[p] = nn[1], nz[p] = nn[2], z[p] = depth.at(bx0 + x, by0 + y, 0);
       part[p] = keep && (*keep)[std::size_t(by0 + y) * W + std::size_t(bx0 + x)] ? 0.0f : 1.0f;
     }
+  });
+  // Each row's first and last pixel with a non-zero tint: the only ones a pass changes.
+  std::vector<int> row_lo(std::size_t(h), w), row_hi(std::size_t(h), -1);
+  tbb::parallel_for(0, h, [&](int y) {
+    for (int x = 0; x < w; ++x)
+      if (ts[std::size_t(y) * w + std::size_t(x)] != 0.0f)
+        row_lo[std::size_t(y)] = std::min(row_lo[std::size_t(y)], x), row_hi[std::size_t(y)] = x;
   });
   // One pass of a sigma filter (Lee 1983) whose neighbourhood is chosen per pixel by a
   // same-surface test on two guide images (written by hand: no OpenCV filter takes such a
@@ -117,9 +132,7 @@ Image smooth_tint(const Image& tint, const Image& normal, const Image& depth, in
   auto pass = [&](float* next_centre) {
     tbb::parallel_for(0, h, [&](int y) {
       const std::size_t row = std::size_t(y) * w;
-      int lo = w, hi = -1;  // the row's pixels with a non-zero tint: the only ones that change
-      for (int x = 0; x < w; ++x)
-        if (ts[row + std::size_t(x)] != 0.0f) lo = std::min(lo, x), hi = x;
+      const int lo = row_lo[std::size_t(y)], hi = row_hi[std::size_t(y)];
       if (next_centre) std::copy(centre + row, centre + row + w, next_centre + row);
       if (hi < 0) return;
       const int len = hi - lo + 1;
@@ -173,7 +186,7 @@ Image smooth_tint(const Image& tint, const Image& normal, const Image& depth, in
   // expectation: 0.28x of the raw tint's after one pass, see tests/denoisers/tint_test.cpp).
   std::unique_ptr<float[]> first(new float[n]);
   pass(first.get());
-  std::copy(first.get(), first.get() + n, centre);
+  centre = first.get();
   pass(nullptr);
   return out;
 }

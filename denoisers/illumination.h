@@ -35,6 +35,15 @@ std::vector<std::string> reflection_guide_layers();
 // `level` 1 reads refl1.depth (the reflection level's depth) instead.
 Image normalized_depth(const AovFrame& frame, int level = 0);
 
+// A rectangle of pixels.
+struct PixelBox {
+  int x = 0, y = 0, w = 0, h = 0;
+  bool empty() const { return w <= 0 || h <= 0; }
+};
+// Bounding box of the pixels with a non-zero channel, grown by `margin` and clipped to the
+// image; empty when there are none.
+PixelBox nonzero_box(const Image& image, int margin);
+
 // A reflection tint (reflK.tint) averaged over each pixel's neighbours on the same surface.
 // The tracer picks a coated surface's specular lobe per sample with probability pc (its Fresnel
 // term clamped to [0.2, 0.8], tracer/integrator.cpp) and records tint * fr / pc on those samples,

@@ -187,6 +187,35 @@ class Proposed final : public Method {
     // The noise band: 3 standard deviations of the lobe choice's noise at its largest (pc 0.2).
     const float tint_band = f.meta.spp > 0 ? 3.0f * 2.0f / std::sqrt(float(f.meta.spp)) : 0.0f;
     const bool smooth_tints = tint_radius_ > 0 && tint_band > 0;
+    // Queues the smoothing of level k's tint (layer k+1) on `box` of the frame, guided by level
+    // k's normal in `guides` (the frame, or the box's crop of it) and `depth` (over the median;
+    // empty: computed here, when the filters run without geometry).
+    auto push_tint_job = [&](int k, Box box, const AovFrame* guides, const Image* depth) {
+      tint_jobs.push_back([&, k, box, guides, depth](MethodStats& st) {
+        ScopedPhase p(st, "tint_level" + std::to_string(k + 1));
+        const Image& full = f.layer(layer::at_level(k + 1, layer::kTint));
+        const bool whole = box.w == f.width() && box.h == f.height();
+        const Image z = depth->empty() ? normalized_depth(*guides, k) : Image();
+        std::vector<char> keep;  // the edge mask on the box
+        if (!edge_mask.empty() && !whole) {
+          keep.resize(std::size_t(box.w) * box.h);
+          for (int y = 0; y < box.h; ++y)
+            std::copy_n(edge_mask.begin() + std::ptrdiff_t(std::size_t(box.y + y) * f.width() + box.x), box.w,
+                        keep.begin() + std::ptrdiff_t(std::size_t(y) * box.w));
+        }
+        Image crop;
+        const Image& tint = whole ? full : (crop = cropped(full, box));
+        Image smoothed = smooth_tint(tint, guides->layer(layer::at_level(k, layer::kNormal)), depth->empty() ? z : *depth,
+                                     tint_radius_, tint_band, kTintNormalDistance, kTintDepthDistance,
+                                     edge_mask.empty() ? nullptr : whole ? &edge_mask : &keep);
+        if (!whole) {
+          Image out = full;
+          paste(smoothed, box, out);
+          smoothed = std::move(out);
+        }
+        tints[std::size_t(k)] = std::move(smoothed);
+      });
+    };
     for (int k = 0; k <= levels; ++k) {
       const Image& d = f.layer(layer::at_level(k, layer::kDirect));
       const Image& i = f.layer(layer::at_level(k, layer::kIndirect));
@@ -203,15 +232,7 @@ class Proposed final : public Method {
         jobs.push_back([&, ip = &i, zp = &depth](MethodStats& st) {
           fi[0] = filter_layer(f, 0, *ip, *zp, sigma_nlm, am, st, edges ? &EdgeSample::indirect : nullptr);
         });
-        if (levels > 0 && smooth_tints) {
-          tint_jobs.push_back([&, zp = &depth](MethodStats& st) {
-            ScopedPhase p(st, "tint_level1");
-            const Image z = zp->empty() ? normalized_depth(f, 0) : Image();
-            tints[0] = smooth_tint(f.layer(layer::at_level(1, layer::kTint)), f.layer(layer::kNormal), zp->empty() ? z : *zp,
-                                   tint_radius_, tint_band, kTintNormalDistance, kTintDepthDistance,
-                                   edge_mask.empty() ? nullptr : &edge_mask);
-          });
-        }
+        if (levels > 0 && smooth_tints) push_tint_job(0, Box{0, 0, f.width(), f.height()}, &f, &depth);
         continue;
       }
       // Level k only shows where its tint is non-zero (it enters the level above as
@@ -219,14 +240,14 @@ class Proposed final : public Method {
       // (the spatial kernel falls to 2e-4 there), and nothing for a level no pixel shows.
       // Outside the box F'_k stays 0, multiplied by a zero tint. Level 1 covers 10-19% of
       // the built-in scenes' pixels, level 2 under 2%.
-      const Box box = visible_box(f.layer(layer::at_level(k, layer::kTint)), int(std::ceil(6.0 * am.sigma_s)));
+      const Box box = nonzero_box(f.layer(layer::at_level(k, layer::kTint)), int(std::ceil(6.0 * am.sigma_s)));
       r.stats.counters["level" + std::to_string(k) + "_filtered_fraction"] =
           double(box.w) * box.h / (double(f.width()) * f.height());
       Image* out_d = &fd[std::size_t(k)].image;
       Image* out_i = &fi[std::size_t(k)].image;
       *out_d = Image(f.width(), f.height(), 3);
       *out_i = Image(f.width(), f.height(), 3);
-      if (box.w <= 0 || box.h <= 0) continue;
+      if (box.empty()) continue;
       AovFrame* sub = &subs.emplace_back(box.w, box.h);  // reserved: the address stays
       sub->meta = f.meta;
       for (const char* base : {layer::kNormal, layer::kDepth}) {
@@ -258,27 +279,9 @@ class Proposed final : public Method {
           paste(filter_layer(*sub, k, cropped(*ip, box), *zp, sigma_nlm, aml, st, nullptr).image, box, *out_i);
         });
       }
-      if (k < levels && smooth_tints) {
-        // Level k+1 shows only where level k does, so its tint is zero outside level k's box:
-        // smoothed on the box, with the box's guides (the depth over the box's median).
-        tint_jobs.push_back([&, k, box, zp, sub](MethodStats& st) {
-          ScopedPhase p(st, "tint_level" + std::to_string(k + 1));
-          const Image& full = f.layer(layer::at_level(k + 1, layer::kTint));
-          const Image z = zp->empty() ? normalized_depth(*sub, k) : Image();
-          std::vector<char> keep;
-          if (!edge_mask.empty()) {
-            keep.resize(std::size_t(box.w) * box.h);
-            for (int y = 0; y < box.h; ++y)
-              std::copy_n(edge_mask.begin() + std::ptrdiff_t(std::size_t(box.y + y) * f.width() + box.x), box.w,
-                          keep.begin() + std::ptrdiff_t(std::size_t(y) * box.w));
-          }
-          Image out = full;
-          paste(smooth_tint(cropped(full, box), sub->layer(layer::at_level(k, layer::kNormal)), zp->empty() ? z : *zp,
-                            tint_radius_, tint_band, kTintNormalDistance, kTintDepthDistance, keep.empty() ? nullptr : &keep),
-                box, out);
-          tints[std::size_t(k)] = std::move(out);
-        });
-      }
+      // Level k+1 shows only where level k does, so its tint is zero outside level k's box:
+      // smoothed on the box, with the box's guides (the depth over the box's median).
+      if (k < levels && smooth_tints) push_tint_job(k, box, sub, zp);
     }
     jobs.insert(jobs.begin(), tint_jobs.begin(), tint_jobs.end());
     run_jobs(r.stats, jobs);
@@ -330,9 +333,7 @@ class Proposed final : public Method {
   // slowly within such a neighbourhood; across a crease or a silhouette the test fails.
   static constexpr float kTintNormalDistance = 0.1f;
   static constexpr float kTintDepthDistance = 0.01f;
-  struct Box {
-    int x = 0, y = 0, w = 0, h = 0;
-  };
+  using Box = PixelBox;
   // Runs the jobs concurrently, each with its own stats; their stats go into `into` in job
   // order: phases appended (they overlapped in time), counters summed (firefly pixels) except
   // the guide's channel count, which is set.
@@ -346,24 +347,6 @@ class Proposed final : public Method {
         else into.counters[name] += v;
       }
     }
-  }
-  // Bounding box of the pixels with a non-zero channel, grown by `margin` and clipped to the
-  // image; empty when there are none.
-  static Box visible_box(const Image& tint, int margin) {
-    int x0 = tint.width(), y0 = tint.height(), x1 = -1, y1 = -1;
-    for (int y = 0; y < tint.height(); ++y)
-      for (int x = 0; x < tint.width(); ++x) {
-        const float* t = tint.pixel(x, y);
-        bool on = false;
-        for (int c = 0; c < tint.channels(); ++c) on = on || t[c] != 0.0f;
-        if (!on) continue;
-        x0 = std::min(x0, x), x1 = std::max(x1, x);
-        y0 = std::min(y0, y), y1 = std::max(y1, y);
-      }
-    if (x1 < 0) return {};
-    x0 = std::max(0, x0 - margin), y0 = std::max(0, y0 - margin);
-    x1 = std::min(tint.width() - 1, x1 + margin), y1 = std::min(tint.height() - 1, y1 + margin);
-    return {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
   }
   static Image cropped(const Image& im, const Box& b) { return to_image(im.cview().crop(b.x, b.y, b.w, b.h)); }
   static void paste(const Image& part, const Box& b, Image& whole) {

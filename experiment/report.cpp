@@ -218,10 +218,10 @@ std::string table2_cpu_method(const json& res) {
 Table table2(const json& res) {
   Table t;
   const int spp = table_spp(res);
-  std::string cpu = "proposed", ocl, ic = "irradiance_cache";
+  const std::string cpu = table2_cpu_method(res);
+  std::string ocl, ic = "irradiance_cache";
   if (res.contains("config") && res["config"].contains("table2")) {
     const auto& c = res["config"]["table2"];
-    cpu = c.value("filter_cpu", cpu);
     ocl = c.value("filter_opencl", ocl);
     ic = c.value("irradiance_cache", ic);
   }
