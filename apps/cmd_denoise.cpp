@@ -15,7 +15,7 @@
 #include "core/exr_io.h"
 #include "core/version.h"
 #include "denoisers/method.h"
-#include "tracer/render.h"
+#include "methods/inputs.h"
 
 namespace dnb::app {
 
@@ -48,19 +48,8 @@ void add_denoise(CLI::App& app, Action& action) {
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, o->threads);
 
       AovFrame frame = read_frame(o->frame, method->required_layers());
-      MethodInput input{.frame = &frame, .seed = frame.meta.seed};
-      std::shared_ptr<const Scene> scene;
-      if (registry.info(o->method).kind == MethodKind::Renderer) {
-        const std::string name = o->scene.empty() ? frame.meta.scene : o->scene;
-        if (name.empty())
-          throw InputError(fmt::format("'{}' names no scene in its metadata: give --scene for method '{}'", o->frame,
-                                       o->method));
-        scene = load_scene(name);
-        input.scene = scene.get();
-        input.sample_budget = frame.meta.spp;
-        input.width = frame.width();
-        input.height = frame.height();
-      }
+      const auto scene = scene_for_method(registry.info(o->method), frame, o->scene, o->frame);
+      const MethodInput input = frame_input(frame, scene.get());
       MethodResult r;
       try {
         r = run_method(*method, input);

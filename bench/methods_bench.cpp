@@ -15,6 +15,7 @@
 
 #include "bench/bench_util.h"
 #include "denoisers/method.h"
+#include "methods/inputs.h"
 
 namespace dnb {
 namespace {
@@ -25,15 +26,8 @@ constexpr int kSpp = 16;
 void run_case(benchmark::State& state, const std::string& name, int w, int h) {
   const auto& registry = MethodRegistry::global();
   const bool renderer = registry.info(name).kind == MethodKind::Renderer;
-  MethodInput in;
-  if (renderer) {
-    in.scene = bench::scene(kScene).get();
-    in.sample_budget = kSpp;
-    in.width = w;
-    in.height = h;
-  } else {
-    in.frame = &bench::rendered_frame(kScene, w, h, kSpp);
-  }
+  const MethodInput in = renderer ? scene_input(*bench::scene(kScene), kSpp, w, h)
+                                  : frame_input(bench::rendered_frame(kScene, w, h, kSpp));
   auto method = registry.create(name);
   if (!renderer) run_method(*method, in);  // warm-up: first-touch allocations, thread pool start
   for (auto _ : state) {

@@ -30,7 +30,9 @@
 #include <mutex>
 
 #include "bench/bench_util.h"
+#include "core/stats.h"
 #include "denoisers/method.h"
+#include "methods/inputs.h"
 
 namespace dnb::bench {
 
@@ -46,12 +48,6 @@ struct NightlyCase {
   int width = 256, height = 192;
 };
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n == 0 ? 0.0 : n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 // How many runs of the workload last about as long as one run of the method, found at the
 // case's first call (the warm-up) and kept for the rest of the process, so that every
 // repetition of a case times the same amount of reference work.
@@ -64,16 +60,9 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
   ThreadLimit limit(c.threads);
   const auto& registry = MethodRegistry::global();
   const MethodInfo& info = registry.info(c.method);
-  MethodInput in;
-  in.seed = 1;
-  if (info.kind == MethodKind::Renderer) {
-    in.scene = scene(kNightlyScene).get();
-    in.sample_budget = kNightlySpp;
-    in.width = c.width;
-    in.height = c.height;
-  } else {
-    in.frame = &rendered_frame(kNightlyScene, c.width, c.height, kNightlySpp);
-  }
+  const MethodInput in = info.kind == MethodKind::Renderer
+                             ? scene_input(*scene(kNightlyScene), kNightlySpp, c.width, c.height)
+                             : frame_input(rendered_frame(kNightlyScene, c.width, c.height, kNightlySpp));
   if (c.params.count("device") && c.params.at("device") == "opencl") {
     // PoCL reads its thread count once, when OpenCL starts: a process times OpenCL cases of one
     // thread setting only (scripts/nightly_bench gives every case a process of its own).
@@ -130,9 +119,9 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
     method_s.push_back(tm);
     workload_s.push_back(tw);
   }
-  state.counters["ratio"] = median(ratios);
-  state.counters["method_ms"] = 1e3 * median(method_s);
-  state.counters["reference_ms"] = 1e3 * median(workload_s);
+  state.counters["ratio"] = stats::median(ratios);
+  state.counters["method_ms"] = 1e3 * stats::median(method_s);
+  state.counters["reference_ms"] = 1e3 * stats::median(workload_s);
   state.counters["reference_units"] = units;
   state.SetLabel(std::string(kNightlyScene) + " " + std::to_string(c.width) + "x" + std::to_string(c.height) + " " +
                  std::to_string(kNightlySpp) + "spp");

@@ -58,6 +58,7 @@
 #include "core/errors.h"
 #include "denoisers/method.h"
 #include "irradiance_cache/cache.h"
+#include "irradiance_cache/irradiance_cache.h"
 #include "tracer/integrator.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
