@@ -10,22 +10,11 @@
 #include <spdlog/spdlog.h>
 
 #include "apps/commands.h"
-#include "core/atomic_file.h"
-#include "core/errors.h"
 #include "experiment/nightly.h"
 
 namespace dnb::app {
 
 namespace {
-
-nlohmann::json read_json_file(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw InputError(fmt::format("'{}': no such file", path));
-  try {
-    return nlohmann::json::parse(read_text_file(path));
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(fmt::format("'{}': not valid JSON ({})", path, e.what()));
-  }
-}
 
 void add_check(CLI::App& parent, Action& action) {
   auto* cmd = parent.add_subcommand("check", "Compare a nightly run with the baseline; exit 1 on a regression");
@@ -78,12 +67,8 @@ void add_accept(CLI::App& parent, Action& action) {
     action = [o] {
       const auto s = nightly::accept_run(o->run, o->baseline, o->revision);
       // Say now what every later check would say: a baseline whose own run fails the ahead gate.
-      const auto gates = nightly::Gates::from_json(
-          nlohmann::json::parse(read_text_file(o->baseline + "/gates.json")), o->baseline + "/gates.json");
-      nightly::CheckOptions quality_only;
-      quality_only.performance = false;
-      for (const auto& f : nightly::check(s, s, gates, quality_only).findings)
-        if (f.failed) spdlog::warn("the accepted run fails a gate by itself (every check will, until it is fixed): {}", f.message);
+      for (const auto& f : nightly::self_check(s, o->baseline))
+        spdlog::warn("the accepted run fails a gate by itself (every check will, until it is fixed): {}", f.message);
       spdlog::info("accepted {} as the baseline in {}/baseline.json: {} MSE entries, {} benchmark ratios, revision {}, {}",
                    o->run, o->baseline, s.quality.size(), s.performance.size(), s.git_revision, s.machine);
       return 0;
@@ -109,28 +94,10 @@ void add_tolerances(CLI::App& parent, Action& action) {
   cmd->add_option("--perf-floor", o->d.performance_floor)->capture_default_str();
   cmd->callback([&action, o] {
     action = [o] {
-      if (o->quality.empty() && o->perf.empty()) throw InputError("nightly tolerances: give --quality and/or --perf runs");
-      std::vector<nightly::Summary> q, p;
-      for (const auto& dir : o->quality) {
-        const std::string path = dir + "/results.json";
-        q.push_back(nightly::summarize(read_json_file(path), path, nullptr, ""));
-      }
-      for (const auto& file : o->perf) {
-        nightly::Summary s;
-        const auto bench = read_json_file(file);
-        nightly::add_benchmarks(s, bench, file);
-        if (s.performance.empty()) throw InputError(fmt::format("'{}': no nightly/ benchmark cases", file));
-        p.push_back(s);
-      }
-      const std::string gates_path = o->baseline + "/gates.json";
-      nightly::Gates previous;
-      if (std::filesystem::exists(gates_path)) previous = nightly::Gates::from_json(read_json_file(gates_path), gates_path);
-      const auto g = nightly::derive_gates(q, o->quality, p, o->perf, previous, o->d);
-      std::filesystem::create_directories(o->baseline);
-      write_text_atomic(gates_path, g.to_json().dump(2) + "\n");
+      const auto g = nightly::derive_tolerances(o->quality, o->perf, o->baseline, o->d);
       for (const auto& [m, t] : g.quality) spdlog::info("quality tolerance {}: +{:.1f}%", m, 100 * t);
       for (const auto& [c, t] : g.performance) spdlog::info("performance tolerance {}: +{:.1f}%", c, 100 * t);
-      spdlog::info("wrote {}", gates_path);
+      spdlog::info("wrote {}/gates.json", o->baseline);
       return 0;
     };
   });

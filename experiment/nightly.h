@@ -26,6 +26,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "experiment/results.h"
+
 namespace dnb::nightly {
 
 struct QualityEntry {
@@ -61,8 +63,8 @@ struct Summary {
 
 // The summary of a results document (results.json of `denoisebench run`) and, optionally, a
 // Google Benchmark JSON document with nightly/ cases. `where_*` name the files in errors.
-Summary summarize(const nlohmann::json& results, const std::string& where_results, const nlohmann::json* bench,
-                  const std::string& where_bench);
+Summary summarize(const experiment::ResultsDocument& results, const std::string& where_results,
+                  const nlohmann::json* bench, const std::string& where_bench);
 // Adds the nightly/ cases of a Google Benchmark JSON document to `s` (the median of each case's
 // `ratio` counter over its repetitions) and takes the CPU model from its context.
 void add_benchmarks(Summary& s, const nlohmann::json& bench, const std::string& where_bench);
@@ -137,6 +139,10 @@ struct DeriveOptions {
   // same MSE bit for bit, so the MSE's seed spread only matters for changes to the inputs.)
   double performance_k = 4.25, performance_floor = 0.10;
 };
+// The default ahead rule for a run: `proposed` ahead of every other non-ablation filter in it
+// (no rule when the run has no `proposed`; renderer-type methods are left out).
+void default_ahead(Gates& gates, const Summary& run);
+
 Gates derive_gates(const std::vector<Summary>& quality_runs, const std::vector<std::string>& quality_names,
                    const std::vector<Summary>& perf_runs, const std::vector<std::string>& perf_names,
                    const Gates& previous, const DeriveOptions& options = {});
@@ -160,5 +166,13 @@ RunCheck check_run(const std::string& run_dir, const std::string& baseline_dir, 
 // non-ablation method of the run). The revision recorded is `git_revision`, else the one
 // RUN_DIR/summary.json (written by check) holds, else results.json's. Returns the summary.
 Summary accept_run(const std::string& run_dir, const std::string& baseline_dir, const std::string& git_revision = "");
+// The quality and ahead gates of BASELINE_DIR's gates.json applied to `accepted` against
+// itself: the failures every later check will report until they are fixed (said at accept).
+std::vector<Finding> self_check(const Summary& accepted, const std::string& baseline_dir);
+// `denoisebench nightly tolerances`: derive_gates() from the results folders of repeated
+// quality runs and the bench.json files of repeated benchmark runs, keeping the ahead rule of
+// BASELINE_DIR/gates.json (when there is one); writes and returns the new gates.json.
+Gates derive_tolerances(const std::vector<std::string>& quality_dirs, const std::vector<std::string>& perf_files,
+                        const std::string& baseline_dir, const DeriveOptions& options = {});
 
 }  // namespace dnb::nightly

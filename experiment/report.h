@@ -8,14 +8,19 @@
 //   speedup.md                     plain path tracing's fitted error-vs-time curve, and for each
 //                                  method the spp and time it needs to reach the method's error
 //   ablation.md                    the ablation variants against the full method
+//   ratios.md                      Table 2's CPU method's error over every other method's
 //   plots/*.png                    by reports/plots.py (matplotlib)
-//   images/**.png, index.html      the static page (vendored img-comparison-slider)
+//   web/**.png, index.html         the static page (vendored img-comparison-slider)
+//
+// The tables are pure functions of the results document (experiment/tables.cpp); the folder
+// writer (experiment/report.cpp) adds the images and the page.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include "experiment/results.h"
 
 namespace dnb::experiment {
 
@@ -39,14 +44,14 @@ struct PowerFit {
 PowerFit fit_power_law(const std::vector<double>& x, const std::vector<double>& y);
 
 // The tables of a results document (pure: used by the report and by the tests).
-Table table1(const nlohmann::json& results, const std::string& metric);
-Table table2(const nlohmann::json& results);
-Table speedup_table(const nlohmann::json& results, const std::string& metric = "mse");
-Table ablation_table(const nlohmann::json& results, const std::string& metric = "mse");
+Table table1(const ResultsDocument& results, const std::string& metric);
+Table table2(const ResultsDocument& results);
+Table speedup_table(const ResultsDocument& results, const std::string& metric = "mse");
+Table ablation_table(const ResultsDocument& results, const std::string& metric = "mse");
 // `method`'s mse and mse_converged over every other method's, per scene (Table 1's methods).
-Table ratio_table(const nlohmann::json& results, const std::string& method);
-// The method of Table 2's CPU column (config [table2] filter_cpu, else "proposed").
-std::string table2_cpu_method(const nlohmann::json& results);
+Table ratio_table(const ResultsDocument& results, const std::string& method);
+// A metric's value as the tables print it ("n/a" when absent or non-finite).
+std::string format_metric(std::optional<double> value);
 
 struct ReportOptions {
   bool plots = true;   // run reports/plots.py

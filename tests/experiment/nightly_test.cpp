@@ -236,16 +236,23 @@ TEST(NightlyCheck, NewEntriesAreNotedNotGated) {
 // Reading results.json and bench.json
 
 json results_doc() {
-  json r = {{"format", "denoisebench-results-1"},
+  json r = {{"format", "denoisebench-results"},
+            {"schema_version", 2},
             {"git_revision", "r1"},
             {"machine", {{"hostname", "h"}, {"cpu", "CPU X"}, {"hardware_threads", 2}}},
             {"config", {{"name", "tiny"}, {"width", 32}, {"height", 24}, {"spp", {2}}, {"seed", 1}, {"reference_spp", 16}}}};
-  r["records"] = {
-      {{"scene", "cornell-box"}, {"method", "input"}, {"role", "input"}, {"spp", 2}, {"metrics", {{"mse", 900.0}}}},
-      {{"scene", "cornell-box"}, {"method", "path_tracing"}, {"role", "plain"}, {"spp", 1}, {"metrics", {{"mse", 1900.0}}}},
-      {{"scene", "cornell-box"}, {"method", "guided"}, {"role", "method"}, {"spp", 2}, {"metrics", {{"mse", 40.5}}}},
-      {{"scene", "cornell-box"}, {"method", "guided-wide"}, {"role", "ablation"}, {"spp", 2}, {"metrics", {{"mse", nullptr}}}}};
+  auto record = [](const char* method, const char* role, int spp, json mse) {
+    return json{{"scene", "cornell-box"}, {"method", method}, {"role", role}, {"spp", spp}, {"width", 32}, {"height", 24},
+                {"metrics", {{"mse", mse}}}, {"times", {{"input_render", 1.0}, {"filter", 0.0}, {"total", 1.0}}},
+                {"reference", {{"spp", 16}, {"seconds", 2.0}}}};
+  };
+  r["records"] = {record("input", "input", 2, 900.0), record("path_tracing", "plain", 1, 1900.0),
+                  record("guided", "method", 2, 40.5), record("guided-wide", "ablation", 2, nullptr)};
   return r;
+}
+
+Summary summarize_json(const json& results, const std::string& where, const json* bench, const std::string& where_bench) {
+  return summarize(experiment::ResultsDocument::from_json(results, where), where, bench, where_bench);
 }
 
 json bench_run(const std::string& name, double ratio, const std::string& type = "iteration") {
@@ -269,7 +276,7 @@ json bench_doc() {
 
 TEST(NightlySummary, ReadsMethodRecordsAndNightlyCases) {
   const json b = bench_doc();
-  const Summary s = summarize(results_doc(), "results.json", &b, "bench.json");
+  const Summary s = summarize_json(results_doc(), "results.json", &b, "bench.json");
   ASSERT_EQ(s.quality.size(), 2u);  // the input and plain path tracing are not methods
   EXPECT_EQ(s.quality[0].method, "guided");
   EXPECT_DOUBLE_EQ(s.quality[0].mse, 40.5);
@@ -295,7 +302,7 @@ TEST(NightlySummary, ReadsMethodRecordsAndNightlyCases) {
 TEST(NightlySummary, MalformedInputNamesTheFileAndKey) {
   auto message = [](const json& r) {
     try {
-      summarize(r, "run/results.json", nullptr, "");
+      summarize_json(r, "run/results.json", nullptr, "");
     } catch (const InputError& e) {
       return std::string(e.what());
     }

@@ -1,0 +1,89 @@
+#include "experiment/cells.h"
+
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <tuple>
+
+#include "core/exr_io.h"
+#include "tracer/cache.h"  // sha256_hex
+#include "metrics/metrics.h"
+
+namespace fs = std::filesystem;
+
+namespace dnb::experiment {
+
+std::string safe_file_name(const std::string& s) {
+  std::string o = s;
+  for (char& ch : o)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_' && ch != '.') ch = '_';
+  return o;
+}
+
+std::map<std::string, std::optional<double>> score_image(const Image& image, const Reference& reference,
+                                                         const std::string& out_dir, const std::string& stem,
+                                                         std::map<std::string, std::string>& files) {
+  std::map<std::string, std::optional<double>> m;
+  const Image* variance = reference.variance.empty() ? nullptr : &reference.variance;
+  for (const auto& info : metrics::all_metrics()) {
+    metrics::MetricResult r = info.compute(image, reference.color, variance);
+    m[info.name] = std::isfinite(r.value) ? std::optional<double>(r.value) : std::nullopt;
+    if (info.name == "flip" || info.name == "relmse") {
+      Image rgb(r.map.width(), r.map.height(), 3);
+      for (std::size_t p = 0; p < r.map.pixel_count(); ++p)
+        for (int c = 0; c < 3; ++c) rgb.data()[3 * p + c] = r.map.data()[p];
+      const std::string rel = stem + ".err_" + info.name + ".exr";
+      write_rgb(rgb, out_dir + "/" + rel);
+      files["error_" + info.name] = rel;
+    }
+  }
+  return m;
+}
+
+namespace {
+
+// The fields every record of the cell has, whether it is computed or not.
+CellRecord base_record(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
+  CellRecord r{.scene = scene.scene, .scene_hash = scene.scene_hash, .method = plan.method, .role = plan.role};
+  r.spp = plan.spp;
+  std::tie(r.width, r.height, r.seed) = std::tuple(c.width, c.height, c.seed);
+  r.reference = scene.reference_info;
+  r.base_method = plan.base_method;
+  r.kind = plan.kind;
+  r.params = plan.params;
+  return r;
+}
+
+// A finished record whose image is still in the folder.
+const CellRecord* reusable(const std::string& key, const CellContext& c) {
+  const CellRecord* old = c.store->finished(key);
+  return old && !old->image().empty() && fs::exists(c.out_dir + "/" + old->image()) ? old : nullptr;
+}
+
+}  // namespace
+
+CellRecord run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
+  const std::string key = sha256_hex(plan.identity.dump());
+  if (const CellRecord* old = reusable(key, c)) {
+    c.store->reuse(*old);
+    c.progress->add(1);
+    return *old;
+  }
+  CellOutput out = plan.compute();
+  CellRecord r = base_record(plan, scene, c);
+  const std::string stem = scene.image_dir + "/" + plan.stem;
+  write_rgb(out.image, c.out_dir + "/" + stem + ".exr");
+  r.files["image"] = stem + ".exr";
+  r.metrics = score_image(out.image, *scene.reference, c.out_dir, stem, r.files);
+  r.times = out.times;
+  r.times.reference = scene.reference_info.seconds;
+  r.input_cache_hit = out.input_cache_hit;
+  r.phases = out.phases;
+  r.counters = out.counters;
+  r.cell_key = key;
+  c.store->add(r);
+  c.progress->add(1);
+  return r;
+}
+
+}  // namespace dnb::experiment

@@ -1,0 +1,141 @@
+#include "experiment/config.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "core/config.h"
+#include "core/errors.h"
+#include "denoisers/method.h"
+
+namespace fs = std::filesystem;
+
+namespace dnb::experiment {
+
+namespace {
+
+std::vector<int> int_list(ConfigTable& t, const std::string& key, std::vector<int> def) {
+  std::vector<double> d(def.begin(), def.end());
+  std::vector<int> out;
+  for (double v : t.get(key, d)) {
+    if (v < 1 || v != std::floor(v)) throw InputError(fmt::format("{}: expected positive integers", t.where(key)));
+    out.push_back(int(v));
+  }
+  return out;
+}
+
+std::map<std::string, std::string> param_table(ConfigTable t) {
+  std::map<std::string, std::string> out;
+  for (const auto& k : t.keys()) out[k] = t.raw(k);
+  return out;
+}
+
+void read_sections(ConfigTable& root, ExperimentConfig& c) {
+  if (auto ref = root.table("reference")) {
+    c.reference_spp = ref->get("spp", c.reference_spp);
+    c.reference_block_spp = ref->get("block_spp", c.reference_block_spp);
+    c.reference_seed = std::uint64_t(ref->get("seed", std::int64_t(c.reference_seed)));
+    ref->finish();
+  }
+  if (auto t = root.table("timing")) {
+    c.repeats = t->get("repeats", c.repeats);
+    c.repeat_below_seconds = t->get("repeat_below_seconds", c.repeat_below_seconds);
+    t->finish();
+  }
+  if (auto t = root.table("speedup")) {
+    c.plain_spp = int_list(*t, "spp", {});
+    t->finish();
+  }
+  if (auto t = root.table("table2")) {
+    c.table2.filter_cpu = t->get("filter_cpu", c.table2.filter_cpu);
+    c.table2.filter_opencl = t->get("filter_opencl", c.table2.filter_opencl);
+    c.table2.irradiance_cache = t->get("irradiance_cache", c.table2.irradiance_cache);
+    t->finish();
+  }
+}
+
+void require_registered(const MethodRegistry& registry, const std::string& method, const std::string& where) {
+  if (!registry.contains(method))
+    throw InputError(fmt::format("{}: method '{}' is not in the registry (valid: {})", where, method,
+                                 fmt::join(registry.names(), ", ")));
+}
+
+// `methods = [...]` with their [params.NAME] overrides, then every [[variant]].
+void read_methods(ConfigTable& root, ExperimentConfig& c) {
+  const auto method_names = root.get("methods", std::vector<std::string>{});
+  std::map<std::string, std::map<std::string, std::string>> overrides;
+  if (auto p = root.table("params"))
+    for (const auto& m : p->keys()) {
+      auto sub = p->table(m);
+      if (!sub) throw InputError(fmt::format("{}: expected a table of parameters", p->where(m)));
+      if (std::find(method_names.begin(), method_names.end(), m) == method_names.end())
+        throw InputError(fmt::format("{}: method '{}' is not in `methods`", p->where(m), m));
+      overrides[m] = param_table(*sub);
+    }
+  const auto& registry = MethodRegistry::global();
+  std::set<std::string> seen;
+  for (const auto& m : method_names) {
+    require_registered(registry, m, root.where("methods"));
+    if (!seen.insert(m).second) throw InputError(fmt::format("{}: method '{}' listed twice", root.where("methods"), m));
+    c.methods.push_back({m, m, overrides[m], ""});
+  }
+  for (auto& v : root.tables("variant")) {
+    MethodSpec s;
+    s.name = v.require_string("name");
+    s.method = v.require_string("method");
+    s.group = v.get("group", "");
+    role_of_group(s.group, v.where("group"));
+    if (auto set = v.table("set")) s.params = param_table(*set);
+    v.finish();
+    require_registered(registry, s.method, v.where("method"));
+    if (!seen.insert(s.name).second) throw InputError(fmt::format("{}: name '{}' used twice", v.where("name"), s.name));
+    c.methods.push_back(std::move(s));
+  }
+}
+
+}  // namespace
+
+ExperimentConfig load_config(const std::string& path) {
+  ConfigFile file = ConfigFile::load(path);
+  ConfigTable root = file.root();
+  ExperimentConfig c;
+  c.path = path;
+  c.name = root.get("name", fs::path(path).stem().string());
+  c.width = root.get("width", c.width);
+  c.height = root.get("height", c.height);
+  c.seed = std::uint64_t(root.get("seed", std::int64_t(c.seed)));
+  c.max_depth = root.get("max_depth", c.max_depth);
+  c.threads = root.get("threads", c.threads);
+  c.scenes = root.get("scenes", std::vector<std::string>{});
+  if (c.scenes.empty()) throw InputError(fmt::format("{}: expected a non-empty list of scene names", root.where("scenes")));
+  c.spp = int_list(root, "spp", {256});
+  read_sections(root, c);
+  read_methods(root, c);
+  root.finish();
+  // Validate every method's parameters now, not an hour into the run.
+  for (const auto& m : c.methods) MethodRegistry::global().parse_params(m.method, m.params);
+  return c;
+}
+
+RunConfig ExperimentConfig::recorded() const {
+  RunConfig r;
+  r.path = path;
+  r.name = name;
+  r.width = width;
+  r.height = height;
+  r.seed = seed;
+  r.reference_spp = reference_spp;
+  r.spp = spp;
+  r.plain_spp = plain_spp;
+  r.scenes = scenes;
+  r.repeats = repeats;
+  r.table2 = table2;
+  for (const auto& m : methods) r.methods.push_back({m.name, m.method, m.group, m.params});
+  return r;
+}
+
+}  // namespace dnb::experiment

@@ -1,0 +1,294 @@
+#include "experiment/results.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/json_file.h"
+
+using nlohmann::json;
+
+namespace dnb::experiment {
+
+namespace jf = json_file;
+
+// ---------------------------------------------------------------------------------------------
+// Roles
+
+const char* to_string(Role r) {
+  switch (r) {
+    case Role::Plain: return "plain";
+    case Role::Input: return "input";
+    case Role::Method: return "method";
+    case Role::Ablation: return "ablation";
+  }
+  return "method";
+}
+
+Role role_from_string(const std::string& s, const std::string& where) {
+  for (Role r : {Role::Plain, Role::Input, Role::Method, Role::Ablation})
+    if (s == to_string(r)) return r;
+  throw InputError(fmt::format("{}: key 'role': expected one of plain, input, method, ablation (got \"{}\")", where, s));
+}
+
+Role role_of_group(const std::string& group, const std::string& where) {
+  if (group.empty()) return Role::Method;
+  if (group == "ablation") return Role::Ablation;
+  throw InputError(fmt::format("{}: expected \"ablation\" or no group (got \"{}\")", where, group));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reading helpers
+
+namespace {
+
+json object_or_empty(const json& j, const std::string& key, const std::string& where) {
+  if (!j.contains(key)) return json::object();
+  if (!j.at(key).is_object()) throw InputError(fmt::format("{}: key '{}': expected an object", where, key));
+  return j.at(key);
+}
+
+std::map<std::string, double> number_map(const json& j, const std::string& where) {
+  std::map<std::string, double> out;
+  for (const auto& [k, v] : j.items()) out[k] = jf::number(j, k, where);
+  return out;
+}
+
+std::optional<double> optional_number(const json& j, const std::string& key, const std::string& where) {
+  if (!j.contains(key) || j.at(key).is_null()) return std::nullopt;
+  return jf::number(j, key, where);
+}
+
+template <class T>
+std::optional<T> optional_value(const json& j, const std::string& key, const std::string& where) {
+  if (!j.contains(key)) return std::nullopt;
+  return jf::get<T>(j, key, where);
+}
+
+json numbers_json(const std::map<std::string, double>& m) {
+  json o = json::object();
+  for (const auto& [k, v] : m) o[k] = v;
+  return o;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// CellRecord
+
+std::optional<double> CellRecord::metric(const std::string& name) const {
+  auto it = metrics.find(name);
+  return it == metrics.end() ? std::nullopt : it->second;
+}
+
+std::string CellRecord::image() const {
+  auto it = files.find("image");
+  return it == files.end() ? std::string() : it->second;
+}
+
+json CellRecord::to_json() const {
+  json r = {{"scene", scene}, {"method", method}, {"role", to_string(role)}, {"spp", spp}, {"width", width}, {"height", height}};
+  if (!scene_hash.empty()) r["scene_hash"] = scene_hash;
+  if (seed) r["seed"] = *seed;
+  if (!cell_key.empty()) r["cell_key"] = cell_key;
+  json m = json::object();
+  for (const auto& [k, v] : metrics) m[k] = v ? jf::number_or_null(*v) : json(nullptr);
+  r["metrics"] = m;
+  json t = {{"input_render", times.input_render}, {"filter", times.filter}, {"total", times.total}};
+  if (times.reference) t["reference"] = *times.reference;
+  if (times.filter_runs) t["filter_runs"] = *times.filter_runs;
+  r["times"] = t;
+  json ref = {{"spp", reference.spp}, {"seconds", reference.seconds}, {"image", reference.image},
+              {"unconverged_share", reference.unconverged_share ? json(*reference.unconverged_share) : json(nullptr)}};
+  if (reference.seed) ref["seed"] = *reference.seed;
+  if (reference.cache_hit) ref["cache_hit"] = *reference.cache_hit;
+  if (reference.unconverged_rse) ref["unconverged_rse"] = *reference.unconverged_rse;
+  r["reference"] = ref;
+  if (!files.empty()) r["files"] = files;
+  if (input_cache_hit) r["input_cache_hit"] = *input_cache_hit;
+  if (!base_method.empty()) r["base_method"] = base_method;
+  if (!kind.empty()) r["kind"] = kind;
+  if (params) r["params"] = *params;
+  if (phases) r["phases"] = numbers_json(*phases);
+  if (counters) r["counters"] = numbers_json(*counters);
+  return r;
+}
+
+CellRecord CellRecord::from_json(const json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected an object", where));
+  CellRecord r;
+  r.scene = jf::get<std::string>(j, "scene", where);
+  r.scene_hash = jf::get_or<std::string>(j, "scene_hash", "", where);
+  r.method = jf::get<std::string>(j, "method", where);
+  r.role = role_from_string(jf::get<std::string>(j, "role", where), where);
+  r.spp = jf::get<int>(j, "spp", where);
+  r.width = jf::get<int>(j, "width", where);
+  r.height = jf::get<int>(j, "height", where);
+  r.seed = optional_value<std::uint64_t>(j, "seed", where);
+  r.cell_key = jf::get_or<std::string>(j, "cell_key", "", where);
+
+  const json metrics = jf::get<json>(j, "metrics", where);
+  if (!metrics.is_object()) throw InputError(fmt::format("{}: key 'metrics': expected an object", where));
+  for (const auto& [k, v] : metrics.items()) r.metrics[k] = optional_number(metrics, k, where + ": metrics");
+
+  const json times = jf::get<json>(j, "times", where);
+  const std::string tw = where + ": times";
+  r.times.input_render = jf::number(times, "input_render", tw);
+  r.times.filter = jf::number(times, "filter", tw);
+  r.times.total = jf::number(times, "total", tw);
+  r.times.reference = optional_number(times, "reference", tw);
+  r.times.filter_runs = optional_value<std::vector<double>>(times, "filter_runs", tw);
+
+  const json ref = jf::get<json>(j, "reference", where);
+  const std::string rw = where + ": reference";
+  r.reference.spp = jf::get<int>(ref, "spp", rw);
+  r.reference.seed = optional_value<std::uint64_t>(ref, "seed", rw);
+  r.reference.seconds = jf::number(ref, "seconds", rw);
+  r.reference.cache_hit = optional_value<bool>(ref, "cache_hit", rw);
+  r.reference.image = jf::get_or<std::string>(ref, "image", "", rw);
+  r.reference.unconverged_share = optional_number(ref, "unconverged_share", rw);
+  r.reference.unconverged_rse = optional_number(ref, "unconverged_rse", rw);
+
+  r.files = jf::get_or<std::map<std::string, std::string>>(j, "files", {}, where);
+  r.input_cache_hit = optional_value<bool>(j, "input_cache_hit", where);
+  r.base_method = jf::get_or<std::string>(j, "base_method", "", where);
+  r.kind = jf::get_or<std::string>(j, "kind", "", where);
+  r.params = optional_value<std::map<std::string, std::string>>(j, "params", where);
+  if (j.contains("phases")) r.phases = number_map(object_or_empty(j, "phases", where), where + ": phases");
+  if (j.contains("counters")) r.counters = number_map(object_or_empty(j, "counters", where), where + ": counters");
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
+// RunConfig
+
+namespace {
+
+json config_json(const RunConfig& c) {
+  json methods = json::array();
+  for (const auto& m : c.methods)
+    methods.push_back({{"name", m.name}, {"method", m.method}, {"group", m.group}, {"params", m.params}});
+  return {{"path", c.path},
+          {"name", c.name},
+          {"width", c.width},
+          {"height", c.height},
+          {"seed", c.seed},
+          {"reference_spp", c.reference_spp},
+          {"spp", c.spp},
+          {"plain_spp", c.plain_spp},
+          {"scenes", c.scenes},
+          {"repeats", c.repeats},
+          {"table2",
+           {{"filter_cpu", c.table2.filter_cpu},
+            {"filter_opencl", c.table2.filter_opencl},
+            {"irradiance_cache", c.table2.irradiance_cache}}},
+          {"methods", methods}};
+}
+
+// Keys a hand-written fixture may leave out default to an empty value; present keys are typed.
+RunConfig config_from_json(const json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected an object", where));
+  RunConfig c;
+  c.path = jf::get_or<std::string>(j, "path", "", where);
+  c.name = jf::get_or<std::string>(j, "name", "", where);
+  c.width = jf::get_or<int>(j, "width", 0, where);
+  c.height = jf::get_or<int>(j, "height", 0, where);
+  c.seed = jf::get_or<std::uint64_t>(j, "seed", 0, where);
+  c.reference_spp = jf::get_or<int>(j, "reference_spp", 0, where);
+  c.spp = jf::get_or<std::vector<int>>(j, "spp", {}, where);
+  c.plain_spp = jf::get_or<std::vector<int>>(j, "plain_spp", {}, where);
+  c.scenes = jf::get_or<std::vector<std::string>>(j, "scenes", {}, where);
+  c.repeats = jf::get_or<int>(j, "repeats", 0, where);
+  const json t2 = object_or_empty(j, "table2", where);
+  const std::string tw = where + ": table2";
+  c.table2.filter_cpu = jf::get_or<std::string>(t2, "filter_cpu", c.table2.filter_cpu, tw);
+  c.table2.filter_opencl = jf::get_or<std::string>(t2, "filter_opencl", c.table2.filter_opencl, tw);
+  c.table2.irradiance_cache = jf::get_or<std::string>(t2, "irradiance_cache", c.table2.irradiance_cache, tw);
+  const json methods = jf::get_or<json>(j, "methods", json::array(), where);
+  if (!methods.is_array()) throw InputError(fmt::format("{}: key 'methods': expected an array", where));
+  for (std::size_t i = 0; i < methods.size(); ++i) {
+    const std::string mw = fmt::format("{}: methods[{}]", where, i);
+    c.methods.push_back({jf::get<std::string>(methods[i], "name", mw), jf::get<std::string>(methods[i], "method", mw),
+                         jf::get_or<std::string>(methods[i], "group", "", mw),
+                         jf::get_or<std::map<std::string, std::string>>(methods[i], "params", {}, mw)});
+  }
+  return c;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// ResultsDocument
+
+std::vector<std::string> ResultsDocument::scenes() const {
+  if (!config.scenes.empty()) return config.scenes;
+  std::vector<std::string> s;
+  for (const auto& r : records)
+    if (std::find(s.begin(), s.end(), r.scene) == s.end()) s.push_back(r.scene);
+  return s;
+}
+
+int ResultsDocument::table_spp() const {
+  if (!config.spp.empty()) return config.spp.front();
+  for (const auto& r : records)
+    if (r.role != Role::Plain) return r.spp;
+  return 0;
+}
+
+std::vector<std::string> ResultsDocument::methods(Role role) const {
+  std::vector<std::string> m;
+  for (const auto& r : records)
+    if (r.role == role && std::find(m.begin(), m.end(), r.method) == m.end()) m.push_back(r.method);
+  return m;
+}
+
+const CellRecord* ResultsDocument::find(const std::string& scene, const std::string& method, int spp) const {
+  for (const auto& r : records)
+    if (r.scene == scene && r.method == method && r.spp == spp) return &r;
+  return nullptr;
+}
+
+json ResultsDocument::to_json() const {
+  json j;
+  j["format"] = kResultsFormat;
+  j["schema_version"] = kResultsSchemaVersion;
+  j["config"] = config_json(config);
+  j["machine"] = machine;
+  j["build"] = build;
+  j["git_revision"] = git_revision;
+  if (written) j["written"] = *written;
+  json recs = json::array();
+  for (const auto& r : records) recs.push_back(r.to_json());
+  j["records"] = std::move(recs);
+  return j;
+}
+
+ResultsDocument ResultsDocument::from_json(const json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected a JSON object (a results.json of `denoisebench run`)", where));
+  const std::string format = jf::get_or<std::string>(j, "format", "", where);
+  if (format == "denoisebench-results-1")
+    throw InputError(fmt::format("{}: key 'format': written by an older denoisebench (results schema 1); this one reads "
+                                 "schema_version {}: run the config again into a new folder",
+                                 where, kResultsSchemaVersion));
+  if (format != kResultsFormat)
+    throw InputError(fmt::format("{}: key 'format': expected \"{}\" (a results.json of `denoisebench run`), got \"{}\"", where,
+                                 kResultsFormat, format));
+  const int version = jf::get<int>(j, "schema_version", where);
+  if (version != kResultsSchemaVersion)
+    throw InputError(fmt::format("{}: key 'schema_version': this denoisebench reads version {}, the file has {}", where,
+                                 kResultsSchemaVersion, version));
+  ResultsDocument d;
+  d.config = config_from_json(jf::get_or<json>(j, "config", json::object(), where), where + ": config");
+  d.machine = object_or_empty(j, "machine", where);
+  d.build = object_or_empty(j, "build", where);
+  d.git_revision = jf::get_or<std::string>(j, "git_revision", "", where);
+  d.written = optional_value<std::int64_t>(j, "written", where);
+  const json records = jf::get<json>(j, "records", where);
+  if (!records.is_array()) throw InputError(fmt::format("{}: key 'records': expected an array", where));
+  for (std::size_t i = 0; i < records.size(); ++i)
+    d.records.push_back(CellRecord::from_json(records[i], fmt::format("{}: records[{}]", where, i)));
+  return d;
+}
+
+ResultsDocument ResultsDocument::load(const std::string& path) { return from_json(jf::read(path), "'" + path + "'"); }
+
+}  // namespace dnb::experiment

@@ -1,0 +1,142 @@
+// The results document: the one schema of results.json (DESIGN.md, "Results"), written by the
+// runner (`denoisebench run`), read by the report (`denoisebench report`) and by the nightly
+// gates (`denoisebench nightly`). Nothing else in the harness spells its keys.
+//
+//   {
+//     "format": "denoisebench-results", "schema_version": 2,
+//     "config":  {...},           what was run (RunConfig below)
+//     "machine": {...},           hostname, cpu, hardware_threads (provenance)
+//     "build":   {...},           version, git revision, compiler, build id (provenance)
+//     "git_revision": "...", "written": <unix time>,
+//     "records": [ CellRecord, ... ]   one per cell: scene x method x input spp, the input
+//                                      itself, and the plain path-tracing curve
+//   }
+//
+// A CellRecord's keys (absent keys are optional ones that the cell's role does not have):
+//   scene, scene_hash, method (the column name), role (plain | input | method | ablation),
+//   spp, width, height, seed, cell_key (the hash of everything that determines the cell),
+//   metrics {name: value | null for a non-finite value}, times {input_render, filter, total,
+//   reference[, filter_runs]}, reference {spp, seed, seconds, cache_hit, image,
+//   unconverged_share, unconverged_rse}, files {image, error_flip, error_relmse},
+//   input_cache_hit; method cells also base_method, kind, params, phases, counters.
+//
+// Reading is strict: a file of another format, of an older schema_version, or with a missing
+// or mistyped key is an InputError naming the file and the key (the record's index too).
+// Version history: 1 (format "denoisebench-results-1", no schema_version); 2 (this header:
+// the same records, the schema named and versioned).
+#pragma once
+
+#include <cstdint>
+#include <ctime>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace dnb::experiment {
+
+inline constexpr const char* kResultsFormat = "denoisebench-results";
+inline constexpr int kResultsSchemaVersion = 2;
+
+// What a record is a measurement of.
+enum class Role {
+  Plain,     // plain path tracing at some spp (the speed-up curve)
+  Input,     // the unfiltered input frame, the baseline every method improves on
+  Method,    // a method (or a config variant without a group) on the input frame
+  Ablation,  // a [[variant]] with group = "ablation": one part of a method switched off
+};
+const char* to_string(Role r);                                  // "plain", "input", ...
+Role role_from_string(const std::string& s, const std::string& where);  // InputError otherwise
+// The role of a configured method: "" -> Method, "ablation" -> Ablation; else an InputError.
+Role role_of_group(const std::string& group, const std::string& where);
+// Method and Ablation: the roles whose records are method results (tables' columns, gates).
+inline bool is_method_role(Role r) { return r == Role::Method || r == Role::Ablation; }
+
+// Table 2's columns: which method is "the filter" on the CPU and on OpenCL ("" when none).
+struct Table2Columns {
+  std::string filter_cpu = "proposed";
+  std::string filter_opencl = "";
+  std::string irradiance_cache = "irradiance_cache";
+};
+
+struct MethodEntry {  // a configured method or variant, as recorded
+  std::string name, method, group;
+  std::map<std::string, std::string> params;
+};
+
+// The config as the results record it (experiment/config.h is the config file itself).
+struct RunConfig {
+  std::string path, name;
+  int width = 0, height = 0;
+  std::uint64_t seed = 0;
+  int reference_spp = 0;
+  std::vector<int> spp, plain_spp;
+  std::vector<std::string> scenes;
+  int repeats = 0;
+  Table2Columns table2;
+  std::vector<MethodEntry> methods;
+};
+
+struct CellTimes {
+  double input_render = 0, filter = 0, total = 0;
+  std::optional<double> reference;            // absent only in hand-written files
+  std::optional<std::vector<double>> filter_runs;  // method cells: every timed run
+};
+
+struct ReferenceInfo {
+  int spp = 0;
+  std::optional<std::uint64_t> seed;
+  double seconds = 0;
+  std::optional<bool> cache_hit;
+  std::string image;                       // relative to the results folder
+  std::optional<double> unconverged_share;  // null when the reference has no variance layers
+  std::optional<double> unconverged_rse;
+};
+
+struct CellRecord {
+  std::string scene, scene_hash, method;
+  Role role = Role::Method;
+  int spp = 0, width = 0, height = 0;
+  std::optional<std::uint64_t> seed;
+  std::string cell_key;
+  std::map<std::string, std::optional<double>> metrics;  // nullopt: non-finite (null in JSON)
+  CellTimes times;
+  ReferenceInfo reference;
+  std::map<std::string, std::string> files;  // image, error_flip, error_relmse: relative paths
+  std::optional<bool> input_cache_hit;
+  // Method and ablation cells.
+  std::string base_method, kind;
+  std::optional<std::map<std::string, std::string>> params;
+  std::optional<std::map<std::string, double>> phases, counters;
+
+  // The metric's value, or nullopt when it is absent or non-finite.
+  std::optional<double> metric(const std::string& name) const;
+  std::string image() const;  // files["image"], or ""
+
+  nlohmann::json to_json() const;
+  static CellRecord from_json(const nlohmann::json& j, const std::string& where);
+};
+
+struct ResultsDocument {
+  RunConfig config;
+  nlohmann::json machine = nlohmann::json::object();  // provenance, kept as written
+  nlohmann::json build = nlohmann::json::object();
+  std::string git_revision;
+  std::optional<std::int64_t> written;
+  std::vector<CellRecord> records;
+
+  // Queries the tables and gates are written in.
+  std::vector<std::string> scenes() const;  // the config's, else in record order
+  int table_spp() const;                    // the input spp the tables are drawn for: the first
+  std::vector<std::string> methods(Role role) const;  // names in record order
+  const CellRecord* find(const std::string& scene, const std::string& method, int spp) const;
+
+  nlohmann::json to_json() const;
+  static ResultsDocument from_json(const nlohmann::json& j, const std::string& where);
+  // Reads `path`: InputError naming it when missing, not JSON, or not of this schema.
+  static ResultsDocument load(const std::string& path);
+};
+
+}  // namespace dnb::experiment

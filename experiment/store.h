@@ -1,0 +1,42 @@
+// The results folder's record of finished work (DESIGN.md, "Results"): results.json and
+// results.csv list the cells of this run's config, in the order visited; finished_cells.json
+// keeps every cell ever finished in the folder, by cell key, so that a run that stops early
+// (killed, or a config listing fewer cells) does not forget the cells it had not reached. All
+// three are rewritten atomically after every cell: an interrupted run resumes from them.
+#pragma once
+
+#include <map>
+#include <string>
+
+#include "experiment/results.h"
+
+namespace dnb::experiment {
+
+inline constexpr const char* kFinishedCellsFormat = "denoisebench-finished-cells";
+
+class ResultsStore {
+ public:
+  // Reads finished cells from DIR's finished_cells.json and results.json when they exist (an
+  // InputError naming the file when one cannot be resumed from). `header` is this run's
+  // document without records.
+  ResultsStore(std::string dir, ResultsDocument header);
+
+  // The finished record of `cell_key` (this run's or an earlier one's), or nullptr.
+  const CellRecord* finished(const std::string& cell_key) const;
+  // A newly computed cell: kept, listed, and every file rewritten.
+  void add(CellRecord record);
+  // A finished cell of an earlier run, listed again in this run's results (no write).
+  void reuse(const CellRecord& record);
+  void write();
+  const ResultsDocument& document() const { return doc_; }
+
+ private:
+  std::string dir_;
+  ResultsDocument doc_;
+  std::map<std::string, CellRecord> cells_;
+};
+
+// results.csv: one row per record, metrics and timings as columns.
+std::string results_csv(const ResultsDocument& results);
+
+}  // namespace dnb::experiment

@@ -1,0 +1,266 @@
+// The tables of a results document (experiment/report.h): Table 1 per metric, Table 2's
+// times, the speed-up over plain path tracing, the ablation and the ratios. Pure functions of
+// the document.
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include <fmt/format.h>
+
+#include "core/csv.h"
+#include "experiment/report.h"
+#include "metrics/metrics.h"
+
+namespace dnb::experiment {
+
+// ---------------------------------------------------------------------------------------------
+// Table formats
+
+std::string Table::markdown() const {
+  std::string o = title.empty() ? "" : "## " + title + "\n\n";
+  auto line = [&](const std::vector<std::string>& cells) {
+    o += "|";
+    for (const auto& c : cells) o += " " + c + " |";
+    o += "\n";
+  };
+  line(header);
+  o += "|";
+  for (std::size_t i = 0; i < header.size(); ++i) o += i == 0 ? "---|" : "---:|";
+  o += "\n";
+  for (const auto& r : rows) line(r);
+  if (!note.empty()) o += "\n" + note + "\n";
+  return o;
+}
+
+std::string Table::csv() const {
+  std::string o = csv::line(header) + "\n";
+  for (const auto& row : rows) o += csv::line(row) + "\n";
+  return o;
+}
+
+std::string Table::latex() const {
+  auto esc = [](const std::string& s) {
+    std::string o;
+    for (char ch : s) {
+      if (ch == '_' || ch == '%' || ch == '&' || ch == '#') o += '\\';
+      o += ch;
+    }
+    return o;
+  };
+  std::string o = "% " + title + "\n\\begin{tabular}{l" + std::string(header.size() - 1, 'r') + "}\n\\hline\n";
+  auto line = [&](const std::vector<std::string>& cells) {
+    for (std::size_t i = 0; i < cells.size(); ++i) o += (i ? " & " : "") + esc(cells[i]);
+    o += " \\\\\n";
+  };
+  line(header);
+  o += "\\hline\n";
+  for (const auto& r : rows) line(r);
+  o += "\\hline\n\\end{tabular}\n";
+  return o;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fits
+
+double PowerFit::at(double t) const { return a * std::pow(t, -b); }
+double PowerFit::inverse(double err) const { return std::pow(err / a, -1.0 / b); }
+
+PowerFit fit_power_law(const std::vector<double>& x, const std::vector<double>& y) {
+  // log y = log a - b log x, ordinary least squares over the points with positive values.
+  double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (!(x[i] > 0) || !(y[i] > 0)) continue;
+    double lx = std::log(x[i]), ly = std::log(y[i]);
+    n += 1; sx += lx; sy += ly; sxx += lx * lx; sxy += lx * ly;
+  }
+  PowerFit f;
+  const double den = n * sxx - sx * sx;
+  if (n < 2 || std::abs(den) < 1e-12) return f;
+  const double slope = (n * sxy - sx * sy) / den;
+  f.b = -slope;
+  f.a = std::exp((sy - slope * sx) / n);
+  f.ok = f.b > 0;
+  return f;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tables
+
+std::string format_metric(std::optional<double> v) { return v ? fmt::format("{:.4g}", *v) : "n/a"; }
+
+namespace {
+
+std::string fmt_time(double s) { return fmt::format("{:.2f}", s); }
+
+std::optional<double> metric_of(const CellRecord* r, const std::string& metric) {
+  return r ? r->metric(metric) : std::nullopt;
+}
+
+// The share of the scene's reference pixels mse_converged leaves out, as the run recorded it.
+std::string unconverged_cell(const ResultsDocument& res, const std::string& scene) {
+  for (const auto& r : res.records)
+    if (r.scene == scene && r.reference.unconverged_share)
+      return fmt::format("{:.3f}%", 100.0 * *r.reference.unconverged_share);
+  return "n/a";
+}
+
+}  // namespace
+
+Table table1(const ResultsDocument& res, const std::string& metric) {
+  Table t;
+  const int spp = res.table_spp();
+  const auto methods = res.methods(Role::Method);
+  t.title = fmt::format("Table 1: {} at {} spp input", metric, spp);
+  t.header = {"scene"};
+  for (const auto& m : methods) t.header.push_back(m);
+  t.header.push_back(fmt::format("input ({} spp)", spp));
+  for (const auto& s : res.scenes()) {
+    std::vector<std::string> row{s};
+    for (const auto& m : methods) row.push_back(format_metric(metric_of(res.find(s, m, spp), metric)));
+    row.push_back(format_metric(metric_of(res.find(s, "input", spp), metric)));
+    if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
+    t.rows.push_back(row);
+  }
+  if (metric == "mse_converged") t.header.push_back("reference pixels left out");
+  const auto& info = metrics::metric(metric);
+  t.note = fmt::format("{}; {} is better. From results.json.", info.description, info.lower_is_better ? "lower" : "higher");
+  return t;
+}
+
+Table ratio_table(const ResultsDocument& res, const std::string& method) {
+  Table t;
+  const int spp = res.table_spp();
+  std::vector<std::string> others;
+  for (const auto& m : res.methods(Role::Method))
+    if (m != method) others.push_back(m);
+  t.title = fmt::format("Ratios: {}'s error over each method's at {} spp input", method, spp);
+  t.header = {"scene", "metric"};
+  for (const auto& m : others) t.header.push_back(m);
+  for (const auto& s : res.scenes()) {
+    const CellRecord* p = res.find(s, method, spp);
+    for (const char* metric : {"mse", "mse_converged"}) {
+      std::vector<std::string> row{s, metric};
+      for (const auto& m : others) {
+        const auto a = metric_of(p, metric), b = metric_of(res.find(s, m, spp), metric);
+        row.push_back(a && b && *b > 0 ? fmt::format("{:.2f}", *a / *b) : "n/a");
+      }
+      t.rows.push_back(row);
+    }
+  }
+  t.note = fmt::format("Below 1: {} has the lower error. mse_converged leaves out the reference's unconverged "
+                       "pixels (Table 1, mse_converged). From results.json.",
+                       method);
+  return t;
+}
+
+Table table2(const ResultsDocument& res) {
+  Table t;
+  const int spp = res.table_spp();
+  const Table2Columns& cols = res.config.table2;
+  int ref_spp = 0;
+  for (const auto& r : res.records) ref_spp = r.reference.spp;
+  t.title = "Table 2: time in seconds";
+  t.header = {"scene", fmt::format("render input ({} spp)", spp), fmt::format("filter CPU ({})", cols.filter_cpu), "total CPU",
+              cols.filter_opencl.empty() ? "filter OpenCL" : fmt::format("filter OpenCL ({})", cols.filter_opencl),
+              "total OpenCL", "irradiance cache", fmt::format("reference ({} spp)", ref_spp)};
+  for (const auto& s : res.scenes()) {
+    const CellRecord* in = res.find(s, "input", spp);
+    const CellRecord* c = res.find(s, cols.filter_cpu, spp);
+    const CellRecord* o = cols.filter_opencl.empty() ? nullptr : res.find(s, cols.filter_opencl, spp);
+    const CellRecord* i = res.find(s, cols.irradiance_cache, spp);
+    const CellRecord* any = in ? in : c;
+    auto filter = [](const CellRecord* r) { return r ? fmt_time(r->times.filter) : std::string("n/a"); };
+    auto total = [&](const CellRecord* r) { return r && in ? fmt_time(in->times.input_render + r->times.filter) : "n/a"; };
+    t.rows.push_back({s, in ? fmt_time(in->times.input_render) : "n/a", filter(c), total(c), filter(o), total(o),
+                      i ? fmt_time(i->times.total) : "n/a", any ? fmt_time(any->reference.seconds) : "n/a"});
+  }
+  t.note = "Wall-clock seconds on the machine named in results.json; filter times are medians of repeated runs after a warm-up for methods under a second. n/a: the method was not in the run.";
+  return t;
+}
+
+namespace {
+
+// One scene's plain path-tracing curve: time, error and spp of every plain record.
+struct PlainCurve {
+  std::vector<double> times, errors, spps;
+};
+
+PlainCurve plain_curve(const ResultsDocument& res, const std::string& scene, const std::string& metric) {
+  PlainCurve c;
+  for (const auto& r : res.records)
+    if (r.scene == scene && r.role == Role::Plain && r.metric(metric)) {
+      c.times.push_back(r.times.total);
+      c.errors.push_back(*r.metric(metric));
+      c.spps.push_back(r.spp);
+    }
+  return c;
+}
+
+}  // namespace
+
+Table speedup_table(const ResultsDocument& res, const std::string& metric) {
+  Table t;
+  const int spp = res.table_spp();
+  t.title = fmt::format("Speed-up over plain path tracing ({} at {} spp input)", metric, spp);
+  t.header = {"scene", "method", metric, "total time (s)", "plain PT spp needed", "plain PT time needed (s)", "speed-up"};
+  std::string fits;
+  for (const auto& s : res.scenes()) {
+    const PlainCurve pc = plain_curve(res, s, metric);
+    const PowerFit err_t = fit_power_law(pc.times, pc.errors);
+    // time = c * spp^d, fitted as a power law of spp (b = -d).
+    const PowerFit t_spp = fit_power_law(pc.spps, pc.times);
+    if (!err_t.ok) {
+      fits += fmt::format("- {}: too few plain path tracing points to fit ({}).\n", s, pc.times.size());
+      continue;
+    }
+    const double tmax = *std::max_element(pc.times.begin(), pc.times.end());
+    fits += fmt::format("- {}: {} = {:.4g} * t^-{:.3f} over {} plain path tracing renders ({}..{} spp).\n", s, metric,
+                        err_t.a, err_t.b, pc.times.size(), *std::min_element(pc.spps.begin(), pc.spps.end()),
+                        *std::max_element(pc.spps.begin(), pc.spps.end()));
+    for (const auto& m : res.methods(Role::Method)) {
+      const CellRecord* r = res.find(s, m, spp);
+      if (!r || !r->metric(metric)) continue;
+      const double e = *r->metric(metric), total = r->times.total;
+      const double t_need = err_t.inverse(e);
+      const double spp_need = t_spp.a > 0 ? std::pow(t_need / t_spp.a, -1.0 / t_spp.b) : NAN;
+      t.rows.push_back({s, m, format_metric(e), fmt_time(total), std::isfinite(spp_need) ? fmt::format("{:.0f}", spp_need) : "n/a",
+                        fmt::format("{:.3g}{}", t_need, t_need > tmax ? " (extrapolated)" : ""),
+                        fmt::format("{:.1f}x", t_need / total)});
+    }
+  }
+  t.note = "Fits (least squares in log-log over the plain path tracing renders of the run):\n\n" + fits +
+           "\nspeed-up = time plain path tracing needs to reach the method's error / the method's total time (input render + filtering).";
+  return t;
+}
+
+Table ablation_table(const ResultsDocument& res, const std::string& metric) {
+  Table t;
+  const int spp = res.table_spp();
+  auto variants = res.methods(Role::Ablation);
+  std::set<std::string> bases;
+  for (const auto& r : res.records)
+    if (r.role == Role::Ablation) bases.insert(r.base_method);
+  std::vector<std::string> rows_m(bases.begin(), bases.end());
+  rows_m.insert(rows_m.end(), variants.begin(), variants.end());
+  t.title = fmt::format("Ablation: {} at {} spp input (each row switches one part off)", metric, spp);
+  t.header = {"variant"};
+  const auto scenes = res.scenes();
+  for (const auto& s : scenes) t.header.push_back(s);
+  for (const auto& m : rows_m) {
+    std::vector<std::string> row{m};
+    for (const auto& s : scenes) {
+      const CellRecord* r = res.find(s, m, spp);
+      const CellRecord* base = r ? res.find(s, r->base_method.empty() ? m : r->base_method, spp) : nullptr;
+      const auto v = metric_of(r, metric), b = metric_of(base, metric);
+      std::string cell = r ? format_metric(v) : "n/a";
+      if (base && base != r && v && b && *b != 0) cell += fmt::format(" ({:+.0f}%)", 100.0 * (*v / *b - 1));
+      row.push_back(cell);
+    }
+    t.rows.push_back(row);
+  }
+  t.note = variants.empty() ? "No ablation variants in this run ([[variant]] group = \"ablation\")."
+                            : "Percentages: change against the full method in the first row(s).";
+  return t;
+}
+
+}  // namespace dnb::experiment

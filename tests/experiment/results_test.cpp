@@ -1,0 +1,188 @@
+// experiment/results.h: the one schema of results.json. A document survives its own file
+// format exactly, and every malformed or older file is refused naming the file and the key.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/errors.h"
+#include "experiment/results.h"
+#include "experiment/store.h"
+#include "test_util.h"
+
+namespace dnb::experiment {
+namespace {
+
+using nlohmann::json;
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+
+CellRecord method_record() {
+  CellRecord r;
+  r.scene = "cornell-box";
+  r.scene_hash = "abc";
+  r.method = "proposed-no-nlm";
+  r.role = Role::Ablation;
+  r.spp = 16;
+  r.width = 64;
+  r.height = 48;
+  r.seed = 7;
+  r.cell_key = "k1";
+  r.metrics = {{"mse", 12.5}, {"psnr", std::nullopt}};
+  r.times.input_render = 1.0;
+  r.times.filter = 0.25;
+  r.times.total = 1.25;
+  r.times.reference = 600;
+  r.times.filter_runs = std::vector<double>{0.3, 0.25, 0.2};
+  r.reference = {.spp = 1024, .seed = 1000003, .seconds = 600, .cache_hit = true, .image = "images/c/reference.exr",
+                 .unconverged_share = 0.0125, .unconverged_rse = 0.5};
+  r.files = {{"image", "images/c/x_16.exr"}, {"error_flip", "images/c/x_16.err_flip.exr"}};
+  r.input_cache_hit = false;
+  r.base_method = "proposed";
+  r.kind = "filter";
+  r.params = std::map<std::string, std::string>{{"nlm_space", "false"}};
+  r.phases = std::map<std::string, double>{{"nlm", 0.1}};
+  r.counters = std::map<std::string, double>{{"repaired_samples", 0}};
+  return r;
+}
+
+ResultsDocument document() {
+  ResultsDocument d;
+  d.config.name = "tiny";
+  d.config.width = 64;
+  d.config.height = 48;
+  d.config.spp = {16};
+  d.config.scenes = {"cornell-box"};
+  d.config.table2.filter_opencl = "proposed:opencl";
+  d.config.methods = {{"proposed-no-nlm", "proposed", "ablation", {{"nlm_space", "false"}}}};
+  d.machine = {{"hostname", "h"}};
+  d.git_revision = "r1";
+  d.written = 1700000000;
+  CellRecord input;
+  input.scene = "cornell-box";
+  input.method = "input";
+  input.role = Role::Input;
+  input.spp = 16;
+  input.metrics = {{"mse", 90.0}};
+  d.records = {input, method_record()};
+  return d;
+}
+
+TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
+  const json j = document().to_json();
+  EXPECT_EQ(j.at("format"), "denoisebench-results");
+  EXPECT_EQ(j.at("schema_version"), 2);
+  EXPECT_TRUE(j.at("records")[1].at("metrics").at("psnr").is_null());  // non-finite as null
+  const ResultsDocument back = ResultsDocument::from_json(json::parse(j.dump()), "results.json");
+  EXPECT_EQ(back.to_json(), j);
+  const CellRecord& r = back.records[1];
+  EXPECT_EQ(r.role, Role::Ablation);
+  EXPECT_EQ(r.metric("mse"), 12.5);
+  EXPECT_EQ(r.metric("psnr"), std::nullopt);
+  EXPECT_EQ(r.metric("flip"), std::nullopt);
+  EXPECT_EQ(r.image(), "images/c/x_16.exr");
+  EXPECT_EQ(back.config.table2.filter_opencl, "proposed:opencl");
+  EXPECT_EQ(back.config.table2.filter_cpu, "proposed");  // the default, written once
+  // A record that has no optional fields writes none of them.
+  EXPECT_FALSE(j.at("records")[0].contains("params"));
+  EXPECT_FALSE(j.at("records")[0].contains("base_method"));
+}
+
+TEST(ResultsDocument, QueriesTheTablesAreWrittenIn) {
+  const ResultsDocument d = document();
+  EXPECT_EQ(d.table_spp(), 16);
+  EXPECT_EQ(d.scenes(), std::vector<std::string>{"cornell-box"});
+  EXPECT_EQ(d.methods(Role::Ablation), std::vector<std::string>{"proposed-no-nlm"});
+  EXPECT_TRUE(d.methods(Role::Method).empty());
+  ASSERT_NE(d.find("cornell-box", "input", 16), nullptr);
+  EXPECT_EQ(d.find("cornell-box", "input", 16)->metric("mse"), 90.0);
+  EXPECT_EQ(d.find("cornell-box", "input", 256), nullptr);
+}
+
+std::string error_of(const json& j) {
+  try {
+    ResultsDocument::from_json(j, "'run/results.json'");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(ResultsDocument, RefusesOlderAndMalformedFilesNamingTheFileAndKey) {
+  json j = document().to_json();
+  j["format"] = "denoisebench-results-1";
+  j.erase("schema_version");
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("run/results.json"), HasSubstr("'format'"), HasSubstr("older")));
+  j = document().to_json();
+  j["schema_version"] = 1;
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("run/results.json"), HasSubstr("'schema_version'")));
+  j = document().to_json();
+  j["format"] = "something";
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("'format'"), HasSubstr("denoisebench-results")));
+  j = document().to_json();
+  j["records"][1]["times"].erase("filter");
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]: times"), HasSubstr("'filter'")));
+  j = document().to_json();
+  j["records"][1]["role"] = "baseline";
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]"), HasSubstr("'role'"), HasSubstr("ablation")));
+  j = document().to_json();
+  j["records"][0]["spp"] = "sixteen";
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[0]"), HasSubstr("'spp'"), HasSubstr("wrong type")));
+  j = document().to_json();
+  j["records"][1]["metrics"]["mse"] = "low";
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]: metrics"), HasSubstr("'mse'")));
+  j = document().to_json();
+  j.erase("records");
+  EXPECT_THAT(error_of(j), HasSubstr("'records'"));
+}
+
+TEST(ResultsDocument, LoadNamesAMissingOrBrokenFile) {
+  test::TempDir dir;
+  EXPECT_THROW(ResultsDocument::load(dir.file("results.json")), InputError);
+  std::ofstream(dir.file("results.json")) << "{ not json";
+  try {
+    ResultsDocument::load(dir.file("results.json"));
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), AllOf(HasSubstr("results.json"), HasSubstr("not valid JSON")));
+  }
+}
+
+TEST(ResultsStore, KeepsEveryFinishedCellAcrossRunsAndRefusesAnOlderFolder) {
+  test::TempDir dir;
+  ResultsDocument header = document();
+  header.records.clear();
+  {
+    ResultsStore store(dir.path().string(), header);
+    store.add(method_record());
+  }
+  // A second run of a config without that cell: it is not listed, but still known as finished.
+  ResultsStore again(dir.path().string(), header);
+  ASSERT_NE(again.finished("k1"), nullptr);
+  EXPECT_EQ(again.finished("k1")->to_json(), method_record().to_json());
+  EXPECT_TRUE(again.document().records.empty());
+  again.write();
+  ResultsStore third(dir.path().string(), header);
+  EXPECT_NE(third.finished("k1"), nullptr) << "finished_cells.json lost a cell results.json no longer lists";
+
+  // A folder written by the schema-1 harness cannot be resumed from: say which file and why.
+  test::TempDir old;
+  std::ofstream(old.file("results.json")) << R"({"format": "denoisebench-results-1", "records": []})";
+  try {
+    ResultsStore s(old.path().string(), header);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), AllOf(HasSubstr("results.json"), HasSubstr("cannot be resumed"), HasSubstr("older")));
+  }
+}
+
+TEST(ResultsCsv, OneRowPerRecordWithMetricsAndTimes) {
+  const std::string csv = results_csv(document());
+  EXPECT_THAT(csv, HasSubstr("scene,method,role,spp,width,height,mse,"));
+  EXPECT_THAT(csv, HasSubstr("cornell-box,proposed-no-nlm,ablation,16,64,48,12.5,"));
+  EXPECT_THAT(csv, HasSubstr(",nlm_space=false,images/c/x_16.exr\n"));
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 3);
+}
+
+}  // namespace
+}  // namespace dnb::experiment
