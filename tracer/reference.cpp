@@ -18,6 +18,7 @@
 #include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "core/hash.h"
 #include "core/progress.h"
 #include "core/timer.h"
 #include "tracer/mpi_context.h"
