@@ -16,6 +16,7 @@
 #include "core/version.h"
 #include "denoisers/method.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb::app {
 

@@ -11,6 +11,7 @@
 #include "tracer/cache.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb::bench {
 

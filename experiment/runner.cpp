@@ -24,6 +24,7 @@
 #include "tracer/cache.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

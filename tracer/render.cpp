@@ -42,6 +42,7 @@
 #include "tracer/integrator.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb {
 using namespace rt;
