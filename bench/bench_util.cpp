@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 
 #include "tracer/cache.h"
+#include "tracer/cache_keys.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
 #include "tracer/scene_loader.h"

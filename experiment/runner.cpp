@@ -22,6 +22,7 @@
 #include "denoisers/method.h"
 #include "metrics/metrics.h"
 #include "tracer/cache.h"
+#include "tracer/cache_keys.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
 #include "tracer/scene_loader.h"
