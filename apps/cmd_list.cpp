@@ -6,7 +6,7 @@
 #include "core/errors.h"
 #include "denoisers/method.h"
 #include "metrics/metrics.h"
-#include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb::app {
 

@@ -14,6 +14,7 @@
 #include "core/errors.h"
 #include "tracer/mpi_context.h"
 #include "tracer/reference.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb::app {
 

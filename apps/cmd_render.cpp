@@ -11,6 +11,7 @@
 #include "core/exr_io.h"
 #include "core/progress.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb::app {
 

@@ -9,8 +9,10 @@
 #include <tbb/global_control.h>
 
 #include "tracer/cache.h"
+#include "tracer/cache_keys.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb::bench {
 

@@ -8,6 +8,7 @@
 #include "denoisers/method.h"
 #include "irradiance_cache/cache.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace {
 

@@ -21,6 +21,7 @@
 
 #include "tracer/render.h"
 #include "tracer/scene.h"
+#include "tracer/scene_loader.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include <tuple>
 
 #include "core/exr_io.h"
-#include "tracer/cache.h"  // sha256_hex
+#include "core/hash.h"
 #include "metrics/metrics.h"
 
 namespace fs = std::filesystem;
@@ -44,9 +44,9 @@ namespace {
 
 // The fields every record of the cell has, whether it is computed or not.
 CellRecord base_record(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
-  CellRecord r{.scene = scene.scene, .scene_hash = scene.scene_hash, .method = plan.method, .role = plan.role};
-  r.spp = plan.spp;
-  std::tie(r.width, r.height, r.seed) = std::tuple(c.width, c.height, c.seed);
+  CellRecord r;
+  std::tie(r.scene, r.scene_hash, r.method, r.role) = std::tie(scene.scene, scene.scene_hash, plan.method, plan.role);
+  std::tie(r.spp, r.width, r.height, r.seed) = std::tuple(plan.spp, c.width, c.height, c.seed);
   r.reference = scene.reference_info;
   r.base_method = plan.base_method;
   r.kind = plan.kind;

@@ -6,8 +6,8 @@
 #include <iterator>
 #include <thread>
 
+#include "core/hash.h"
 #include "core/version.h"
-#include "tracer/cache.h"   // sha256_hex
 #include "tracer/render.h"  // kTracerVersion
 
 namespace dnb::experiment {

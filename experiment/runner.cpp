@@ -18,8 +18,10 @@
 #include "metrics/metrics.h"
 #include "methods/inputs.h"
 #include "tracer/cache.h"
+#include "tracer/cache_keys.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

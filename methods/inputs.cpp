@@ -3,7 +3,7 @@
 #include <fmt/format.h>
 
 #include "core/errors.h"
-#include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb {
 

@@ -25,14 +25,9 @@
 #include <vector>
 
 #include "core/aov_frame.h"
+#include "core/hash.h"  // sha256_hex, sha256_file: declared here before they moved to core/
 
 namespace dnb {
-
-// SHA-256 (OpenSSL) as 64 lowercase hex digits.
-std::string sha256_hex(const void* data, std::size_t size);
-std::string sha256_hex(const std::string& data);
-// SHA-256 of a file's content; InputError naming the file when it cannot be read.
-std::string sha256_file(const std::string& path);
 
 class CacheKey {
  public:

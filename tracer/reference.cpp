@@ -18,6 +18,7 @@
 #include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "core/hash.h"
 #include "core/progress.h"
 #include "core/timer.h"
 #include "tracer/mpi_context.h"
@@ -235,6 +236,72 @@ std::optional<Checkpoint> read_checkpoint(const std::string& path, std::string* 
 // ---------------------------------------------------------------------------------------------
 // The driver
 
+namespace {
+
+// Sample indices [begin, end) of block b.
+std::pair<int, int> block_range(const BlockJob& job, int b) {
+  return {b * job.block_spp, std::min(job.spp, (b + 1) * job.block_spp)};
+}
+
+// Where rank 0 starts: nothing done, or the state of a valid checkpoint of this job.
+struct ResumeState {
+  ColorSums total;
+  int done = 0;                // blocks already in total
+  double seconds_before = 0;   // render time of earlier sessions
+  std::vector<ConvergenceRow> convergence;
+  std::string refusal;         // not empty: the checkpoint belongs to another job (InputError)
+};
+
+ResumeState resume_from_checkpoint(const BlockJob& job, int nblocks) {
+  ResumeState st;
+  st.total = zero_sums(job.width, job.height);
+  if (job.checkpoint_path.empty()) return st;
+  std::string damage;
+  auto ck = read_checkpoint(job.checkpoint_path, &damage);
+  if (!ck && !damage.empty())
+    spdlog::warn("checkpoint '{}' is damaged ({}); ignoring it and starting the render over", job.checkpoint_path,
+                 damage);
+  if (ck && ck->identity != job.identity) {
+    st.refusal = fmt::format(
+        "checkpoint '{}' belongs to a different reference ({}); resume with the same arguments, or use "
+        "another checkpoint folder, or delete the file",
+        job.checkpoint_path, identity_difference(ck->identity, job.identity));
+  } else if (ck && (ck->blocks_done < 0 || ck->blocks_done > nblocks || ck->sums.width != job.width ||
+                    ck->sums.height != job.height ||
+                    ck->sums.samples != (ck->blocks_done == 0 ? 0 : block_range(job, ck->blocks_done - 1).second))) {
+    spdlog::warn("checkpoint '{}' is inconsistent (blocks and samples disagree); starting the render over",
+                 job.checkpoint_path);
+  } else if (ck) {
+    st.total = std::move(ck->sums);
+    st.done = ck->blocks_done;
+    st.seconds_before = ck->seconds;
+    st.convergence = std::move(ck->convergence);
+    spdlog::info("{}: resuming from checkpoint '{}': {} of {} spp done", job.what, job.checkpoint_path,
+                 st.total.samples, job.spp);
+  }
+  return st;
+}
+
+// A block's sums from a rank to rank 0: samples and dropped as doubles (exact below 2^53),
+// then sum and sum_sq.
+void send_block(const ColorSums& s) {
+  const double head[2] = {double(s.samples), double(s.dropped)};
+  mpi::send_doubles(0, kBlockTag, head, 2);
+  mpi::send_doubles(0, kBlockTag, s.sum.data(), s.sum.size());
+  mpi::send_doubles(0, kBlockTag, s.sum_sq.data(), s.sum_sq.size());
+}
+
+void receive_block(int from, ColorSums& s) {
+  double head[2];
+  mpi::recv_doubles(from, kBlockTag, head, 2);
+  s.samples = std::int64_t(head[0]);
+  s.dropped = std::int64_t(head[1]);
+  mpi::recv_doubles(from, kBlockTag, s.sum.data(), s.sum.size());
+  mpi::recv_doubles(from, kBlockTag, s.sum_sq.data(), s.sum_sq.size());
+}
+
+}  // namespace
+
 BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) {
   if (job.width <= 0 || job.height <= 0 || job.spp <= 0 || job.block_spp <= 0)
     throw InputError(fmt::format("reference: size {}x{}, spp {} and block spp {} must be positive", job.width,
@@ -243,9 +310,6 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
   const int ranks = mpi::size(), me = mpi::rank();
   const bool root = mpi::is_root();
   const std::int64_t pixels = std::int64_t(job.width) * job.height;
-  auto block_range = [&](int b) {
-    return std::pair<int, int>{b * job.block_spp, std::min(job.spp, (b + 1) * job.block_spp)};
-  };
 
   BlockResult result;
   ColorSums total;
@@ -253,32 +317,12 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
   double seconds_before = 0;
   std::string refusal;
   if (root) {
-    total = zero_sums(job.width, job.height);
-    if (!job.checkpoint_path.empty()) {
-      std::string damage;
-      auto ck = read_checkpoint(job.checkpoint_path, &damage);
-      if (!ck && !damage.empty())
-        spdlog::warn("checkpoint '{}' is damaged ({}); ignoring it and starting the render over",
-                     job.checkpoint_path, damage);
-      if (ck && ck->identity != job.identity) {
-        refusal = fmt::format(
-            "checkpoint '{}' belongs to a different reference ({}); resume with the same arguments, or use "
-            "another checkpoint folder, or delete the file",
-            job.checkpoint_path, identity_difference(ck->identity, job.identity));
-      } else if (ck && (ck->blocks_done < 0 || ck->blocks_done > nblocks || ck->sums.width != job.width ||
-                        ck->sums.height != job.height ||
-                        ck->sums.samples != (ck->blocks_done == 0 ? 0 : block_range(ck->blocks_done - 1).second))) {
-        spdlog::warn("checkpoint '{}' is inconsistent (blocks and samples disagree); starting the render over",
-                     job.checkpoint_path);
-      } else if (ck) {
-        total = std::move(ck->sums);
-        done = ck->blocks_done;
-        seconds_before = ck->seconds;
-        result.convergence = std::move(ck->convergence);
-        spdlog::info("{}: resuming from checkpoint '{}': {} of {} spp done", job.what, job.checkpoint_path,
-                     total.samples, job.spp);
-      }
-    }
+    ResumeState st = resume_from_checkpoint(job, nblocks);
+    total = std::move(st.total);
+    done = st.done;
+    seconds_before = st.seconds_before;
+    result.convergence = std::move(st.convergence);
+    refusal = std::move(st.refusal);
   }
   // Every rank learns the outcome, so that a refusal ends all of them instead of hanging some.
   refusal = mpi::broadcast_string(refusal);
@@ -288,7 +332,7 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
 
   std::unique_ptr<Progress> progress;
   if (root && job.progress && done < nblocks) {
-    const std::int64_t left = std::int64_t(job.spp - block_range(done).first) * pixels;
+    const std::int64_t left = std::int64_t(job.spp - block_range(job, done).first) * pixels;
     progress = std::make_unique<Progress>(
         fmt::format("{} ({} rank{})", job.what, ranks, ranks > 1 ? "s" : ""), left, "samples");
   }
@@ -296,7 +340,7 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
     if (progress) progress->add(n);
   };
   auto check_block = [&](const ColorSums& s, int b) {
-    auto [begin, end] = block_range(b);
+    auto [begin, end] = block_range(job, b);
     if (s.width != job.width || s.height != job.height || s.samples != end - begin ||
         s.sum.size() != std::size_t(pixels) * 3 || s.sum_sq.size() != s.sum.size())
       throw WorkError(fmt::format("block {} (samples {}..{}) came back as {}x{} with {} samples", b, begin, end,
@@ -310,7 +354,7 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
     const int my_block = done + me;
     ColorSums mine;
     if (my_block < pass_end) {
-      auto [begin, end] = block_range(my_block);
+      auto [begin, end] = block_range(job, my_block);
       mine = render(begin, end, on_progress);
       check_block(mine, my_block);
       ++result.blocks_rendered;
@@ -319,13 +363,7 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
       add_block(total, mine);
       ColorSums other = zero_sums(job.width, job.height);
       for (int b = done + 1; b < pass_end; ++b) {
-        const int from = b - done;
-        double head[2];
-        mpi::recv_doubles(from, kBlockTag, head, 2);
-        other.samples = std::int64_t(head[0]);
-        other.dropped = std::int64_t(head[1]);
-        mpi::recv_doubles(from, kBlockTag, other.sum.data(), other.sum.size());
-        mpi::recv_doubles(from, kBlockTag, other.sum_sq.data(), other.sum_sq.size());
+        receive_block(b - done, other);
         check_block(other, b);
         add_block(total, other);
         if (progress) progress->add(other.samples * pixels);
@@ -342,13 +380,7 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
       }
       spdlog::debug("{}: {} spp, relative error {:.4g}", job.what, row.spp, row.rel_error);
     } else {
-      if (my_block < pass_end) {
-        // samples and dropped as doubles: exact below 2^53.
-        const double head[2] = {double(mine.samples), double(mine.dropped)};
-        mpi::send_doubles(0, kBlockTag, head, 2);
-        mpi::send_doubles(0, kBlockTag, mine.sum.data(), mine.sum.size());
-        mpi::send_doubles(0, kBlockTag, mine.sum_sq.data(), mine.sum_sq.size());
-      }
+      if (my_block < pass_end) send_block(mine);
       done = pass_end;
     }
   }

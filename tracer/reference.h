@@ -15,7 +15,8 @@
 //    is reported and ignored (the render starts over).
 //  - Cache: the finished reference (reference.exr: R,G,B and variance.R/G/B, the variance of
 //    the mean, plus metadata; convergence.csv) is stored in the content-keyed cache
-//    (tracer/cache.h) under reference_cache_key(); a later request is a verified cache hit.
+//    (tracer/cache.h) under reference_cache_key() (tracer/cache_keys.h); a later request is a
+//    verified cache hit.
 //  - Convergence log: after every pass, spp and the estimated relative error of the mean,
 //    from the per-pixel variance (ConvergenceRow).
 #pragma once
@@ -76,10 +77,6 @@ struct Reference {
   double checkpoint_seconds = 0;   // of which writing checkpoints
 };
 
-// Everything that determines a reference image: scene content (scene_content_hash: the scene
-// file and every file it references), size, spp, seed, max depth, block size, tracer version.
-CacheKey reference_cache_key(const Scene& scene, const ReferenceSettings& settings);
-
 // The cached reference, or a fresh render (resumed from its checkpoint when one exists),
 // stored in the cache. Collective under MPI: every rank calls it with the same arguments; rank
 // 0 gets the reference, other ranks get an empty Reference (color.empty()).
@@ -92,10 +89,6 @@ void write_reference(const Reference& ref, const std::string& exr_path, const st
 std::string convergence_csv(const std::vector<ConvergenceRow>& rows);
 // Reads convergence_csv's text back; InputError naming `path` and the line when malformed.
 std::vector<ConvergenceRow> parse_convergence_csv(const std::string& text, const std::string& path);
-
-// The key of the experiment runner's input frames (use with cached_frame, tracer/cache.h):
-// scene content, size, spp, seed, max depth, reflection levels, edge sub-pixels, tracer version.
-CacheKey frame_cache_key(const Scene& scene, const RenderSettings& settings);
 
 // ---------------------------------------------------------------------------------------------
 // The block driver underneath reference_image, independent of the tracer so that it can be

@@ -1,5 +1,5 @@
 // reference_image: the cache lookup, the render through the block driver with the tracer's
-// render_color_sums, and storing the result (tracer/reference.h).
+// render_color_sums, and storing the result (tracer/reference.h; its key: tracer/cache_keys.h).
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -12,39 +12,13 @@
 #include "core/exr_io.h"
 #include "core/timer.h"
 #include "core/version.h"
+#include "tracer/cache_keys.h"
 #include "tracer/mpi_context.h"
 #include "tracer/reference.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb {
 namespace fs = std::filesystem;
-
-CacheKey reference_cache_key(const Scene& scene, const ReferenceSettings& s) {
-  CacheKey key("reference");
-  key.add("scene", scene_content_hash(scene))
-      .add("width", s.width)
-      .add("height", s.height)
-      .add("spp", s.spp)
-      .add("seed", s.seed)
-      .add("max_depth", s.max_depth)
-      // The block size fixes the order of the floating-point additions, hence the exact bits.
-      .add("block_spp", s.block_spp)
-      .add("tracer", kTracerVersion);
-  return key;
-}
-
-CacheKey frame_cache_key(const Scene& scene, const RenderSettings& s) {
-  CacheKey key("frame");
-  key.add("scene", scene_content_hash(scene))
-      .add("width", s.width)
-      .add("height", s.height)
-      .add("spp", s.spp)
-      .add("seed", s.seed)
-      .add("max_depth", s.max_depth)
-      .add("reflection_levels", s.reflection_levels)
-      .add("edge_subpixels", s.edge_subpixels ? 1 : 0)
-      .add("tracer", kTracerVersion);
-  return key;
-}
 
 namespace {
 

@@ -40,8 +40,10 @@
 #include "core/timer.h"
 #include "core/version.h"
 #include "tracer/integrator.h"
+#include "tracer/pixel_sums.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb {
 using namespace rt;
@@ -108,122 +110,13 @@ void run_in_arena(int threads, F&& f) {
 template <typename F>
 void for_each_tile(int width, int height, int threads, F&& f) {
   const int tx = (width + kTile - 1) / kTile, ty = (height + kTile - 1) / kTile;
-  auto body = [&] {
+  run_in_arena(threads, [&] {
     tbb::parallel_for(0, tx * ty, [&](int t) {
       set_ftz_daz();
       int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
       f(x0, y0, std::min(width, x0 + kTile), std::min(height, y0 + kTile));
     });
-  };
-  if (threads > 0) {
-    tbb::task_arena arena(threads);
-    arena.execute(body);
-  } else {
-    body();
-  }
-}
-
-struct D3 {
-  double v[3] = {0, 0, 0};
-  void add(Vec3 a) {
-    v[0] += a.x;
-    v[1] += a.y;
-    v[2] += a.z;
-  }
-};
-
-// Per-pixel sums of one level's layers over the samples that reached the level, kept as one
-// flat array so that adding a sample is a single loop the compiler vectorises (float -> double
-// conversions and adds four at a time); the per-sample bookkeeping of all layers otherwise
-// costs as much as tracing the camera ray.
-namespace acc {
-enum : int {
-  kDirect = 0, kIndirect = 3, kAlbedo = 6, kReflection = 9, kEmission = 12, kNormal = 15, kTint = 18,
-  kDirectT = 21, kIndirectT = 24, kDepth = 27, kDepthSq = 28,
-  kLevelSize = 32,  // padded to a multiple of 4
-  // Level 0 only: colour and the squares for the variance layers.
-  kColor = 0, kColorSq = 3, kDirectSq = 6, kIndirectSq = 9, kDirectTSq = 12, kIndirectTSq = 15,
-  kExtraSize = 20,
-};
-}  // namespace acc
-
-struct LevelSums {
-  std::int64_t n = 0;
-  alignas(32) double v[acc::kLevelSize] = {};
-  const double* at(int off) const { return v + off; }
-};
-
-inline void put3(float* o, Vec3 a) {
-  o[0] = a.x;
-  o[1] = a.y;
-  o[2] = a.z;
-}
-
-inline void pack_level(const LevelSample& l, float* o) {
-  put3(o + acc::kDirect, l.direct);
-  put3(o + acc::kIndirect, l.indirect);
-  put3(o + acc::kAlbedo, l.albedo);
-  put3(o + acc::kReflection, l.reflection);
-  put3(o + acc::kEmission, l.emission);
-  put3(o + acc::kNormal, l.normal);
-  put3(o + acc::kTint, l.tint);
-  put3(o + acc::kDirectT, l.direct * l.albedo);
-  put3(o + acc::kIndirectT, l.indirect * l.albedo);
-  o[acc::kDepth] = l.depth;
-  o[acc::kDepthSq] = l.depth * l.depth;
-  o[29] = o[30] = o[31] = 0;
-}
-
-template <int N>
-inline void add_values(double* __restrict a, const float* __restrict v) {
-  for (int i = 0; i < N; ++i) a[i] += double(v[i]);
-}
-
-// Mean of three sums.
-void store(Image& img, int x, int y, const double* s, double inv) {
-  float* p = img.pixel(x, y);
-  for (int c = 0; c < 3; ++c) p[c] = float(s[c] * inv);
-}
-
-void store_var(Image& img, int x, int y, const double* sum, const double* sq, std::int64_t n) {
-  float* p = img.pixel(x, y);
-  for (int c = 0; c < 3; ++c) {
-    if (n < 2) {
-      p[c] = 0;
-      continue;
-    }
-    double mean = sum[c] / n;
-    double var = std::max(0.0, (sq[c] - mean * sum[c]) / double(n - 1));
-    p[c] = float(var / n);
-  }
-}
-
-// The albedo-weighted mean of an illumination layer (see top of file) into out[0..2].
-void demodulated(const double* sum_t, const double* sum, const double* albedo, std::int64_t n, float* out) {
-  for (int c = 0; c < 3; ++c) {
-    if (albedo[c] > 1e-12 * double(n)) out[c] = float(sum_t[c] / albedo[c]);
-    else out[c] = n > 0 ? float(sum[c] / double(n)) : 0.0f;
-  }
-}
-
-// Variance of that mean: of the samples X T / mean(T), or of X where the albedo sums to 0.
-void demodulated_var(const double* sum_t, const double* sq_t, const double* sum, const double* sq,
-                     const double* albedo, std::int64_t n, float* out) {
-  for (int c = 0; c < 3; ++c) {
-    if (n < 2) {
-      out[c] = 0;
-      continue;
-    }
-    const bool weighted = albedo[c] > 1e-12 * double(n);
-    const double s1 = weighted ? sum_t[c] : sum[c], s2 = weighted ? sq_t[c] : sq[c];
-    const double mean = s1 / n;
-    double var = std::max(0.0, (s2 - mean * s1) / double(n - 1)) / n;
-    if (weighted) {
-      const double t = albedo[c] / n;
-      var /= t * t;
-    }
-    out[c] = float(var);
-  }
+  });
 }
 
 PathTracer::Options tracer_options(const RenderSettings& s) {
@@ -238,140 +131,179 @@ Vec3 pixel_vec(const Image& img, int x, int y) {
   return {p[0], p[1], p[2]};
 }
 
-}  // namespace
+// What tracing one sample needs: the scene's camera, the tracer, the image size, the seed and
+// the stratification grid of the render (see top of file).
+struct SampleSource {
+  const Scene& scene;
+  const PathTracer& tracer;
+  int width, height;
+  std::uint64_t seed;
+  int grid;
 
-AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
-  check_settings(settings);
-  Stopwatch clock;
-  const int W = settings.width, H = settings.height, K = settings.reflection_levels, spp = settings.spp;
-  const int grid = std::max(1, int(std::floor(std::sqrt(double(spp)))));
-  PathTracer tracer(scene, tracer_options(settings));
+  // Traces sample s of pixel (x, y) into r; its film position inside the pixel goes to fx, fy.
+  // Returns the rays traced.
+  std::uint64_t trace(int x, int y, int s, SampleResult& r, float& fx, float& fy) const {
+    Sampler rng(seed, std::uint64_t(y) * width + x, std::uint64_t(s));
+    sample_position(s, grid, rng, fx, fy);
+    PathContext ctx{rng};
+    tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, width, height), ctx, r);
+    return ctx.rays;
+  }
+};
 
+// ---- The frame's layers ----
+
+struct LevelImages {
+  Image *direct, *indirect, *albedo, *reflection, *emission, *normal, *depth, *tint;  // tint: k > 0
+};
+
+// The layers the main pass writes, looked up once.
+struct FrameLayers {
+  Image *color, *var_f, *var_d, *var_i, *samples, *edge;
+  std::vector<LevelImages> level;  // 0 .. K
+};
+
+// Every layer of a frame with K reflection levels, zero-filled in parallel (a 1024x768 frame
+// with two reflection levels holds ~260 MB: filling it on one thread costs as much as a sample
+// per pixel).
+AovFrame allocate_frame(int W, int H, int K, int threads) {
   AovFrame frame(W, H);
-  {
-    // Every layer, zero-filled in parallel (a 1024x768 frame with two reflection levels holds
-    // ~260 MB: filling it on one thread costs as much as a sample per pixel).
-    std::vector<std::pair<std::string, int>> names = {{layer::kColor, 3},          {layer::kVariance, 3},
-                                                      {layer::kDirectVariance, 3}, {layer::kIndirectVariance, 3},
-                                                      {layer::kSamples, 1},        {layer::kEdge, 1}};
-    for (int k = 0; k <= K; ++k) {
-      for (const char* b : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
-                            layer::kNormal})
-        names.emplace_back(layer::at_level(k, b), 3);
-      names.emplace_back(layer::at_level(k, layer::kDepth), 1);
-      if (k > 0) names.emplace_back(layer::at_level(k, layer::kTint), 3);
-    }
-    std::vector<Image> images(names.size());
-    run_in_arena(settings.threads, [&] {
-      tbb::parallel_for(std::size_t(0), names.size(), [&](std::size_t i) { images[i] = Image(W, H, names[i].second); });
-    });
-    for (std::size_t i = 0; i < names.size(); ++i) frame.set(names[i].first, std::move(images[i]));
-  }
-  Image& color = frame.layer(layer::kColor);
-  Image& var_f = frame.layer(layer::kVariance);
-  Image& var_d = frame.layer(layer::kDirectVariance);
-  Image& var_i = frame.layer(layer::kIndirectVariance);
-  Image& samples = frame.layer(layer::kSamples);
-  Image& edge = frame.layer(layer::kEdge);
-  struct LevelImages {
-    Image *direct, *indirect, *albedo, *reflection, *emission, *normal, *depth, *tint;
-  };
-  std::vector<LevelImages> lv(K + 1);
+  std::vector<std::pair<std::string, int>> names = {{layer::kColor, 3},          {layer::kVariance, 3},
+                                                    {layer::kDirectVariance, 3}, {layer::kIndirectVariance, 3},
+                                                    {layer::kSamples, 1},        {layer::kEdge, 1}};
   for (int k = 0; k <= K; ++k) {
-    lv[k].direct = &frame.layer(layer::at_level(k, layer::kDirect));
-    lv[k].indirect = &frame.layer(layer::at_level(k, layer::kIndirect));
-    lv[k].albedo = &frame.layer(layer::at_level(k, layer::kAlbedo));
-    lv[k].reflection = &frame.layer(layer::at_level(k, layer::kReflection));
-    lv[k].emission = &frame.layer(layer::at_level(k, layer::kEmission));
-    lv[k].normal = &frame.layer(layer::at_level(k, layer::kNormal));
-    lv[k].depth = &frame.layer(layer::at_level(k, layer::kDepth));
-    lv[k].tint = k > 0 ? &frame.layer(layer::at_level(k, layer::kTint)) : nullptr;
+    for (const char* b : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
+                          layer::kNormal})
+      names.emplace_back(layer::at_level(k, b), 3);
+    names.emplace_back(layer::at_level(k, layer::kDepth), 1);
+    if (k > 0) names.emplace_back(layer::at_level(k, layer::kTint), 3);
   }
-  // Relative depth spread inside each pixel, for the edge test (kept only until G is known).
-  Image depth_spread(W, H, 1);
-
-  std::atomic<std::int64_t> dropped{0};
-  std::atomic<std::uint64_t> rays{0};
-  for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
-    SampleResult r;
-    std::int64_t tile_dropped = 0;
-    std::uint64_t tile_rays = 0;
-    std::vector<LevelSums> sums(K + 1);
-    for (int y = y0; y < y1; ++y)
-      for (int x = x0; x < x1; ++x) {
-        const std::uint64_t pixel = std::uint64_t(y) * W + x;
-        for (auto& s : sums) s = LevelSums{};
-        alignas(32) double extra[acc::kExtraSize] = {};
-        alignas(32) float vals[acc::kLevelSize];
-        alignas(32) float xvals[acc::kExtraSize];
-        for (int s = 0; s < spp; ++s) {
-          Sampler rng(settings.seed, pixel, std::uint64_t(s));
-          float fx, fy;
-          sample_position(s, grid, rng, fx, fy);
-          PathContext ctx{rng};
-          tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
-          tile_rays += ctx.rays;
-          if (!sample_finite(r)) {
-            ++tile_dropped;
-            continue;
-          }
-          const LevelSample& l0 = r.level[0];
-          const Vec3 f = l0.color(), dt = l0.direct * l0.albedo, it = l0.indirect * l0.albedo;
-          put3(xvals + acc::kColor, f);
-          put3(xvals + acc::kColorSq, f * f);
-          put3(xvals + acc::kDirectSq, l0.direct * l0.direct);
-          put3(xvals + acc::kIndirectSq, l0.indirect * l0.indirect);
-          put3(xvals + acc::kDirectTSq, dt * dt);
-          put3(xvals + acc::kIndirectTSq, it * it);
-          xvals[18] = xvals[19] = 0;
-          add_values<acc::kExtraSize>(extra, xvals);
-          for (int k = 0; k < r.levels && k <= K; ++k) {
-            pack_level(r.level[k], vals);
-            ++sums[k].n;
-            add_values<acc::kLevelSize>(sums[k].v, vals);
-          }
-        }
-        const std::int64_t n = sums[0].n;
-        const double inv = n > 0 ? 1.0 / n : 0.0;
-        const LevelSums& L0 = sums[0];
-        store(color, x, y, extra + acc::kColor, inv);
-        store_var(var_f, x, y, extra + acc::kColor, extra + acc::kColorSq, n);
-        demodulated_var(L0.at(acc::kDirectT), extra + acc::kDirectTSq, L0.at(acc::kDirect), extra + acc::kDirectSq,
-                        L0.at(acc::kAlbedo), n, var_d.pixel(x, y));
-        demodulated_var(L0.at(acc::kIndirectT), extra + acc::kIndirectTSq, L0.at(acc::kIndirect),
-                        extra + acc::kIndirectSq, L0.at(acc::kAlbedo), n, var_i.pixel(x, y));
-        samples.at(x, y, 0) = float(n);
-        for (int k = 0; k <= K; ++k) {
-          const LevelSums& L = sums[k];
-          const double li = L.n > 0 ? 1.0 / L.n : 0.0;
-          demodulated(L.at(acc::kDirectT), L.at(acc::kDirect), L.at(acc::kAlbedo), L.n, lv[k].direct->pixel(x, y));
-          demodulated(L.at(acc::kIndirectT), L.at(acc::kIndirect), L.at(acc::kAlbedo), L.n,
-                      lv[k].indirect->pixel(x, y));
-          store(*lv[k].albedo, x, y, L.at(acc::kAlbedo), li);
-          store(*lv[k].reflection, x, y, L.at(acc::kReflection), li);
-          store(*lv[k].emission, x, y, L.at(acc::kEmission), li);
-          store(*lv[k].normal, x, y, L.at(acc::kNormal), li);
-          lv[k].depth->at(x, y, 0) = float(L.v[acc::kDepth] * li);
-          // refl(k).tint: mean over the samples of level k-1 of the bounce weight into level k.
-          if (k > 0) {
-            const LevelSums& P = sums[k - 1];
-            store(*lv[k].tint, x, y, P.at(acc::kTint), P.n > 0 ? 1.0 / P.n : 0.0);
-          }
-        }
-        if (n > 1) {
-          double m = L0.v[acc::kDepth] * inv;
-          double var = std::max(0.0, L0.v[acc::kDepthSq] * inv - m * m);
-          depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
-        }
-      }
-    dropped += tile_dropped;
-    rays += tile_rays;
-    if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * spp);
+  std::vector<Image> images(names.size());
+  run_in_arena(threads, [&] {
+    tbb::parallel_for(std::size_t(0), names.size(), [&](std::size_t i) { images[i] = Image(W, H, names[i].second); });
   });
+  for (std::size_t i = 0; i < names.size(); ++i) frame.set(names[i].first, std::move(images[i]));
+  return frame;
+}
 
-  // ---- Edge set G ----
-  const Image& normal = *lv[0].normal;
-  const Image& depth = *lv[0].depth;
+FrameLayers layers_of(AovFrame& frame, int K) {
+  FrameLayers out;
+  out.color = &frame.layer(layer::kColor);
+  out.var_f = &frame.layer(layer::kVariance);
+  out.var_d = &frame.layer(layer::kDirectVariance);
+  out.var_i = &frame.layer(layer::kIndirectVariance);
+  out.samples = &frame.layer(layer::kSamples);
+  out.edge = &frame.layer(layer::kEdge);
+  out.level.resize(K + 1);
+  for (int k = 0; k <= K; ++k) {
+    LevelImages& l = out.level[k];
+    l.direct = &frame.layer(layer::at_level(k, layer::kDirect));
+    l.indirect = &frame.layer(layer::at_level(k, layer::kIndirect));
+    l.albedo = &frame.layer(layer::at_level(k, layer::kAlbedo));
+    l.reflection = &frame.layer(layer::at_level(k, layer::kReflection));
+    l.emission = &frame.layer(layer::at_level(k, layer::kEmission));
+    l.normal = &frame.layer(layer::at_level(k, layer::kNormal));
+    l.depth = &frame.layer(layer::at_level(k, layer::kDepth));
+    l.tint = k > 0 ? &frame.layer(layer::at_level(k, layer::kTint)) : nullptr;
+  }
+  return out;
+}
+
+// ---- Main pass: per-pixel sums, then the pixel's layers ----
+
+// Adds one finite sample to its pixel's sums: levels 0 .. min(r.levels, K + 1) - 1, and the
+// level-0 colour and squares (`extra`, acc::kExtraSize values).
+inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, double* extra) {
+  alignas(32) float vals[acc::kLevelSize];
+  alignas(32) float xvals[acc::kExtraSize];
+  const LevelSample& l0 = r.level[0];
+  const Vec3 f = l0.color(), dt = l0.direct * l0.albedo, it = l0.indirect * l0.albedo;
+  put3(xvals + acc::kColor, f);
+  put3(xvals + acc::kColorSq, f * f);
+  put3(xvals + acc::kDirectSq, l0.direct * l0.direct);
+  put3(xvals + acc::kIndirectSq, l0.indirect * l0.indirect);
+  put3(xvals + acc::kDirectTSq, dt * dt);
+  put3(xvals + acc::kIndirectTSq, it * it);
+  xvals[18] = xvals[19] = 0;
+  add_values<acc::kExtraSize>(extra, xvals);
+  for (int k = 0; k < r.levels && k <= K; ++k) {
+    pack_level(r.level[k], vals);
+    ++sums[k].n;
+    add_values<acc::kLevelSize>(sums[k].v, vals);
+  }
+}
+
+// Level k's layers of pixel (x, y) from its sums; `prev`: level k - 1's sums (k > 0), whose
+// bounce weights into level k make refl(k).tint.
+void store_level(const LevelImages& l, int x, int y, const LevelSums& L, const LevelSums* prev) {
+  const double li = L.n > 0 ? 1.0 / L.n : 0.0;
+  demodulated(L.at(acc::kDirectT), L.at(acc::kDirect), L.at(acc::kAlbedo), L.n, l.direct->pixel(x, y));
+  demodulated(L.at(acc::kIndirectT), L.at(acc::kIndirect), L.at(acc::kAlbedo), L.n, l.indirect->pixel(x, y));
+  store(*l.albedo, x, y, L.at(acc::kAlbedo), li);
+  store(*l.reflection, x, y, L.at(acc::kReflection), li);
+  store(*l.emission, x, y, L.at(acc::kEmission), li);
+  store(*l.normal, x, y, L.at(acc::kNormal), li);
+  l.depth->at(x, y, 0) = float(L.v[acc::kDepth] * li);
+  // refl(k).tint: mean over the samples of level k-1 of the bounce weight into level k.
+  if (prev) store(*l.tint, x, y, prev->at(acc::kTint), prev->n > 0 ? 1.0 / prev->n : 0.0);
+}
+
+// Every layer of pixel (x, y) from its sums, and the relative depth spread of its samples.
+void store_pixel(const FrameLayers& out, int x, int y, const std::vector<LevelSums>& sums, const double* extra,
+                 Image& depth_spread) {
+  const std::int64_t n = sums[0].n;
+  const double inv = n > 0 ? 1.0 / n : 0.0;
+  const LevelSums& L0 = sums[0];
+  store(*out.color, x, y, extra + acc::kColor, inv);
+  store_var(*out.var_f, x, y, extra + acc::kColor, extra + acc::kColorSq, n);
+  demodulated_var(L0.at(acc::kDirectT), extra + acc::kDirectTSq, L0.at(acc::kDirect), extra + acc::kDirectSq,
+                  L0.at(acc::kAlbedo), n, out.var_d->pixel(x, y));
+  demodulated_var(L0.at(acc::kIndirectT), extra + acc::kIndirectTSq, L0.at(acc::kIndirect), extra + acc::kIndirectSq,
+                  L0.at(acc::kAlbedo), n, out.var_i->pixel(x, y));
+  out.samples->at(x, y, 0) = float(n);
+  for (std::size_t k = 0; k < sums.size(); ++k)
+    store_level(out.level[k], x, y, sums[k], k > 0 ? &sums[k - 1] : nullptr);
+  if (n > 1) {
+    double m = L0.v[acc::kDepth] * inv;
+    double var = std::max(0.0, L0.v[acc::kDepthSq] * inv - m * m);
+    depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
+  }
+}
+
+struct PassCounts {
+  std::int64_t dropped = 0;  // non-finite samples
+  std::uint64_t rays = 0;
+};
+
+// The main pass over the tile [x0, x1) x [y0, y1): every sample of every pixel, then its layers.
+void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image& depth_spread, int x0, int y0,
+                 int x1, int y1, PassCounts& counts) {
+  SampleResult r;
+  const int K = int(out.level.size()) - 1;
+  std::vector<LevelSums> sums(K + 1);
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) {
+      for (auto& s : sums) s = LevelSums{};
+      alignas(32) double extra[acc::kExtraSize] = {};
+      for (int s = 0; s < spp; ++s) {
+        float fx, fy;
+        counts.rays += src.trace(x, y, s, r, fx, fy);
+        if (!sample_finite(r)) {
+          ++counts.dropped;
+          continue;
+        }
+        accumulate_sample(r, K, sums.data(), extra);
+      }
+      store_pixel(out, x, y, sums, extra, depth_spread);
+    }
+}
+
+// ---- Edge set G (see top of file) ----
+
+void mark_edge_set(const LevelImages& l0, const Image& depth_spread, Image& edge, int threads) {
+  const Image& normal = *l0.normal;
+  const Image& depth = *l0.depth;
+  const int W = edge.width(), H = edge.height();
   const float cos_edge = std::cos(kEdgeNormalAngle * kPi / 180);
   auto differ = [&](int xa, int ya, int xb, int yb) {
     Vec3 na = pixel_vec(normal, xa, ya), nb = pixel_vec(normal, xb, yb);
@@ -382,7 +314,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     return std::fabs(da - db) > kEdgeDepthRel * std::min(da, db);
   };
   // Each pixel tests itself and its four neighbours (so rows can run in parallel).
-  run_in_arena(settings.threads, [&] {
+  run_in_arena(threads, [&] {
     tbb::parallel_for(0, H, [&](int y) {
       for (int x = 0; x < W; ++x) {
         Vec3 n = pixel_vec(normal, x, y);
@@ -394,91 +326,133 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
       }
     });
   });
-  depth_spread = Image();
+}
 
-  if (settings.edge_subpixels) {
-    EdgeSubpixels es;
-    for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x)
-        if (edge.at(x, y, 0) > 0) es.pixels.push_back(std::int32_t(y * W + x));
-    es.samples.resize(es.pixels.size() * EdgeSubpixels::kPerPixel);
-    // Re-trace the samples of edge pixels, in parallel over chunks of edge pixels.
-    const std::size_t chunk = 64;
-    const std::size_t chunks = (es.pixels.size() + chunk - 1) / chunk;
-    auto body = [&] {
-      tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
-        set_ftz_daz();
-        SampleResult r;
-        for (std::size_t i = c * chunk; i < std::min(es.pixels.size(), (c + 1) * chunk); ++i) {
-          const int x = es.pixels[i] % W, y = es.pixels[i] / W;
-          struct Sub {
-            int n = 0;
-            D3 normal, albedo, direct, indirect, direct_t, indirect_t;
-            double depth = 0;
-          } sub[EdgeSubpixels::kPerPixel];
-          for (int s = 0; s < spp; ++s) {
-            Sampler rng(settings.seed, std::uint64_t(es.pixels[i]), std::uint64_t(s));
-            float fx, fy;
-            sample_position(s, grid, rng, fx, fy);
-            PathContext ctx{rng};
-            tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
-            if (!sample_finite(r)) continue;
-            Sub& b = sub[int(fy * EdgeSubpixels::kPerSide) * EdgeSubpixels::kPerSide + int(fx * EdgeSubpixels::kPerSide)];
-            ++b.n;
-            b.normal.add(r.level[0].normal);
-            b.albedo.add(r.level[0].albedo);
-            b.direct.add(r.level[0].direct);
-            b.indirect.add(r.level[0].indirect);
-            b.direct_t.add(r.level[0].direct * r.level[0].albedo);
-            b.indirect_t.add(r.level[0].indirect * r.level[0].albedo);
-            b.depth += r.level[0].depth;
-          }
-          EdgeSample* out = &es.samples[i * EdgeSubpixels::kPerPixel];
-          for (int k = 0; k < EdgeSubpixels::kPerPixel; ++k) {
-            EdgeSample& e = out[k];
-            if (sub[k].n == 0) {
-              for (int c2 = 0; c2 < 3; ++c2) {
-                e.normal[c2] = normal.at(x, y, c2);
-                e.albedo[c2] = lv[0].albedo->at(x, y, c2);
-                e.direct[c2] = lv[0].direct->at(x, y, c2);
-                e.indirect[c2] = lv[0].indirect->at(x, y, c2);
-              }
-              e.depth = depth.at(x, y, 0);
-              continue;
-            }
-            const double inv = 1.0 / sub[k].n;
-            for (int c2 = 0; c2 < 3; ++c2) {
-              e.normal[c2] = float(sub[k].normal.v[c2] * inv);
-              e.albedo[c2] = float(sub[k].albedo.v[c2] * inv);
+// ---- Edge sub-pixels: G's samples traced again, averaged per 4x4 stratum ----
 
-            }
-            e.depth = float(sub[k].depth * inv);
-            demodulated(sub[k].direct_t.v, sub[k].direct.v, sub[k].albedo.v, sub[k].n, e.direct);
-            demodulated(sub[k].indirect_t.v, sub[k].indirect.v, sub[k].albedo.v, sub[k].n, e.indirect);
-          }
-        }
-      });
-    };
-    if (settings.threads > 0) {
-      tbb::task_arena arena(settings.threads);
-      arena.execute(body);
-    } else {
-      body();
-    }
-    frame.edges = std::move(es);
+struct SubpixelSums {
+  int n = 0;
+  D3 normal, albedo, direct, indirect, direct_t, indirect_t;
+  double depth = 0;
+};
+
+void trace_subpixels(const SampleSource& src, int spp, int x, int y, SampleResult& r,
+                     SubpixelSums (&sub)[EdgeSubpixels::kPerPixel]) {
+  constexpr int side = EdgeSubpixels::kPerSide;
+  for (int s = 0; s < spp; ++s) {
+    float fx, fy;
+    src.trace(x, y, s, r, fx, fy);
+    if (!sample_finite(r)) continue;
+    SubpixelSums& b = sub[int(fy * side) * side + int(fx * side)];
+    const LevelSample& l0 = r.level[0];
+    ++b.n;
+    b.normal.add(l0.normal);
+    b.albedo.add(l0.albedo);
+    b.direct.add(l0.direct);
+    b.indirect.add(l0.indirect);
+    b.direct_t.add(l0.direct * l0.albedo);
+    b.indirect_t.add(l0.indirect * l0.albedo);
+    b.depth += l0.depth;
   }
+}
 
-  frame.meta.scene = scene_name(scene);
-  frame.meta.spp = spp;
-  frame.meta.seed = settings.seed;
-  frame.meta.tracer_version = kTracerVersion;
-  frame.meta.build_version = std::string(DNB_VERSION) + " (" + DNB_GIT_REVISION + ")";
-  frame.meta.dropped_samples = dropped.load();
-  frame.meta.reflection_levels = K;
-  frame.meta.extra["max_depth"] = std::to_string(settings.max_depth);
-  frame.meta.extra["scene_hash"] = scene_content_hash(scene);
+// The sub-pixels' means; one that no sample fell in gets the pixel's means from level 0's layers.
+void store_subpixels(const SubpixelSums (&sub)[EdgeSubpixels::kPerPixel], const LevelImages& l0, int x, int y,
+                     EdgeSample* out) {
+  for (int k = 0; k < EdgeSubpixels::kPerPixel; ++k) {
+    EdgeSample& e = out[k];
+    if (sub[k].n == 0) {
+      for (int c = 0; c < 3; ++c) {
+        e.normal[c] = l0.normal->at(x, y, c);
+        e.albedo[c] = l0.albedo->at(x, y, c);
+        e.direct[c] = l0.direct->at(x, y, c);
+        e.indirect[c] = l0.indirect->at(x, y, c);
+      }
+      e.depth = l0.depth->at(x, y, 0);
+      continue;
+    }
+    const double inv = 1.0 / sub[k].n;
+    for (int c = 0; c < 3; ++c) {
+      e.normal[c] = float(sub[k].normal.v[c] * inv);
+      e.albedo[c] = float(sub[k].albedo.v[c] * inv);
+    }
+    e.depth = float(sub[k].depth * inv);
+    demodulated(sub[k].direct_t.v, sub[k].direct.v, sub[k].albedo.v, sub[k].n, e.direct);
+    demodulated(sub[k].indirect_t.v, sub[k].indirect.v, sub[k].albedo.v, sub[k].n, e.indirect);
+  }
+}
+
+// The sub-pixel data of every pixel of G, in parallel over chunks of edge pixels.
+EdgeSubpixels render_edge_subpixels(const SampleSource& src, int spp, const Image& edge, const LevelImages& l0,
+                                    int threads) {
+  const int W = edge.width(), H = edge.height();
+  EdgeSubpixels es;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      if (edge.at(x, y, 0) > 0) es.pixels.push_back(std::int32_t(y * W + x));
+  es.samples.resize(es.pixels.size() * EdgeSubpixels::kPerPixel);
+  const std::size_t chunk = 64;
+  const std::size_t chunks = (es.pixels.size() + chunk - 1) / chunk;
+  run_in_arena(threads, [&] {
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+      set_ftz_daz();
+      SampleResult r;
+      for (std::size_t i = c * chunk; i < std::min(es.pixels.size(), (c + 1) * chunk); ++i) {
+        const int x = es.pixels[i] % W, y = es.pixels[i] / W;
+        SubpixelSums sub[EdgeSubpixels::kPerPixel];
+        trace_subpixels(src, spp, x, y, r, sub);
+        store_subpixels(sub, l0, x, y, &es.samples[i * EdgeSubpixels::kPerPixel]);
+      }
+    });
+  });
+  return es;
+}
+
+void write_meta(FrameMeta& meta, const Scene& scene, const RenderSettings& settings, const PassCounts& counts) {
+  meta.scene = scene_name(scene);
+  meta.spp = settings.spp;
+  meta.seed = settings.seed;
+  meta.tracer_version = kTracerVersion;
+  meta.build_version = std::string(DNB_VERSION) + " (" + DNB_GIT_REVISION + ")";
+  meta.dropped_samples = counts.dropped;
+  meta.reflection_levels = settings.reflection_levels;
+  meta.extra["max_depth"] = std::to_string(settings.max_depth);
+  meta.extra["scene_hash"] = scene_content_hash(scene);
   // Rays of the main pass (closest-hit and shadow rays; the edge pass re-traces G's samples).
-  frame.meta.extra["rays"] = std::to_string(rays.load());
+  meta.extra["rays"] = std::to_string(counts.rays);
+}
+
+int grid_of(int spp) { return std::max(1, int(std::floor(std::sqrt(double(spp))))); }
+
+}  // namespace
+
+AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
+  check_settings(settings);
+  Stopwatch clock;
+  const int W = settings.width, H = settings.height, K = settings.reflection_levels;
+  PathTracer tracer(scene, tracer_options(settings));
+  const SampleSource src{scene, tracer, W, H, settings.seed, grid_of(settings.spp)};
+
+  AovFrame frame = allocate_frame(W, H, K, settings.threads);
+  const FrameLayers out = layers_of(frame, K);
+  // Relative depth spread inside each pixel, for the edge test (kept only until G is known).
+  Image depth_spread(W, H, 1);
+  std::atomic<std::int64_t> dropped{0};
+  std::atomic<std::uint64_t> rays{0};
+  for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
+    PassCounts tile;
+    render_tile(src, settings.spp, out, depth_spread, x0, y0, x1, y1, tile);
+    dropped += tile.dropped;
+    rays += tile.rays;
+    if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * settings.spp);
+  });
+
+  mark_edge_set(out.level[0], depth_spread, *out.edge, settings.threads);
+  depth_spread = Image();
+  if (settings.edge_subpixels)
+    frame.edges = render_edge_subpixels(src, settings.spp, *out.edge, out.level[0], settings.threads);
+
+  write_meta(frame.meta, scene, settings, PassCounts{dropped.load(), rays.load()});
   frame.meta.render_seconds = clock.seconds();
   return frame;
 }
@@ -488,9 +462,9 @@ ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, 
   if (sample_begin < 0 || sample_end > settings.spp || sample_begin > sample_end)
     throw InputError(fmt::format("sample range [{}, {}) is not inside [0, {})", sample_begin, sample_end,
                                  settings.spp));
-  const int W = settings.width, H = settings.height, spp = settings.spp;
-  const int grid = std::max(1, int(std::floor(std::sqrt(double(spp)))));
+  const int W = settings.width, H = settings.height;
   PathTracer tracer(scene, tracer_options(settings));
+  const SampleSource src{scene, tracer, W, H, settings.seed, grid_of(settings.spp)};
   ColorSums out;
   out.width = W;
   out.height = H;
@@ -507,11 +481,8 @@ ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, 
         double* s1 = &out.sum[pixel * 3];
         double* s2 = &out.sum_sq[pixel * 3];
         for (int s = sample_begin; s < sample_end; ++s) {
-          Sampler rng(settings.seed, pixel, std::uint64_t(s));
           float fx, fy;
-          sample_position(s, grid, rng, fx, fy);
-          PathContext ctx{rng};
-          tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, W, H), ctx, r);
+          src.trace(x, y, s, r, fx, fy);
           if (!sample_finite(r)) {
             ++tile_dropped;
             continue;

@@ -1,7 +1,8 @@
-// The public face of the shared tracer: load a scene, render an AOV frame, or accumulate
-// colour sums over a range of sample indices (the building block of checkpointed and
-// distributed references). Everything else in tracer/ is an implementation detail that only
-// the tracer and renderer-type methods (irradiance_cache/) include.
+// The public face of the shared tracer: render an AOV frame of a loaded scene
+// (tracer/scene_loader.h), or accumulate colour sums over a range of sample indices (the
+// building block of checkpointed and distributed references). Everything else in tracer/ is an
+// implementation detail that only the tracer and renderer-type methods (irradiance_cache/)
+// include.
 #pragma once
 
 #include <cstdint>
@@ -16,22 +17,6 @@
 namespace dnb {
 
 class Scene;  // tracer/scene.h
-
-struct SceneLoadOptions {
-  // Folder holding the McGuire scenes (--scenes-dir, else $DENOISEBENCH_SCENES, else
-  // ../shared/scenes when present). Empty: use that search order.
-  std::string scenes_dir;
-};
-
-// `name_or_path`: a built-in scene name (cornell-box, conference, bedroom, sponza, ...) found in
-// configs/scenes/, or a path to a scene TOML file. InputError naming the file/key on bad input.
-std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const SceneLoadOptions& options = {});
-// Names of the built-in scenes.
-std::vector<std::string> builtin_scene_names();
-// Content hash of everything that determines a render of the scene: the scene file and every
-// file it references (meshes, textures). Used by the reference and input caches.
-std::string scene_content_hash(const Scene& scene);
-const std::string& scene_name(const Scene& scene);
 
 // Bumped whenever a change to the tracer changes its images (part of every cache key).
 inline constexpr const char* kTracerVersion = "dnb-tracer-3";

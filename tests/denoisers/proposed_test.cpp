@@ -9,6 +9,7 @@
 #include "denoisers/method.h"
 #include "denoisers/synthetic_frame.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb {
 namespace {

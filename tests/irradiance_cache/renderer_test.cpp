@@ -11,6 +11,7 @@
 #include "denoisers/method.h"
 #include "test_util.h"
 #include "tracer/render.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb {
 namespace {

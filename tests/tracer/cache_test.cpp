@@ -39,11 +39,6 @@ TEST(CacheKey, DigestDependsOnEveryPartAndOrder) {
   EXPECT_EQ(example_key().canonical(), "frame\nscene=abc123\nspp=16\nseed=7\nscale=0.10000000000000001\n");
 }
 
-TEST(Sha256, KnownAnswer) {
-  // FIPS 180-2 test vector.
-  EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
-}
-
 TEST(Cache, StoreThenLookupHits) {
   test::TempDir tmp;
   Cache cache(tmp.file("cache"));

@@ -9,6 +9,7 @@
 #include "tracer/integrator.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
+#include "tracer/scene_loader.h"
 #include "tracer_scenes.h"
 
 namespace dnb {

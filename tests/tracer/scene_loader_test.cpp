@@ -12,6 +12,7 @@
 #include "test_util.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
+#include "tracer/scene_loader.h"
 #include "tracer_scenes.h"
 
 namespace dnb {

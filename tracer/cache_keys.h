@@ -1,0 +1,24 @@
+// The cache keys of the tracer's render products (tracer/cache.h): each names every part that
+// determines the product's bits, so that a cached product is only used where a render would
+// give the same one. Changing a key's parts, their names or their order invalidates every
+// cached product of its kind.
+#pragma once
+
+#include "tracer/cache.h"
+
+namespace dnb {
+
+class Scene;                // tracer/scene.h
+struct RenderSettings;      // tracer/render.h
+struct ReferenceSettings;   // tracer/reference.h
+
+// A converged reference (reference_image, tracer/reference.h): scene content
+// (scene_content_hash: the scene file and every file it references), size, spp, seed, max
+// depth, block size, tracer version.
+CacheKey reference_cache_key(const Scene& scene, const ReferenceSettings& settings);
+
+// The experiment runner's input frames (render_frame; use with cached_frame, tracer/cache.h):
+// scene content, size, spp, seed, max depth, reflection levels, edge sub-pixels, tracer version.
+CacheKey frame_cache_key(const Scene& scene, const RenderSettings& settings);
+
+}  // namespace dnb

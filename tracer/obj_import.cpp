@@ -1,0 +1,184 @@
+// OBJ/MTL import (tracer/obj_import.h): tinyobjloader reads and triangulates the file; the
+// MTL materials are mapped onto the tracer's materials, then the faces become one mesh.
+#include "tracer/obj_import.h"
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <map>
+#include <vector>
+
+#include <fmt/format.h>
+#include <tiny_obj_loader.h>
+
+#include "core/errors.h"
+#include "tracer/scene.h"
+
+namespace fs = std::filesystem;
+
+namespace dnb::rt {
+
+namespace {
+
+// The material files named by the OBJ's mtllib lines, for the content hash (tinyobjloader
+// reads them but does not say which).
+void append_mtllib_files(const fs::path& path, std::vector<std::string>& files) {
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("mtllib", 0) != 0) continue;
+    std::string n = line.substr(6);
+    n.erase(0, n.find_first_not_of(" \t"));
+    while (!n.empty() && (n.back() == '\r' || n.back() == ' ' || n.back() == '\t')) n.pop_back();
+    fs::path mp = find_file_ignoring_case(path.parent_path(), n);
+    if (!mp.empty()) files.push_back(mp.string());
+  }
+}
+
+// An MTL material's colours and type (see the top of obj_import.h); the texture is added by
+// the caller.
+Material mtl_material(const tinyobj::material_t& om, const std::string& stem) {
+  Material m;
+  m.name = stem + "/" + om.name;
+  Vec3 kd(float(om.diffuse[0]), float(om.diffuse[1]), float(om.diffuse[2]));
+  Vec3 ks(float(om.specular[0]), float(om.specular[1]), float(om.specular[2]));
+  m.albedo = vmin(kd, Vec3(1.0f));
+  m.emission = Vec3(float(om.emission[0]), float(om.emission[1]), float(om.emission[2]));
+  const bool mirror_illum = om.illum == 3 || om.illum == 5 || om.illum == 7;
+  if (mirror_illum || (max_component(ks) > 0 && om.shininess >= 200)) {
+    // Specular: a mirror when there is no diffuse part, else a coated diffuse.
+    if (max_component(kd) < 0.01f) {
+      m.type = MaterialType::kMirror;
+      m.tint = max_component(ks) > 0 ? vmin(ks, Vec3(1.0f)) : Vec3(1.0f);
+    } else {
+      m.type = MaterialType::kCoated;
+      m.ior = om.ior > 1.0 ? float(om.ior) : 1.5f;
+    }
+  }
+  return m;
+}
+
+// Scene material indices of an OBJ's materials.
+struct MaterialMap {
+  std::vector<unsigned> of_obj;  // per OBJ material
+  unsigned fallback = 0;         // for faces without one
+};
+
+// The OBJ's materials appended to the scene, then the fallback.
+MaterialMap import_materials(Scene& scene, const fs::path& path, const std::vector<tinyobj::material_t>& mats) {
+  MaterialMap map;
+  map.of_obj.resize(mats.size());
+  std::map<std::string, int> tex_cache;  // map_Kd name -> scene texture: each file read once
+  for (std::size_t i = 0; i < mats.size(); ++i) {
+    const auto& om = mats[i];
+    Material m = mtl_material(om, path.stem().string());
+    if (!om.diffuse_texname.empty()) {
+      auto it = tex_cache.find(om.diffuse_texname);
+      if (it != tex_cache.end()) {
+        m.texture = it->second;
+      } else {
+        fs::path tp = find_file_ignoring_case(path.parent_path(), om.diffuse_texname);
+        if (tp.empty())
+          throw InputError(fmt::format("'{}': material '{}': texture file '{}' (map_Kd) not found in '{}'",
+                                       path.string(), om.name, om.diffuse_texname, path.parent_path().string()));
+        scene.files.push_back(tp.string());
+        m.texture = int(scene.textures.size());
+        scene.textures.push_back(load_image_texture(tp.string()));
+        tex_cache[om.diffuse_texname] = m.texture;
+      }
+      // map_Kd replaces Kd in most exporters' intent when Kd is black.
+      if (max_component(m.albedo) <= 0) m.albedo = Vec3(1.0f);
+    }
+    map.of_obj[i] = unsigned(scene.materials.size());
+    scene.materials.push_back(m);
+  }
+  map.fallback = unsigned(scene.materials.size());
+  Material fallback;
+  fallback.name = path.stem().string() + "/(no material)";
+  scene.materials.push_back(fallback);
+  return map;
+}
+
+// Every triangle of the file, transformed, with its scene material.
+Mesh obj_triangles(const tinyobj::ObjReader& reader, const fs::path& path, const Transform& x,
+                   const MaterialMap& mat_map, std::optional<unsigned> material) {
+  const auto& attrib = reader.GetAttrib();
+  Mesh mesh;
+  mesh.name = path.stem().string();
+  bool any_normals = !attrib.normals.empty(), any_uvs = !attrib.texcoords.empty();
+  for (const auto& shape : reader.GetShapes()) {
+    const auto& idx = shape.mesh.indices;
+    for (std::size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
+      if (shape.mesh.num_face_vertices[f] != 3) continue;  // triangulated by the reader
+      Vec3 p[3], n[3];
+      float uv[6] = {0, 0, 0, 0, 0, 0};
+      bool have_n = true;
+      for (int k = 0; k < 3; ++k) {
+        const auto& ix = idx[3 * f + k];
+        if (ix.vertex_index < 0 || std::size_t(3 * ix.vertex_index + 2) >= attrib.vertices.size())
+          throw InputError(fmt::format("'{}': face index out of range in shape '{}'", path.string(), shape.name));
+        p[k] = x.point(Vec3(attrib.vertices[3 * ix.vertex_index], attrib.vertices[3 * ix.vertex_index + 1],
+                            attrib.vertices[3 * ix.vertex_index + 2]));
+        if (ix.normal_index >= 0 && std::size_t(3 * ix.normal_index + 2) < attrib.normals.size())
+          n[k] = x.normal(Vec3(attrib.normals[3 * ix.normal_index], attrib.normals[3 * ix.normal_index + 1],
+                               attrib.normals[3 * ix.normal_index + 2]));
+        else
+          have_n = false;
+        if (ix.texcoord_index >= 0 && std::size_t(2 * ix.texcoord_index + 1) < attrib.texcoords.size()) {
+          uv[2 * k] = attrib.texcoords[2 * ix.texcoord_index];
+          uv[2 * k + 1] = attrib.texcoords[2 * ix.texcoord_index + 1];
+        }
+      }
+      Vec3 ng = cross(p[1] - p[0], p[2] - p[0]);
+      if (!(length(ng) > 0)) continue;  // degenerate
+      if (!have_n) n[0] = n[1] = n[2] = normalize(ng);
+      mesh.positions.insert(mesh.positions.end(), {p[0], p[1], p[2]});
+      if (any_normals) mesh.normals.insert(mesh.normals.end(), {n[0], n[1], n[2]});
+      if (any_uvs) mesh.uvs.insert(mesh.uvs.end(), uv, uv + 6);
+      int mid = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
+      unsigned mat = material                                                  ? *material
+                     : (mid >= 0 && std::size_t(mid) < mat_map.of_obj.size()) ? mat_map.of_obj[mid]
+                                                                               : mat_map.fallback;
+      mesh.material.push_back(mat);
+    }
+  }
+  return mesh;
+}
+
+}  // namespace
+
+fs::path find_file_ignoring_case(const fs::path& dir, std::string name) {
+  std::replace(name.begin(), name.end(), '\\', '/');
+  fs::path exact = dir / name;
+  if (fs::exists(exact)) return exact;
+  fs::path folder = exact.parent_path();
+  std::string want = exact.filename().string();
+  auto lower = [](std::string s) {
+    for (auto& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+  };
+  want = lower(want);
+  std::error_code ec;
+  if (fs::is_directory(folder, ec))
+    for (const auto& e : fs::directory_iterator(folder, ec))
+      if (lower(e.path().filename().string()) == want) return e.path();
+  return {};
+}
+
+void import_obj(Scene& scene, const fs::path& path, const Transform& x, std::optional<unsigned> material) {
+  tinyobj::ObjReaderConfig cfg;
+  cfg.triangulate = true;
+  cfg.vertex_color = false;
+  cfg.mtl_search_path = path.parent_path().string();
+  tinyobj::ObjReader reader;
+  if (!reader.ParseFromFile(path.string(), cfg))
+    throw InputError(fmt::format("'{}': cannot read OBJ: {}", path.string(), reader.Error()));
+  scene.files.push_back(path.string());
+  append_mtllib_files(path, scene.files);
+  const MaterialMap mat_map = import_materials(scene, path, reader.GetMaterials());
+  Mesh mesh = obj_triangles(reader, path, x, mat_map, material);
+  if (mesh.positions.empty()) throw InputError(fmt::format("'{}': the OBJ file has no triangles", path.string()));
+  scene.meshes.push_back(std::move(mesh));
+}
+
+}  // namespace dnb::rt
