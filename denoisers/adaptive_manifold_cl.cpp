@@ -13,6 +13,7 @@
 #include <mutex>
 
 #include "denoisers/adaptive_manifold_cl_source.h"
+#include "denoisers/am_grid.h"
 #endif
 
 namespace dnb {
@@ -117,19 +118,10 @@ class ClRun {
     min_d2_ = buffer(ctx, std::vector<float>(s.adjust_outliers ? N : 1, INFINITY));
     label_ = buffer(ctx, std::vector<cl_ushort>(N, 1));
     // The CPU path's bilinear tables.
-    auto table = [&](int n, int small, std::vector<int>& i0, std::vector<int>& i1, std::vector<float>& fr) {
-      i0.resize(n), i1.resize(n), fr.resize(n);
-      for (int x = 0; x < n; ++x) {
-        const float u = std::clamp((x + 0.5f) / df_ - 0.5f, 0.0f, float(small - 1));
-        i0[x] = std::min(int(u), small - 1);
-        i1[x] = std::min(i0[x] + 1, small - 1);
-        fr[x] = u - float(i0[x]);
-      }
-    };
     std::vector<int> x0, x1, y0, y1;
     std::vector<float> fx, fy;
-    table(W_, sw_, x0, x1, fx);
-    table(H_, sh_, y0, y1, fy);
+    am_detail::bilinear_table(W_, sw_, df_, x0, x1, fx);
+    am_detail::bilinear_table(H_, sh_, df_, y0, y1, fy);
     tx0_ = buffer(ctx, x0), tx1_ = buffer(ctx, x1), tfx_ = buffer(ctx, fx);
     ty0_ = buffer(ctx, y0), ty1_ = buffer(ctx, y1), tfy_ = buffer(ctx, fy);
     cov_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sw_) * sh_ * D_ * D_);
