@@ -7,16 +7,8 @@
 // Gastal and Oliveira's sigma_r = 0.2 for [0, 1] images keeps its meaning); the filtered
 // values are the linear colour itself, so the weighted means are unbiased (no Jensen darkening).
 //
-// Parameters. Defaults from scripts/sweep_params.py on the training scene mcguire-cornell-box
-// (384x288, 64 spp, 512-spp reference; 8-bit MSE 21.7 at Gastal and Oliveira's sigma_s 16 /
-// sigma_r 0.2-like start -> 5.47 at sigma_s 4, sigma_r 0.05, outlier adjustment on); re-sweep
-// at 1024x768 when time allows. am_opencv keeps the same defaults.
-//   sigma_s         float   spatial standard deviation, pixels
-//   sigma_r         float   range standard deviation, compressed-colour units
-//   tree_height     int     manifold tree height; 0: from sigma_s and sigma_r (their eq. 10)
-//   pca_iterations  int     power-iteration steps of each split
-//   adjust_outliers bool    their eq. 11 (pixels far from every manifold keep more of themselves)
-//   range_map       string  domain of the guide: linear, log, reinhard, srgb
+// Parameters: the ParamSpec list below, the same list as am_opencv's; `denoisebench list
+// methods` prints it. How the defaults were chosen: docs/method-defaults.md.
 #include "denoisers/adaptive_manifold.h"
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/method.h"

@@ -6,8 +6,8 @@
 // cv::RNG seeded with the guide's centre pixel (ours: a hash of the guide), and its power
 // iteration restarts each step from that random vector.
 //
-// Parameters: as `am` (sigma_s, sigma_r, tree_height, pca_iterations, adjust_outliers,
-// range_map, same defaults), passed to cv::ximgproc::AdaptiveManifoldFilter's setters.
+// Parameters: those of `am`, the same list (`denoisebench list methods`), passed to
+// cv::ximgproc::AdaptiveManifoldFilter's setters.
 #include <algorithm>
 #include <cmath>
 

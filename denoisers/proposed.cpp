@@ -12,73 +12,10 @@
 //     multiplied by that sub-pixel's albedo and the 16 are averaged: formula 1 per sub-pixel.
 //     Only the slice depends on the pixel's guide, so the filter runs once (AmQuery).
 //
-// Parameters. Defaults from scripts/sweep_params.py (coordinate descent, 2 rounds, 8-bit MSE)
-// on the training scene mcguire-cornell-box (not an evaluation scene) at 384x288, 64 spp,
-// against a 512-spp reference: MSE 18.1 at the first guesses (Gastal and Oliveira's sigma_s 16,
-// 7x7 patches, 6 PCA dimensions) -> 3.43. sigma_s 2..4 are equally good there (HDR MSE 8.9e-5
-// .. 9.1e-5; 8: 1.2e-4, 10: 1.5e-4); re-sweep at the experiment's 1024x768 when time allows
-// (the optimum sat at the grid's edge for sigma_nlm, sigma_depth and nlm_dims). The tree height
-// barely matters (auto, 3 manifolds: 9.0e-5; 31 manifolds: 8.8e-5). Re-swept on the training
-// room (docs/method-defaults.md): tree_height 4 with a reduced grid of 2 lowers its 8-bit MSE at
-// 1024x768 256 spp (8.25 -> 7.98), at 256x192 256 spp (4.69 -> 3.99) and 16 spp (18.9 -> 14.6)
-// for 1.9x the time of the auto tree (3 manifolds, full-resolution grid).
-//   sigma_s          float  spatial standard deviation, pixels
-//   sigma_r          float  AM range sigma; sets the auto tree height and reduced grid (eq. 10)
-//   tree_height      int    manifold tree height (2^h - 1 manifolds); 0: from sigma_s and sigma_r
-//   downsample       int    AM reduced-grid factor; 0: from sigma_s and sigma_r (1 at sigma_s 4)
-//   pca_iterations   int    power-iteration steps of each manifold split
-//   adjust_outliers  bool   Gastal and Oliveira's eq. 11
-//   outlier_spp_exponent float  eq. 11's strength (AmSettings::outlier_scale) is (spp/256)^this:
-//                           at low spp a pixel's own value is too noisy to fall back to, so an
-//                           outlier must lie further from every manifold before it keeps it
-//                           (docs/method-defaults.md: fitted on the training room at 16 spp)
-//   sigma_nlm        float  NLM-vector group sigma at 256 spp, log(1 + lum/mean) units (about
-//                           relative); a frame of N spp uses sigma_nlm (256 / N)^nlm_spp_exponent
-//   nlm_spp_exponent float  how sigma_nlm follows the frame's sample count (0: fixed). Fitted on
-//                           the training room (docs/method-defaults.md): the best sigma_nlm is
-//                           0.035-0.05 at 256 spp, 0.2-0.3 at 64, 0.5-0.8 at 16, so 1: it grows
-//                           like the noise variance, not its standard deviation (at low spp the
-//                           NLM vectors are mostly noise and the geometry guides must lead)
-//   firefly_ratio    float  before filtering, a layer's pixel brighter (luminance) than this
-//                           times its brightest 8-neighbour is cut to that bound, its edge
-//                           sub-pixels to the same bound (illumination.h: split_fireflies);
-//                           0: off. Fitted on the training room (docs/method-defaults.md): 3
-//   firefly_sigma    float  the cut light is added back low-passed (Gaussian, this sigma in
-//                           pixels); 0 (default): dropped. Equal on the training room at 64
-//                           and 256 spp, and a wide blur costs 0.2-0.8 s at 1024x768
-//   sigma_nlm_direct float  the NLM group sigma of level 0's direct layer at 256 spp; 0:
-//                           sigma_nlm. Direct light (next-event estimation) is far less noisy
-//                           than indirect, so a much tighter sigma keeps its thin features
-//                           (contact shadows 1-2 pixels wide, which a 7x7 patch blurs into its
-//                           neighbours'). Fitted on the training room (docs/method-defaults.md):
-//                           0.0075, against 0.05 for indirect. Reflection levels keep
-//                           sigma_nlm (the same on the training room: 16 spp 9.56 against 9.61)
-//   nlm_direct_spp_exponent float  sigma_nlm_direct follows the frame's spp as
-//                           (256 / spp)^this; fitted with it: 0.25
-//   sigma_normal     float  normal group sigma (unit vectors)
-//   sigma_depth      float  depth group sigma, in units of the median depth
-//   nlm_dims         int    PCA dimensions of the NLM vector
-//   nlm_radius       int    patch radius (3: 7x7)
-//   nlm_patch_sigma  float  Gaussian weight of the patch pixels, pixels
-//   nlm_samples      int    patches drawn to estimate the PCA
-// Ablation switches (the experiment reports what each part contributes):
-//   nlm_space        bool   false: the guide is the compressed illumination itself
-//   geometry         bool   false: no normal and depth guide groups
-//   edge_subpixels   bool   false: edge pixels are filtered like any other
-//   reflections      bool   false: R passes through unfiltered
-//   tint_radius      int    a reflection level's tint averaged over the same-surface pixels
-//                           of a (2r+1)^2 window within its noise band (0: the raw tint): the
-//                           tracer's per-sample lobe choice makes a coated surface's tint noisy
-//                           (illumination.h, smooth_tint)
-//   reflection_downsample int  the adaptive-manifold reduced-grid factor of the reflection
-//                           levels (0: `downsample`)
-//   reflection_sum   bool   true: a reflection level's D + I are filtered as one layer (one AM
-//                           run instead of two; the paper and level 0 keep them apart): a
-//                           speed option, off by default (docs/method-defaults.md)
-//   filter_color     bool   true: filter the colour F (guide: its NLM vector, normal, depth)
-//                           instead of the illumination, and no composition
-//   device           string cpu, or opencl: the AM core (splat, blur, slice, split, queries)
-//                           as OpenCL kernels (denoisers/adaptive_manifold_cl.h)
+// Parameters: the ParamSpec list at the end of this file, the only place they are documented
+// (`denoisebench list methods` prints it); how the defaults were chosen and what was tried:
+// docs/method-defaults.md. The ablation switches (nlm_space, geometry, edge_subpixels,
+// reflections, filter_color) turn off one part each, for the experiment's ablation table.
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -538,7 +475,7 @@ MethodInfo proposed_method() {
               {"geometry", ParamType::Bool, "true", "ablation: false drops the normal and depth guides"},
               {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},
               {"reflections", ParamType::Bool, "true", "ablation: false leaves R unfiltered"},
-              {"tint_radius", ParamType::Int, "2", "reflection tints: median over the same-surface pixels of a (2r+1)^2 window; 0: raw", 0.0, 8.0},
+              {"tint_radius", ParamType::Int, "2", "reflection tints: mean over the same-surface pixels of a (2r+1)^2 window within the lobe-choice noise band; 0: raw", 0.0, 8.0},
               {"reflection_downsample", ParamType::Int, "4", "AM reduced-grid factor (1, 2, 4, ...) of the reflection levels; 0: as downsample", 0.0, 64.0},
               {"reflection_sum", ParamType::Bool, "false", "reflection levels: filter D + I as one layer (half the work)"},
               {"filter_color", ParamType::Bool, "false", "ablation: filter the colour instead of the illumination"},

@@ -23,31 +23,8 @@
 // overture inserts in a fixed order and the final pass reads the shared cache only, so the
 // image is bit-identical for any thread count (tiles are fixed by the image size).
 //
-// Parameters:
-//   pixel_samples        int    camera samples per pixel (stratified jitter), anti-aliasing
-//   direct_samples       int    light samples per camera sample for D
-//   gather_theta_cells   int    M, polar strata of a record's gather
-//   gather_phi_cells     int    N, azimuthal strata (M x N paths per record)
-//   kappa                float  Tabellion-Lamorlette accuracy (higher: smaller domains, more records)
-//   max_angle_degrees    float  normal deviation at which a record's angle error reaches 1 / kappa
-//   min_pixel_spacing    float  record radius lower bound, in pixels of projected footprint
-//   max_pixel_spacing    float  record radius upper bound, in pixels of projected footprint
-//   overture_stride      int    pixel stride of the first overture pass
-//   overture_min_stride  int    pixel stride of the last overture pass (strides halve)
-//   max_depth            int    path length of gather paths and specular chains (as the tracer)
-// Defaults: min spacing 2.5 px as pbrt-v2; the gather 48 x 144 = 6912 paths (pbrt-v2 uses
-// 4096: record noise dominated with coarser gathers); direct_samples, max_pixel_spacing, kappa
-// and pixel_samples from scripts/sweep_params.py on the training room (not an evaluation scene;
-// 256x192, 256 spp, 2048-spp reference), each candidate held to the path-traced input's render
-// time: 16 light samples x 64 camera samples and 15 px beat the earlier 2 x 64 and 30 px
-// (8-bit MSE 6.88 -> 3.89; docs/method-defaults.md). Direct-light noise was the larger part.
-//   gather_clamp         float  a gather cell brighter (luminance) than this times the gather's
-//                               mean is cut to that bound (ic::gather); 0: off. 300: the largest
-//                               value tried that fixes sponza's sun-caustic discs (1024x768 MSE
-//                               60.4 -> 29.2; 100 gives the same), neutral on the training room
-//                               (3.654 -> 3.651; 100: 3.728, 30: 5.69; docs/method-defaults.md)
-//   gradients            bool   gradient extrapolation and the gradient radius limit
-//   neighbor_clamp       bool   neighbour clamping of radii
+// Parameters: the ParamSpec list at the end of this file, the only place they are documented
+// (`denoisebench list methods` prints it); how the defaults were chosen: docs/method-defaults.md.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
