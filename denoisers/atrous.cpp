@@ -110,14 +110,7 @@ class Atrous final : public Method {
         filter_reflection_(p.b("filter_reflection")),
         firefly_ratio_(float(p.f("firefly_ratio"))) {}
 
-  std::vector<std::string> required_layers() const override {
-    auto layers = illumination_layers();
-    layers.push_back(layer::kNormal);
-    layers.push_back(layer::kDepth);
-    if (filter_reflection_)
-      for (const auto& l : reflection_guide_layers()) layers.push_back(l);
-    return layers;
-  }
+  std::vector<std::string> required_layers() const override { return illumination_filter_layers(filter_reflection_); }
 
   MethodResult execute(const MethodInput& in) override {
     MethodResult r;
