@@ -81,17 +81,18 @@ std::uint64_t guide_seed(ConstImageView g) {
   return h;
 }
 
-AmRun::AmRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
+AmRunShape::AmRunShape(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
     : s_(s), W_(src.width), H_(src.height), C_(src.channels), D_(guide.channels), queries_(queries) {
-  if (guide.width != W_ || guide.height != H_) throw WorkError("am_filter: guide and source differ in size");
-  if (!(s.sigma_s >= 1.0) || !(s.sigma_r > 0.0)) throw WorkError("am_filter: needs sigma_s >= 1 and sigma_r > 0");
-  height_ = s.tree_height > 0 ? std::min(s.tree_height, 12) : std::min(am_tree_height(s.sigma_s, s.sigma_r), 12);
+  height_ = std::min(s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r), 12);
   df_ = s.downsample > 0 ? s.downsample : am_downsample_factor(s.sigma_s, s.sigma_r);
-  grid_ = ReducedGrid(W_, H_, df_);
-  sw_ = grid_.sw;
-  sh_ = grid_.sh;
+  sw_ = (W_ + df_ - 1) / df_;
+  sh_ = (H_ + df_ - 1) / df_;
   inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
   seed_ = guide_seed(guide);
+}
+
+AmRun::AmRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
+    : AmRunShape(src, guide, s, queries), grid_(W_, H_, df_) {
   copy_and_low_pass_guide(src, guide);
   acc_ = Planes(W_, H_, C_ + 1);
   label_.assign(std::size_t(W_) * H_, 1);
@@ -293,6 +294,10 @@ std::vector<float> split_direction(const std::vector<double>& cov, int D, std::u
 Image am_filter(ConstImageView src, ConstImageView guide, const AmSettings& settings,
                 const std::vector<AmQuery>& queries, std::vector<float>* query_out) {
   if (src.empty()) return Image(src.width, src.height, src.channels);
+  if (guide.width != src.width || guide.height != src.height)
+    throw WorkError("am_filter: guide and source differ in size");
+  if (!(settings.sigma_s >= 1.0) || !(settings.sigma_r > 0.0))
+    throw WorkError("am_filter: needs sigma_s >= 1 and sigma_r > 0");
   am_detail::AmRun run(src, guide, settings, queries);
   return run.run(query_out);
 }

@@ -91,16 +91,10 @@ cl::Buffer buffer(cl::Context& ctx, const std::vector<T>& v) {
                     const_cast<T*>(v.data()));
 }
 
-class ClRun {
+class ClRun : private am_detail::AmRunShape {
  public:
   ClRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
-      : st_(state()), s_(s), W_(src.width), H_(src.height), C_(src.channels), D_(guide.channels), queries_(queries) {
-    height_ = std::min(s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r), 12);
-    df_ = s.downsample > 0 ? s.downsample : am_downsample_factor(s.sigma_s, s.sigma_r);
-    sw_ = (W_ + df_ - 1) / df_;
-    sh_ = (H_ + df_ - 1) / df_;
-    inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
-    seed_ = am_detail::guide_seed(guide);
+      : AmRunShape(src, guide, s, queries), st_(state()) {
     prog_ = st_.program(D_, C_);
     auto& ctx = st_.context;
     const std::size_t N = std::size_t(W_) * H_;
@@ -282,12 +276,6 @@ class ClRun {
   }
 
   ClState& st_;
-  AmSettings s_;
-  int W_, H_, C_, D_;
-  const std::vector<AmQuery>& queries_;
-  int height_ = 2, df_ = 1, sw_ = 1, sh_ = 1;
-  float inv_sr2_ = 1;
-  std::uint64_t seed_ = 0;
   cl::Program prog_;
   cl::Buffer guide_, src_, acc_, w_, min_d2_, label_, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, cov_, cov_rows_, ah_, av_;
   cl::Buffer qxy_, qguide_, qacc_, qmin_;

@@ -32,7 +32,7 @@ namespace dnb::am_detail {
 // fixed by the code (no -ffast-math), and a fixed order also keeps the result bit-identical.
 inline constexpr int kLanes = 16;
 
-class AmRun {
+class AmRun : private AmRunShape {
  public:
   AmRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries);
   ~AmRun();
@@ -121,12 +121,6 @@ class AmRun {
     }
   }
 
-  AmSettings s_;
-  int W_, H_, C_, D_;
-  const std::vector<AmQuery>& queries_;
-  int height_ = 2, df_ = 1, sw_ = 1, sh_ = 1;
-  float inv_sr2_ = 1;
-  std::uint64_t seed_ = 0;
   ReducedGrid grid_;
   Planes guide_, src_, acc_, eta_full_;  // eta_full_: the first manifold, full resolution
   std::vector<float> min_d2_;
