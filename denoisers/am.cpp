@@ -14,27 +14,16 @@
 namespace dnb {
 namespace {
 
-class Am final : public Method {
+class Am final : public ColourAmMethod {
  public:
-  explicit Am(const Params& p) : settings_(read_colour_am(p)) {}
-
-  std::vector<std::string> required_layers() const override { return {layer::kColor}; }
-
-  MethodResult execute(const MethodInput& in) override {
-    MethodResult r;
-    const Image& color = in.frame->layer(layer::kColor);
-    const Image guide = colour_am_guide(color, settings_.range_map, r.stats);
-    const AmSettings& s = settings_.am;
-    {
-      ScopedPhase p(r.stats, "adaptive_manifolds");
-      r.image = am_filter(color.cview(), guide.cview(), s);
-    }
-    r.stats.counters["tree_height"] = s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r);
-    return r;
-  }
+  using ColourAmMethod::ColourAmMethod;
 
  private:
-  ColourAmSettings settings_;
+  Image filter(const Image& color, const Image& guide, MethodStats& stats) const override {
+    const AmSettings& s = settings();
+    stats.counters["tree_height"] = s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r);
+    return am_filter(color.cview(), guide.cview(), s);
+  }
 };
 
 }  // namespace
@@ -67,6 +56,15 @@ Image colour_am_guide(const Image& color, RangeMap map, MethodStats& stats) {
   ScopedPhase p(stats, "guide");
   compress(map, guide);
   return guide;
+}
+
+MethodResult ColourAmMethod::execute(const MethodInput& in) {
+  MethodResult r;
+  const Image& color = in.frame->layer(layer::kColor);
+  const Image guide = colour_am_guide(color, settings_.range_map, r.stats);
+  ScopedPhase p(r.stats, "adaptive_manifolds");
+  r.image = filter(color, guide, r.stats);
+  return r;
 }
 
 MethodInfo am_method() {

@@ -24,4 +24,21 @@ ColourAmSettings read_colour_am(const Params& p);
 // The guide: the colour compressed by `map` (timed as the phase "guide").
 Image colour_am_guide(const Image& color, RangeMap map, MethodStats& stats);
 
+// Both methods' frame: the colour in, the guide made (colour_am_guide), the filter timed as
+// the phase "adaptive_manifolds". A method supplies the filter.
+class ColourAmMethod : public Method {
+ public:
+  explicit ColourAmMethod(const Params& p) : settings_(read_colour_am(p)) {}
+  std::vector<std::string> required_layers() const override { return {layer::kColor}; }
+  MethodResult execute(const MethodInput& in) final;
+
+ protected:
+  // The filtered colour, guided by the compressed colour; counters go into stats.
+  virtual Image filter(const Image& color, const Image& guide, MethodStats& stats) const = 0;
+  const AmSettings& settings() const { return settings_.am; }
+
+ private:
+  ColourAmSettings settings_;
+};
+
 }  // namespace dnb

@@ -19,52 +19,42 @@
 namespace dnb {
 namespace {
 
-class AmOpenCv final : public Method {
+class AmOpenCv final : public ColourAmMethod {
  public:
-  explicit AmOpenCv(const Params& p) : settings_(read_colour_am(p)) {}
+  using ColourAmMethod::ColourAmMethod;
 
-  std::vector<std::string> required_layers() const override { return {layer::kColor}; }
-
-  MethodResult execute(const MethodInput& in) override {
-    MethodResult r;
-    const Image& color = in.frame->layer(layer::kColor);
-    const Image guide = colour_am_guide(color, settings_.range_map, r.stats);
-    const AmSettings& s = settings_.am;
-    {
-      ScopedPhase p(r.stats, "adaptive_manifolds");
-      auto amf = cv::ximgproc::AdaptiveManifoldFilter::create();
-      amf->setSigmaS(s.sigma_s);
-      amf->setSigmaR(s.sigma_r);
-      amf->setTreeHeight(s.tree_height > 0 ? s.tree_height : -1);
-      amf->setPCAIterations(s.pca_iterations);
-      amf->setAdjustOutliers(s.adjust_outliers);
-      amf->setUseRNG(true);
-      // OpenCV's reduced grid has round(size / df) pixels and asserts on 0: small images are
-      // padded (edge pixels replicated) to 2 df and cropped back.
-      const int df = am_downsample_factor(s.sigma_s, s.sigma_r);
-      const int pw = std::max(0, 2 * df - color.width()), ph = std::max(0, 2 * df - color.height());
-      cv::Mat src = as_mat(color), joint = as_mat(guide), out;
-      if (pw || ph) {
-        cv::copyMakeBorder(as_mat(color), src, 0, ph, 0, pw, cv::BORDER_REPLICATE);
-        cv::copyMakeBorder(as_mat(guide), joint, 0, ph, 0, pw, cv::BORDER_REPLICATE);
-      }
-      amf->filter(src, out, joint);
-      r.image = from_mat(out(cv::Rect(0, 0, color.width(), color.height())).clone());
+ private:
+  Image filter(const Image& color, const Image& guide, MethodStats& stats) const override {
+    const AmSettings& s = settings();
+    auto amf = cv::ximgproc::AdaptiveManifoldFilter::create();
+    amf->setSigmaS(s.sigma_s);
+    amf->setSigmaR(s.sigma_r);
+    amf->setTreeHeight(s.tree_height > 0 ? s.tree_height : -1);
+    amf->setPCAIterations(s.pca_iterations);
+    amf->setAdjustOutliers(s.adjust_outliers);
+    amf->setUseRNG(true);
+    // OpenCV's reduced grid has round(size / df) pixels and asserts on 0: small images are
+    // padded (edge pixels replicated) to 2 df and cropped back.
+    const int df = am_downsample_factor(s.sigma_s, s.sigma_r);
+    const int pw = std::max(0, 2 * df - color.width()), ph = std::max(0, 2 * df - color.height());
+    cv::Mat src = as_mat(color), joint = as_mat(guide), out;
+    if (pw || ph) {
+      cv::copyMakeBorder(as_mat(color), src, 0, ph, 0, pw, cv::BORDER_REPLICATE);
+      cv::copyMakeBorder(as_mat(guide), joint, 0, ph, 0, pw, cv::BORDER_REPLICATE);
     }
+    amf->filter(src, out, joint);
+    Image image = from_mat(out(cv::Rect(0, 0, color.width(), color.height())).clone());
     // OpenCV divides by zero when a split leaves a cluster empty (a flat guide, e.g. a constant
     // image): those pixels come back NaN. They keep their input value, counted.
     std::size_t repaired = 0;
-    for (std::size_t k = 0; k < r.image.size(); ++k)
-      if (!std::isfinite(r.image.data()[k])) {
-        r.image.data()[k] = color.data()[k];
+    for (std::size_t k = 0; k < image.size(); ++k)
+      if (!std::isfinite(image.data()[k])) {
+        image.data()[k] = color.data()[k];
         ++repaired;
       }
-    r.stats.counters["opencv_nonfinite_outputs"] = double(repaired);
-    return r;
+    stats.counters["opencv_nonfinite_outputs"] = double(repaired);
+    return image;
   }
-
- private:
-  ColourAmSettings settings_;
 };
 
 }  // namespace
