@@ -12,9 +12,9 @@
 #include <cmath>
 
 #include <opencv2/core.hpp>
-#include <opencv2/ximgproc/edge_filter.hpp>
 
 #include "denoisers/am_colour.h"
+#include "denoisers/am_opencv.h"
 
 namespace dnb {
 namespace {
@@ -26,12 +26,7 @@ class AmOpenCv final : public ColourAmMethod {
  private:
   Image filter(const Image& color, const Image& guide, MethodStats& stats) const override {
     const AmSettings& s = settings();
-    auto amf = cv::ximgproc::AdaptiveManifoldFilter::create();
-    amf->setSigmaS(s.sigma_s);
-    amf->setSigmaR(s.sigma_r);
-    amf->setTreeHeight(s.tree_height > 0 ? s.tree_height : -1);
-    amf->setPCAIterations(s.pca_iterations);
-    amf->setAdjustOutliers(s.adjust_outliers);
+    auto amf = opencv_am_filter(s);
     amf->setUseRNG(true);
     // OpenCV's reduced grid has round(size / df) pixels and asserts on 0: small images are
     // padded (edge pixels replicated) to 2 df and cropped back.
@@ -58,6 +53,16 @@ class AmOpenCv final : public ColourAmMethod {
 };
 
 }  // namespace
+
+cv::Ptr<cv::ximgproc::AdaptiveManifoldFilter> opencv_am_filter(const AmSettings& s) {
+  auto amf = cv::ximgproc::AdaptiveManifoldFilter::create();
+  amf->setSigmaS(s.sigma_s);
+  amf->setSigmaR(s.sigma_r);
+  amf->setTreeHeight(s.tree_height > 0 ? s.tree_height : -1);
+  amf->setPCAIterations(s.pca_iterations);
+  amf->setAdjustOutliers(s.adjust_outliers);
+  return amf;
+}
 
 MethodInfo am_opencv_method() {
   return {
