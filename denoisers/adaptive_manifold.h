@@ -101,6 +101,19 @@ std::uint64_t guide_seed(ConstImageView guide);
 // Leading eigenvector of the D x D covariance `cov` (row-major, symmetric) by `iterations`
 // power-iteration steps from a start vector drawn from seed and tree node `id`.
 std::vector<float> split_direction(const std::vector<double>& cov, int D, std::uint64_t seed, int id, int iterations);
+
+// What a run on either path derives from its input and settings before it starts: sizes, the
+// tree height, the reduced grid's factor and size, 1 / sigma_r^2 and the split vectors' seed.
+// The base of the CPU run (am_run.h) and the OpenCL one (adaptive_manifold_cl.cpp).
+struct AmRunShape {
+  AmRunShape(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries);
+  AmSettings s_;
+  int W_, H_, C_, D_;
+  const std::vector<AmQuery>& queries_;
+  int height_ = 2, df_ = 1, sw_ = 1, sh_ = 1;
+  float inv_sr2_ = 1;
+  std::uint64_t seed_ = 0;
+};
 }  // namespace am_detail
 
 }  // namespace dnb

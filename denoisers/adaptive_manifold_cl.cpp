@@ -13,6 +13,7 @@
 #include <mutex>
 
 #include "denoisers/adaptive_manifold_cl_source.h"
+#include "denoisers/am_grid.h"
 #endif
 
 namespace dnb {
@@ -90,16 +91,10 @@ cl::Buffer buffer(cl::Context& ctx, const std::vector<T>& v) {
                     const_cast<T*>(v.data()));
 }
 
-class ClRun {
+class ClRun : private am_detail::AmRunShape {
  public:
   ClRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
-      : st_(state()), s_(s), W_(src.width), H_(src.height), C_(src.channels), D_(guide.channels), queries_(queries) {
-    height_ = std::min(s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r), 12);
-    df_ = s.downsample > 0 ? s.downsample : am_downsample_factor(s.sigma_s, s.sigma_r);
-    sw_ = (W_ + df_ - 1) / df_;
-    sh_ = (H_ + df_ - 1) / df_;
-    inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
-    seed_ = am_detail::guide_seed(guide);
+      : AmRunShape(src, guide, s, queries), st_(state()) {
     prog_ = st_.program(D_, C_);
     auto& ctx = st_.context;
     const std::size_t N = std::size_t(W_) * H_;
@@ -117,19 +112,10 @@ class ClRun {
     min_d2_ = buffer(ctx, std::vector<float>(s.adjust_outliers ? N : 1, INFINITY));
     label_ = buffer(ctx, std::vector<cl_ushort>(N, 1));
     // The CPU path's bilinear tables.
-    auto table = [&](int n, int small, std::vector<int>& i0, std::vector<int>& i1, std::vector<float>& fr) {
-      i0.resize(n), i1.resize(n), fr.resize(n);
-      for (int x = 0; x < n; ++x) {
-        const float u = std::clamp((x + 0.5f) / df_ - 0.5f, 0.0f, float(small - 1));
-        i0[x] = std::min(int(u), small - 1);
-        i1[x] = std::min(i0[x] + 1, small - 1);
-        fr[x] = u - float(i0[x]);
-      }
-    };
     std::vector<int> x0, x1, y0, y1;
     std::vector<float> fx, fy;
-    table(W_, sw_, x0, x1, fx);
-    table(H_, sh_, y0, y1, fy);
+    am_detail::bilinear_table(W_, sw_, df_, x0, x1, fx);
+    am_detail::bilinear_table(H_, sh_, df_, y0, y1, fy);
     tx0_ = buffer(ctx, x0), tx1_ = buffer(ctx, x1), tfx_ = buffer(ctx, fx);
     ty0_ = buffer(ctx, y0), ty1_ = buffer(ctx, y1), tfy_ = buffer(ctx, fy);
     cov_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sw_) * sh_ * D_ * D_);
@@ -290,12 +276,6 @@ class ClRun {
   }
 
   ClState& st_;
-  AmSettings s_;
-  int W_, H_, C_, D_;
-  const std::vector<AmQuery>& queries_;
-  int height_ = 2, df_ = 1, sw_ = 1, sh_ = 1;
-  float inv_sr2_ = 1;
-  std::uint64_t seed_ = 0;
   cl::Program prog_;
   cl::Buffer guide_, src_, acc_, w_, min_d2_, label_, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, cov_, cov_rows_, ah_, av_;
   cl::Buffer qxy_, qguide_, qacc_, qmin_;

@@ -7,73 +7,72 @@
 // Gastal and Oliveira's sigma_r = 0.2 for [0, 1] images keeps its meaning); the filtered
 // values are the linear colour itself, so the weighted means are unbiased (no Jensen darkening).
 //
-// Parameters. Defaults from scripts/sweep_params.py on the training scene mcguire-cornell-box
-// (384x288, 64 spp, 512-spp reference; 8-bit MSE 21.7 at Gastal and Oliveira's sigma_s 16 /
-// sigma_r 0.2-like start -> 5.47 at sigma_s 4, sigma_r 0.05, outlier adjustment on); re-sweep
-// at 1024x768 when time allows. am_opencv keeps the same defaults.
-//   sigma_s         float   spatial standard deviation, pixels
-//   sigma_r         float   range standard deviation, compressed-colour units
-//   tree_height     int     manifold tree height; 0: from sigma_s and sigma_r (their eq. 10)
-//   pca_iterations  int     power-iteration steps of each split
-//   adjust_outliers bool    their eq. 11 (pixels far from every manifold keep more of themselves)
-//   range_map       string  domain of the guide: linear, log, reinhard, srgb
-#include "denoisers/adaptive_manifold.h"
-#include "denoisers/hdr_mapping.h"
-#include "denoisers/method.h"
+// Parameters: the ParamSpec list below, shared with am_opencv (am_colour.h); `denoisebench list
+// methods` prints it. How the defaults were chosen: docs/method-defaults.md.
+#include "denoisers/am_colour.h"
 
 namespace dnb {
 namespace {
 
-class Am final : public Method {
+class Am final : public ColourAmMethod {
  public:
-  explicit Am(const Params& p) : map_(parse_range_map(p.s("range_map"))) {
-    s_.sigma_s = p.f("sigma_s");
-    s_.sigma_r = p.f("sigma_r");
-    s_.tree_height = p.i("tree_height");
-    s_.pca_iterations = p.i("pca_iterations");
-    s_.adjust_outliers = p.b("adjust_outliers");
-  }
-
-  std::vector<std::string> required_layers() const override { return {layer::kColor}; }
-
-  MethodResult execute(const MethodInput& in) override {
-    MethodResult r;
-    const Image& color = in.frame->layer(layer::kColor);
-    Image guide = color;
-    {
-      ScopedPhase p(r.stats, "guide");
-      compress(map_, guide);
-    }
-    {
-      ScopedPhase p(r.stats, "adaptive_manifolds");
-      r.image = am_filter(color.cview(), guide.cview(), s_);
-    }
-    r.stats.counters["tree_height"] = s_.tree_height > 0 ? s_.tree_height : am_tree_height(s_.sigma_s, s_.sigma_r);
-    return r;
-  }
+  using ColourAmMethod::ColourAmMethod;
 
  private:
-  AmSettings s_;
-  RangeMap map_;
+  Image filter(const Image& color, const Image& guide, MethodStats& stats) const override {
+    const AmSettings& s = settings();
+    stats.counters["tree_height"] = s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r);
+    return am_filter(color.cview(), guide.cview(), s);
+  }
 };
 
 }  // namespace
+
+std::vector<ParamSpec> colour_am_params(const std::string& pca_iterations_doc) {
+  return {
+      {"sigma_s", ParamType::Float, "4", "spatial standard deviation, pixels", 1.0, 512.0},
+      {"sigma_r", ParamType::Float, "0.05", "range standard deviation, compressed-colour units", 1e-3, 1.0},
+      {"tree_height", ParamType::Int, "0", "manifold tree height; 0: from sigma_s and sigma_r", 0.0, 12.0},
+      {"pca_iterations", ParamType::Int, "1", pca_iterations_doc, 1.0, 100.0},
+      {"adjust_outliers", ParamType::Bool, "true", "Gastal and Oliveira's outlier adjustment (eq. 11)"},
+      {"range_map", ParamType::String, "reinhard", "domain of the guide (denoisers/hdr_mapping.h)", {}, {},
+       range_map_names()},
+  };
+}
+
+ColourAmSettings read_colour_am(const Params& p) {
+  ColourAmSettings s;
+  s.am.sigma_s = p.f("sigma_s");
+  s.am.sigma_r = p.f("sigma_r");
+  s.am.tree_height = p.i("tree_height");
+  s.am.pca_iterations = p.i("pca_iterations");
+  s.am.adjust_outliers = p.b("adjust_outliers");
+  s.range_map = parse_range_map(p.s("range_map"));
+  return s;
+}
+
+Image colour_am_guide(const Image& color, RangeMap map, MethodStats& stats) {
+  Image guide = color;
+  ScopedPhase p(stats, "guide");
+  compress(map, guide);
+  return guide;
+}
+
+MethodResult ColourAmMethod::execute(const MethodInput& in) {
+  MethodResult r;
+  const Image& color = in.frame->layer(layer::kColor);
+  const Image guide = colour_am_guide(color, settings_.range_map, r.stats);
+  ScopedPhase p(r.stats, "adaptive_manifolds");
+  r.image = filter(color, guide, r.stats);
+  return r;
+}
 
 MethodInfo am_method() {
   return {
       .name = "am",
       .description = "adaptive-manifold filter (Gastal and Oliveira 2012) on the colour, guided by the compressed colour",
       .kind = MethodKind::Filter,
-      .params =
-          {
-              {"sigma_s", ParamType::Float, "4", "spatial standard deviation, pixels", 1.0, 512.0},
-              {"sigma_r", ParamType::Float, "0.05", "range standard deviation, compressed-colour units", 1e-3, 1.0},
-              {"tree_height", ParamType::Int, "0", "manifold tree height; 0: from sigma_s and sigma_r", 0.0, 12.0},
-              {"pca_iterations", ParamType::Int, "1", "power-iteration steps of each manifold split", 1.0, 100.0},
-              {"adjust_outliers", ParamType::Bool, "true", "Gastal and Oliveira's outlier adjustment (eq. 11)"},
-              {"range_map", ParamType::String, "reinhard", "domain of the guide (denoisers/hdr_mapping.h)", {}, {},
-               range_map_names()},
-          },
+      .params = colour_am_params("power-iteration steps of each manifold split"),
       .create = [](const Params& p) { return std::make_unique<Am>(p); },
   };
 }

@@ -22,20 +22,8 @@
 // of a pass reads only the previous pass, so rows run in parallel (TBB) and the output does not
 // depend on the thread count.
 //
-// Parameters (defaults from the sweep in docs/method-defaults.md):
-//   iterations         int     number of a-trous passes (tap spacing 1, 2, 4, ...)
-//   sigma_color        float   colour edge-stopping sigma of the first pass, compressed units
-//   sigma_normal       float   normal edge-stopping sigma (distance between unit normals)
-//   sigma_depth        float   depth edge-stopping sigma (relative depth difference)
-//   halve_color_sigma  bool    halve sigma_color after every pass (Dammertz et al.)
-//   range_map          string  domain of the colour distance: linear, log, reinhard, srgb
-//   filter_reflection  bool    also filter the reflection R (what mirrors show) with the same
-//                              passes, its edge-stopping on the first reflection level's normal and
-//                              depth (refl1.normal, refl1.depth); otherwise R passes through
-//   firefly_ratio      float   before filtering, pixels of L = D + I brighter than this times
-//                              their brightest neighbour are cut to that bound (the same cut as
-//                              proposed's, denoisers/illumination.h); 0: off. 3 from the training
-//                              room (docs/method-defaults.md): the baseline gets it too
+// Parameters: the ParamSpec list at the end of this file, the only place they are documented
+// (`denoisebench list methods` prints it); how the defaults were chosen: docs/method-defaults.md.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -122,14 +110,7 @@ class Atrous final : public Method {
         filter_reflection_(p.b("filter_reflection")),
         firefly_ratio_(float(p.f("firefly_ratio"))) {}
 
-  std::vector<std::string> required_layers() const override {
-    auto layers = illumination_layers();
-    layers.push_back(layer::kNormal);
-    layers.push_back(layer::kDepth);
-    if (filter_reflection_)
-      for (const auto& l : reflection_guide_layers()) layers.push_back(l);
-    return layers;
-  }
+  std::vector<std::string> required_layers() const override { return illumination_filter_layers(filter_reflection_); }
 
   MethodResult execute(const MethodInput& in) override {
     MethodResult r;

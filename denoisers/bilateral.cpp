@@ -11,11 +11,8 @@
 // gives a mean below the linear one, so noisy pixels come back slightly darker (Jensen's
 // inequality); `range_map=linear` avoids that bias at the price of the range problem above.
 //
-// Parameters (defaults from the sweep in docs/method-defaults.md):
-//   sigma_space  float   spatial Gaussian sigma, pixels
-//   sigma_color  float   range Gaussian sigma, in units of the compressed domain
-//   diameter     int     window diameter in pixels; 0: OpenCV's choice, 2 * round(1.5 sigma_space) + 1
-//   range_map    string  domain of the range kernel: linear, log, reinhard, srgb
+// Parameters: the ParamSpec list at the end of this file, the only place they are documented
+// (`denoisebench list methods` prints it); how the defaults were chosen: docs/method-defaults.md.
 #include <opencv2/imgproc.hpp>
 
 #include "core/errors.h"

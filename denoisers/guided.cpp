@@ -22,19 +22,8 @@
 // here. The image is processed in fixed bands of rows (with a halo of 2 radius rows), in parallel
 // over bands: memory stays small and the result does not depend on the thread count.
 //
-// Parameters (defaults from the sweep in docs/method-defaults.md):
-//   radius         int    window radius in pixels
-//   eps            float  regularisation of the fit (in squared guide units)
-//   albedo_weight  float  scale of the albedo guide channels (0: not used)
-//   normal_weight  float  scale of the normal guide channels (0: not used)
-//   depth_weight   float  scale of the median-normalised depth guide channel (0: not used)
-//   filter_reflection bool  also filter the reflection R (what mirrors show), with the same
-//                  filter guided by the first reflection level's layers (refl1.albedo, normal,
-//                  depth: the hit seen through the mirror); otherwise R passes through
-//   firefly_ratio  float  before filtering, pixels of L = D + I brighter than this times
-//                  their brightest neighbour are cut to that bound (the same cut as
-//                  proposed's, denoisers/illumination.h); 0: off. 3 from the training
-//                  room (docs/method-defaults.md): the baseline gets it too
+// Parameters: the ParamSpec list at the end of this file, the only place they are documented
+// (`denoisebench list methods` prints it); how the defaults were chosen: docs/method-defaults.md.
 #include <algorithm>
 #include <cmath>
 
@@ -97,14 +86,7 @@ class Guided final : public Method {
         filter_reflection_(p.b("filter_reflection")),
         firefly_ratio_(float(p.f("firefly_ratio"))) {}
 
-  std::vector<std::string> required_layers() const override {
-    auto layers = illumination_layers();
-    layers.push_back(layer::kNormal);
-    layers.push_back(layer::kDepth);
-    if (filter_reflection_)
-      for (const auto& l : reflection_guide_layers()) layers.push_back(l);
-    return layers;
-  }
+  std::vector<std::string> required_layers() const override { return illumination_filter_layers(filter_reflection_); }
 
   MethodResult execute(const MethodInput& in) override {
     MethodResult r;

@@ -25,6 +25,15 @@ std::vector<std::string> reflection_guide_layers() {
   return {layer::at_level(1, layer::kAlbedo), layer::at_level(1, layer::kNormal), layer::at_level(1, layer::kDepth)};
 }
 
+std::vector<std::string> illumination_filter_layers(bool filter_reflection) {
+  auto layers = illumination_layers();
+  layers.push_back(layer::kNormal);
+  layers.push_back(layer::kDepth);
+  if (filter_reflection)
+    for (const auto& l : reflection_guide_layers()) layers.push_back(l);
+  return layers;
+}
+
 Image compose(const Image& l, const AovFrame& frame) { return compose(l, frame, frame.layer(layer::kReflection)); }
 
 Image compose(const Image& l, const AovFrame& frame, const Image& r) {

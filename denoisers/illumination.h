@@ -29,6 +29,10 @@ Image compose(const Image& filtered_illumination, const AovFrame& frame, const I
 // A filter of R uses them as L's filter uses the level-0 layers.
 std::vector<std::string> reflection_guide_layers();
 
+// What a guided filter of L reads (guided, atrous): illumination_layers(), the normal and the
+// depth, and with filter_reflection also reflection_guide_layers() for the filter of R.
+std::vector<std::string> illumination_filter_layers(bool filter_reflection);
+
 // Depth divided by the median of its positive finite values, so that depth-based weights and
 // guides work the same in a room of 5 m and a hall of 50 m. Pixels that hit nothing (depth 0 or
 // not finite) get 0.

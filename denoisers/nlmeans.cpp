@@ -17,12 +17,8 @@
 // invisible to the weights: with srgb one code is about 0.9% of the value at x = 1 and 2.3% at
 // x = 0.1; with reinhard 2.4% at x = 1 and far more in highlights.
 //
-// Parameters (defaults from the sweep in docs/method-defaults.md):
-//   h                float   filter strength for lightness, in 8-bit code units
-//   h_color          float   filter strength for colour (CIELAB a, b)
-//   template_window  int     patch side in pixels (odd)
-//   search_window    int     search window side in pixels (odd)
-//   range_map        string  domain of the 8-bit mapping: reinhard or srgb (both bounded to [0, 1])
+// Parameters: the ParamSpec list at the end of this file, the only place they are documented
+// (`denoisebench list methods` prints it); how the defaults were chosen: docs/method-defaults.md.
 #include <algorithm>
 
 #include <fmt/format.h>

@@ -23,31 +23,8 @@
 // overture inserts in a fixed order and the final pass reads the shared cache only, so the
 // image is bit-identical for any thread count (tiles are fixed by the image size).
 //
-// Parameters:
-//   pixel_samples        int    camera samples per pixel (stratified jitter), anti-aliasing
-//   direct_samples       int    light samples per camera sample for D
-//   gather_theta_cells   int    M, polar strata of a record's gather
-//   gather_phi_cells     int    N, azimuthal strata (M x N paths per record)
-//   kappa                float  Tabellion-Lamorlette accuracy (higher: smaller domains, more records)
-//   max_angle_degrees    float  normal deviation at which a record's angle error reaches 1 / kappa
-//   min_pixel_spacing    float  record radius lower bound, in pixels of projected footprint
-//   max_pixel_spacing    float  record radius upper bound, in pixels of projected footprint
-//   overture_stride      int    pixel stride of the first overture pass
-//   overture_min_stride  int    pixel stride of the last overture pass (strides halve)
-//   max_depth            int    path length of gather paths and specular chains (as the tracer)
-// Defaults: min spacing 2.5 px as pbrt-v2; the gather 48 x 144 = 6912 paths (pbrt-v2 uses
-// 4096: record noise dominated with coarser gathers); direct_samples, max_pixel_spacing, kappa
-// and pixel_samples from scripts/sweep_params.py on the training room (not an evaluation scene;
-// 256x192, 256 spp, 2048-spp reference), each candidate held to the path-traced input's render
-// time: 16 light samples x 64 camera samples and 15 px beat the earlier 2 x 64 and 30 px
-// (8-bit MSE 6.88 -> 3.89; docs/method-defaults.md). Direct-light noise was the larger part.
-//   gather_clamp         float  a gather cell brighter (luminance) than this times the gather's
-//                               mean is cut to that bound (ic::gather); 0: off. 300: the largest
-//                               value tried that fixes sponza's sun-caustic discs (1024x768 MSE
-//                               60.4 -> 29.2; 100 gives the same), neutral on the training room
-//                               (3.654 -> 3.651; 100: 3.728, 30: 5.69; docs/method-defaults.md)
-//   gradients            bool   gradient extrapolation and the gradient radius limit
-//   neighbor_clamp       bool   neighbour clamping of radii
+// Parameters: the ParamSpec list at the end of this file, the only place they are documented
+// (`denoisebench list methods` prints it); how the defaults were chosen: docs/method-defaults.md.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -118,164 +95,206 @@ class IrradianceCacheRenderer final : public Method {
     rt::PathTracer::Options opt;
     opt.max_depth = max_depth_;
     const rt::PathTracer tracer(scene, opt);
-    const std::uint64_t seed = in.seed;
-    // World size of one pixel at unit distance from the camera (angle between neighbour rays).
-    const Ray r0 = scene.camera.generate_ray(W * 0.5f, H * 0.5f, W, H);
-    const Ray r1 = scene.camera.generate_ray(W * 0.5f + 1, H * 0.5f, W, H);
-    const float pixel_angle = rt::length(r1.dir - r0.dir);
+    Render run(scene, tracer, W, H, in.seed, cache_);
 
     MethodResult result;
-    IrradianceCache global(scene.bounds_min(), scene.bounds_max(), cache_);
-    std::atomic<std::int64_t> gathers{0}, wasted{0}, rays{0}, clamped_cells{0};
-
-    // One record's gather at a diffuse point; `key` makes its random numbers unique.
-    auto gather_at = [&](const ShadePoint& sp, std::uint64_t key) {
-      std::uint64_t local_rays = 0;
-      int cut = 0;
-      ic::GatherResult g = ic::gather(
-          sp.hit.ns, M_, N_,
-          [&](Vec3 dir, int cell) -> ic::GatherSample {
-            if (rt::dot(dir, sp.hit.ng) <= 0) return {Vec3(0.0f), 1e30f};  // below the true surface
-            rt::Sampler rng(seed ^ 0x6a09e667f3bcc909ULL, key, std::uint64_t(cell));
-            rt::PathContext ctx{rng};
-            rt::PathRadiance pr = tracer.incoming(Ray{sp.hit.spawn_origin(dir), dir, 1e30f}, ctx, 1);
-            local_rays += ctx.rays;
-            // First-hit emission is direct light, estimated by next-event estimation instead.
-            Vec3 L = rt::is_finite(pr.rest) ? pr.rest : Vec3(0.0f);
-            return {L, pr.first_distance};
-          },
-          [&](int cell) {
-            rt::Sampler rng(seed ^ 0xbb67ae8584caa73bULL, key, std::uint64_t(cell));
-            return std::array<float, 2>{rng.next(), rng.next()};
-          },
-          gather_clamp_, &cut);
-      ++gathers;
-      clamped_cells += cut;
-      rays += std::int64_t(local_rays);
-      return g;
-    };
-    auto bounds_at = [&](const ShadePoint& sp) {
-      const float fp = pixel_angle * sp.path_length;
-      return ic::RadiusBounds{min_spacing_ * fp, max_spacing_ * fp};
-    };
-
-    // ---- 1. overture ----
-    std::int64_t overture_records = 0;
     {
       ScopedPhase phase(result.stats, "overture");
-      struct Candidate {
-        ShadePoint sp;
-        ic::GatherResult g;
-        bool needed = false;
-      };
-      int pass = 0;
-      for (int s = stride_; s >= min_stride_; s /= 2, ++pass) {
-        const int nx = (W + s - 1) / s, ny = (H + s - 1) / s;
-        std::vector<std::vector<Candidate>> cand(std::size_t(nx) * ny);
-        tbb::parallel_for(0, nx * ny, [&](int c) {
-          rt::enable_flush_to_zero();
-          const int x = std::min(W - 1, (c % nx) * s + s / 2), y = std::min(H - 1, (c / nx) * s + s / 2);
-          std::vector<ShadePoint> pts;
-          follow(scene, scene.camera.generate_ray(x + 0.5f, y + 0.5f, W, H), Vec3(1.0f), 0.0f, 0, pts);
-          for (std::size_t i = 0; i < pts.size(); ++i) {
-            Vec3 e;
-            if (global.interpolate(pts[i].hit.p, pts[i].hit.ns, e)) continue;
-            const std::uint64_t key = key_of(1 + pass, std::uint64_t(y) * W + x, 0, i);
-            cand[c].push_back({pts[i], gather_at(pts[i], key), true});
-          }
-        });
-        for (auto& list : cand)  // in pixel order: the cache does not depend on thread timing
-          for (Candidate& k : list) {
-            Vec3 e;
-            if (global.interpolate(k.sp.hit.p, k.sp.hit.ns, e)) {
-              ++wasted;
-              continue;
-            }
-            global.insert(k.sp.hit.p, k.sp.hit.ns, k.g, bounds_at(k.sp));
-            ++overture_records;
-          }
-        if (s == 1) break;
-      }
+      overture(run);
     }
-
-    // ---- 2. final pass ----
-    Image out(W, H, 3);
-    std::atomic<std::int64_t> final_records{0};
     {
       ScopedPhase phase(result.stats, "final");
-      const int tx = (W + kTile - 1) / kTile, ty = (H + kTile - 1) / kTile;
-      const int grid = std::max(1, int(std::floor(std::sqrt(double(pixel_samples_)))));
-      tbb::parallel_for(0, tx * ty, [&](int t) {
-        rt::enable_flush_to_zero();
-        IrradianceCache local(scene.bounds_min(), scene.bounds_max(), cache_);
-        std::vector<ShadePoint> pts;
-        ic::LightStrata strata(direct_samples_);  // direct light: stratified light samples
-        std::vector<std::array<float, 3>> light_u;
-        std::uint64_t tile_rays = 0;
-        const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
-        for (int y = y0; y < std::min(H, y0 + kTile); ++y)
-          for (int x = x0; x < std::min(W, x0 + kTile); ++x) {
-            const std::uint64_t pixel = std::uint64_t(y) * W + x;
-            Vec3 sum(0.0f);
-            for (int s = 0; s < pixel_samples_; ++s) {
-              rt::Sampler rng(seed, pixel, std::uint64_t(s));
-              float u = rng.next(), v = rng.next(), fx = u, fy = v;
-              if (s < grid * grid) {  // stratified jitter, as the tracer's camera samples
-                fx = (float(s % grid) + u) / float(grid);
-                fy = (float(s / grid) + v) / float(grid);
-              }
-              pts.clear();
-              Vec3 c = follow(scene, scene.camera.generate_ray(x + fx, y + fy, W, H), Vec3(1.0f), 0.0f, 0, pts);
-              for (std::size_t i = 0; i < pts.size(); ++i) {
-                const ShadePoint& sp = pts[i];
-                rt::PathContext ctx{rng};
-                light_u.resize(std::size_t(direct_samples_));
-                for (int d = 0; d < direct_samples_; ++d) {
-                  const ic::LightStrata::Numbers u = strata.next(d, [&] { return rng.next(); });
-                  light_u[std::size_t(d)] = {u.u0, u.u1, u.u2};
-                }
-                Vec3 direct = tracer.direct_white_sum(sp.hit, ctx, light_u.data(), direct_samples_);
-                direct *= 1.0f / float(direct_samples_);
-                tile_rays += ctx.rays;
-                Vec3 wsum(0.0f), e;
-                float w = 0;
-                global.accumulate(sp.hit.p, sp.hit.ns, wsum, w);
-                local.accumulate(sp.hit.p, sp.hit.ns, wsum, w);
-                if (w > 0) {
-                  e = wsum / w;
-                } else {
-                  const std::uint64_t key = key_of(0, pixel, std::uint64_t(s), i);
-                  std::size_t k = local.insert(sp.hit.p, sp.hit.ns, gather_at(sp, key), bounds_at(sp));
-                  e = local.records()[k].irradiance;
-                  ++final_records;
-                }
-                // The cache holds irradiance; a white Lambertian reflects E / pi.
-                c += sp.weight * sp.hit.albedo * (direct + e * rt::kInvPi);
-              }
-              if (rt::is_finite(c)) sum += c;
-            }
-            sum *= 1.0f / float(pixel_samples_);
-            float* px = out.pixel(x, y);
-            px[0] = sum.x;
-            px[1] = sum.y;
-            px[2] = sum.z;
-          }
-        rays += std::int64_t(tile_rays);
-      });
+      result.image = final_pass(run);
     }
-    result.image = std::move(out);
     auto& c = result.stats.counters;
-    c["records"] = double(overture_records + final_records.load());
-    c["records_overture"] = double(overture_records);
-    c["records_final"] = double(final_records.load());
-    c["gathers"] = double(gathers.load());
-    c["gather_cells_clamped"] = double(clamped_cells.load());
-    c["gathers_wasted"] = double(wasted.load());
-    c["gather_and_shadow_rays"] = double(rays.load());
+    c["records"] = double(run.overture_records + run.final_records.load());
+    c["records_overture"] = double(run.overture_records);
+    c["records_final"] = double(run.final_records.load());
+    c["gathers"] = double(run.gathers.load());
+    c["gather_cells_clamped"] = double(run.clamped_cells.load());
+    c["gathers_wasted"] = double(run.wasted.load());
+    c["gather_and_shadow_rays"] = double(run.rays.load());
     return result;
   }
 
  private:
+  // One render: the scene and tracer, the shared (overture) cache and the counters.
+  struct Render {
+    Render(const Scene& s, const rt::PathTracer& t, int w, int h, std::uint64_t seed_, const ic::CacheSettings& cs)
+        : scene(s), tracer(t), W(w), H(h), seed(seed_), global(s.bounds_min(), s.bounds_max(), cs) {
+      // World size of one pixel at unit distance from the camera (angle between neighbour rays).
+      const Ray r0 = scene.camera.generate_ray(W * 0.5f, H * 0.5f, W, H);
+      const Ray r1 = scene.camera.generate_ray(W * 0.5f + 1, H * 0.5f, W, H);
+      pixel_angle = rt::length(r1.dir - r0.dir);
+    }
+    const Scene& scene;
+    const rt::PathTracer& tracer;
+    int W, H;
+    std::uint64_t seed;
+    float pixel_angle = 0;
+    IrradianceCache global;
+    std::atomic<std::int64_t> gathers{0}, wasted{0}, rays{0}, clamped_cells{0}, final_records{0};
+    std::int64_t overture_records = 0;
+  };
+
+  // One record's gather at a diffuse point; `key` makes its random numbers unique.
+  ic::GatherResult gather_at(Render& run, const ShadePoint& sp, std::uint64_t key) const {
+    std::uint64_t local_rays = 0;
+    int cut = 0;
+    const std::uint64_t seed = run.seed;
+    ic::GatherResult g = ic::gather(
+        sp.hit.ns, M_, N_,
+        [&](Vec3 dir, int cell) -> ic::GatherSample {
+          if (rt::dot(dir, sp.hit.ng) <= 0) return {Vec3(0.0f), 1e30f};  // below the true surface
+          rt::Sampler rng(seed ^ 0x6a09e667f3bcc909ULL, key, std::uint64_t(cell));
+          rt::PathContext ctx{rng};
+          rt::PathRadiance pr = run.tracer.incoming(Ray{sp.hit.spawn_origin(dir), dir, 1e30f}, ctx, 1);
+          local_rays += ctx.rays;
+          // First-hit emission is direct light, estimated by next-event estimation instead.
+          Vec3 L = rt::is_finite(pr.rest) ? pr.rest : Vec3(0.0f);
+          return {L, pr.first_distance};
+        },
+        [&](int cell) {
+          rt::Sampler rng(seed ^ 0xbb67ae8584caa73bULL, key, std::uint64_t(cell));
+          return std::array<float, 2>{rng.next(), rng.next()};
+        },
+        gather_clamp_, &cut);
+    ++run.gathers;
+    run.clamped_cells += cut;
+    run.rays += std::int64_t(local_rays);
+    return g;
+  }
+
+  ic::RadiusBounds bounds_at(const Render& run, const ShadePoint& sp) const {
+    const float fp = run.pixel_angle * sp.path_length;
+    return ic::RadiusBounds{min_spacing_ * fp, max_spacing_ * fp};
+  }
+
+  // Pass 1, the overture: pixel centres on grids of stride overture_stride, /2, ... The
+  // uncovered points of a pass gather in parallel against the frozen cache, then are inserted
+  // in pixel order (a point an earlier record of the pass covers is dropped, counted as wasted).
+  void overture(Render& run) const {
+    struct Candidate {
+      ShadePoint sp;
+      ic::GatherResult g;
+      bool needed = false;
+    };
+    const int W = run.W, H = run.H;
+    int pass = 0;
+    for (int s = stride_; s >= min_stride_; s /= 2, ++pass) {
+      const int nx = (W + s - 1) / s, ny = (H + s - 1) / s;
+      std::vector<std::vector<Candidate>> cand(std::size_t(nx) * ny);
+      tbb::parallel_for(0, nx * ny, [&](int c) {
+        rt::enable_flush_to_zero();
+        const int x = std::min(W - 1, (c % nx) * s + s / 2), y = std::min(H - 1, (c / nx) * s + s / 2);
+        std::vector<ShadePoint> pts;
+        follow(run.scene, run.scene.camera.generate_ray(x + 0.5f, y + 0.5f, W, H), Vec3(1.0f), 0.0f, 0, pts);
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+          Vec3 e;
+          if (run.global.interpolate(pts[i].hit.p, pts[i].hit.ns, e)) continue;
+          const std::uint64_t key = key_of(1 + pass, std::uint64_t(y) * W + x, 0, i);
+          cand[c].push_back({pts[i], gather_at(run, pts[i], key), true});
+        }
+      });
+      for (auto& list : cand)  // in pixel order: the cache does not depend on thread timing
+        for (Candidate& k : list) {
+          Vec3 e;
+          if (run.global.interpolate(k.sp.hit.p, k.sp.hit.ns, e)) {
+            ++run.wasted;
+            continue;
+          }
+          run.global.insert(k.sp.hit.p, k.sp.hit.ns, k.g, bounds_at(run, k.sp));
+          ++run.overture_records;
+        }
+      if (s == 1) break;
+    }
+  }
+
+  // What one tile of the final pass keeps: its own cache (records only it sees) and buffers.
+  struct Tile {
+    Tile(const Scene& scene, const ic::CacheSettings& cs, int direct_samples)
+        : local(scene.bounds_min(), scene.bounds_max(), cs), strata(direct_samples) {}
+    IrradianceCache local;
+    std::vector<ShadePoint> pts;
+    ic::LightStrata strata;  // direct light: stratified light samples
+    std::vector<std::array<float, 3>> light_u;
+    std::uint64_t rays = 0;
+  };
+
+  // Pass 2, final: every pixel sample interpolates; a point no record covers gathers a new
+  // record kept in its tile's own cache (kTile x kTile pixels).
+  Image final_pass(Render& run) const {
+    const int W = run.W, H = run.H;
+    Image out(W, H, 3);
+    const int tx = (W + kTile - 1) / kTile, ty = (H + kTile - 1) / kTile;
+    tbb::parallel_for(0, tx * ty, [&](int t) {
+      rt::enable_flush_to_zero();
+      Tile tile(run.scene, cache_, direct_samples_);
+      const int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
+      for (int y = y0; y < std::min(H, y0 + kTile); ++y)
+        for (int x = x0; x < std::min(W, x0 + kTile); ++x) {
+          const Vec3 sum = pixel_radiance(run, tile, x, y);
+          float* px = out.pixel(x, y);
+          px[0] = sum.x;
+          px[1] = sum.y;
+          px[2] = sum.z;
+        }
+      run.rays += std::int64_t(tile.rays);
+    });
+    return out;
+  }
+
+  // The mean over pixel (x, y)'s camera samples (stratified jitter, as the tracer's).
+  Vec3 pixel_radiance(Render& run, Tile& tile, int x, int y) const {
+    const int grid = std::max(1, int(std::floor(std::sqrt(double(pixel_samples_)))));
+    const std::uint64_t pixel = std::uint64_t(y) * run.W + x;
+    Vec3 sum(0.0f);
+    for (int s = 0; s < pixel_samples_; ++s) {
+      rt::Sampler rng(run.seed, pixel, std::uint64_t(s));
+      float u = rng.next(), v = rng.next(), fx = u, fy = v;
+      if (s < grid * grid) {
+        fx = (float(s % grid) + u) / float(grid);
+        fy = (float(s / grid) + v) / float(grid);
+      }
+      tile.pts.clear();
+      Vec3 c = follow(run.scene, run.scene.camera.generate_ray(x + fx, y + fy, run.W, run.H), Vec3(1.0f), 0.0f, 0,
+                      tile.pts);
+      for (std::size_t i = 0; i < tile.pts.size(); ++i) shade(run, tile, tile.pts[i], rng, pixel, s, i, c);
+      if (rt::is_finite(c)) sum += c;
+    }
+    sum *= 1.0f / float(pixel_samples_);
+    return sum;
+  }
+
+  // Adds to c the light diffuse point `i` of sample s of `pixel` reflects: D by next-event
+  // estimation, I from the caches (a new record in the tile's cache when none covers it).
+  void shade(Render& run, Tile& tile, const ShadePoint& sp, rt::Sampler& rng, std::uint64_t pixel, int s,
+             std::size_t i, Vec3& c) const {
+    rt::PathContext ctx{rng};
+    tile.light_u.resize(std::size_t(direct_samples_));
+    for (int d = 0; d < direct_samples_; ++d) {
+      const ic::LightStrata::Numbers u = tile.strata.next(d, [&] { return rng.next(); });
+      tile.light_u[std::size_t(d)] = {u.u0, u.u1, u.u2};
+    }
+    Vec3 direct = run.tracer.direct_white_sum(sp.hit, ctx, tile.light_u.data(), direct_samples_);
+    direct *= 1.0f / float(direct_samples_);
+    tile.rays += ctx.rays;
+    Vec3 wsum(0.0f), e;
+    float w = 0;
+    run.global.accumulate(sp.hit.p, sp.hit.ns, wsum, w);
+    tile.local.accumulate(sp.hit.p, sp.hit.ns, wsum, w);
+    if (w > 0) {
+      e = wsum / w;
+    } else {
+      const std::uint64_t key = key_of(0, pixel, std::uint64_t(s), i);
+      std::size_t k = tile.local.insert(sp.hit.p, sp.hit.ns, gather_at(run, sp, key), bounds_at(run, sp));
+      e = tile.local.records()[k].irradiance;
+      ++run.final_records;
+    }
+    // The cache holds irradiance; a white Lambertian reflects E / pi.
+    c += sp.weight * sp.hit.albedo * (direct + e * rt::kInvPi);
+  }
+
   static std::uint64_t key_of(int phase, std::uint64_t pixel, std::uint64_t sample, std::size_t point) {
     return rt::mix64(rt::mix64(rt::mix64(std::uint64_t(phase) + 1) ^ pixel) ^ (sample * 64 + point));
   }

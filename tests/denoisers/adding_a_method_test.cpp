@@ -17,8 +17,7 @@
 // F' = L' * T + R + E. Textures stay sharp because only the lighting is blurred; lighting
 // edges (shadows, creases) are not protected. A teaching example, not a baseline.
 //
-// Parameters:
-//   sigma  float  Gaussian standard deviation in pixels
+// Parameters: the ParamSpec list at the end of this file (`denoisebench list methods`).
 #include <opencv2/imgproc.hpp>
 
 #include "denoisers/hdr_mapping.h"   // as_mat: an Image seen as a cv::Mat, no copy

@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 
 #include "denoisers/adaptive_manifold.h"
+#include "denoisers/am_opencv.h"
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/method.h"
 #include "denoisers/synthetic_frame.h"
@@ -59,12 +60,7 @@ Input make_input(int w, int h, std::uint64_t seed) {
 }
 
 Image opencv_am(const Image& src, const Image& guide, const AmSettings& s) {
-  auto amf = cv::ximgproc::AdaptiveManifoldFilter::create();
-  amf->setSigmaS(s.sigma_s);
-  amf->setSigmaR(s.sigma_r);
-  amf->setTreeHeight(s.tree_height > 0 ? s.tree_height : -1);
-  amf->setPCAIterations(s.pca_iterations);
-  amf->setAdjustOutliers(s.adjust_outliers);
+  auto amf = opencv_am_filter(s);
   std::vector<cv::Mat> planes;
   cv::split(as_mat(guide), planes);  // OpenCV takes more than 4 guide channels as a vector of planes
   cv::Mat out;
