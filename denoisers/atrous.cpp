@@ -223,7 +223,7 @@ MethodInfo atrous_method() {
               {"range_map", ParamType::String, "reinhard", "domain of the colour distance (denoisers/hdr_mapping.h)", {}, {},
                range_map_names()},
               {"filter_reflection", ParamType::Bool, "false", "also filter R, stopping on the refl1 normal/depth"},
-              {"firefly_ratio", ParamType::Float, "3", "cut pixels of L brighter than this times their brightest neighbour first (as proposed does); 0: off", 0.0, 1e6},
+              firefly_ratio_param(),
           },
       .create = [](const Params& p) { return std::make_unique<Atrous>(p); },
   };

@@ -254,7 +254,7 @@ MethodInfo guided_method() {
               {"normal_weight", ParamType::Float, "1", "scale of the normal guide channels (0: unused)", 0.0, 1e3},
               {"depth_weight", ParamType::Float, "3", "scale of the median-normalised depth guide (0: unused)", 0.0, 1e3},
               {"filter_reflection", ParamType::Bool, "false", "also filter R, guided by the refl1 albedo/normal/depth"},
-              {"firefly_ratio", ParamType::Float, "3", "cut pixels of L brighter than this times their brightest neighbour first (as proposed does); 0: off", 0.0, 1e6},
+              firefly_ratio_param(),
           },
       .create = [](const Params& p) { return std::make_unique<Guided>(p); },
   };

@@ -207,6 +207,11 @@ void clamp_luminance(float rgb[3], float bound) {
   for (int c = 0; c < 3; ++c) rgb[c] *= s;
 }
 
+ParamSpec firefly_ratio_param() {
+  return {"firefly_ratio", ParamType::Float, "3",
+          "cut pixels of L brighter than this times their brightest neighbour first (as proposed does); 0: off", 0.0, 1e6};
+}
+
 FireflySplit split_fireflies(Image layer, float ratio, bool with_excess) {
   const int w = layer.width(), h = layer.height();
   FireflySplit r;

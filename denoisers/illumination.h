@@ -10,6 +10,7 @@
 
 #include "core/aov_frame.h"
 #include "core/image.h"
+#include "denoisers/method.h"
 
 namespace dnb {
 
@@ -84,6 +85,9 @@ struct FireflySplit {
   std::size_t cut = 0;  // pixels cut
 };
 FireflySplit split_fireflies(Image layer, float ratio, bool with_excess = true);
+// The `firefly_ratio` parameter of the baselines that cut L's fireflies before filtering it, as
+// proposed does (atrous, guided): one spec, so its doc and bounds cannot drift apart.
+ParamSpec firefly_ratio_param();
 
 // Clamps the luminance of `rgb` to `bound` (scaling all channels alike).
 void clamp_luminance(float rgb[3], float bound);
