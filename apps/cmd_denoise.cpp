@@ -4,68 +4,43 @@
 // reads only the layers it needs, runs it through run_method and writes R,G,B atomically.
 // A renderer-type method (irradiance_cache) renders the frame's scene itself: the scene is the
 // one the frame's metadata names (or --scene), at the frame's size, seed and spp budget.
-#include <memory>
-
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
 
 #include "apps/commands.h"
-#include "core/errors.h"
-#include "core/exr_io.h"
-#include "core/version.h"
-#include "denoisers/method.h"
-#include "methods/inputs.h"
+#include "methods/denoise.h"
 
 namespace dnb::app {
 
 void add_denoise(CLI::App& app, Action& action) {
   auto* cmd = app.add_subcommand("denoise", "Run a method on an AOV frame and write the result as an RGB EXR");
   struct Opts {
-    std::string method, frame, output, scene;
+    DenoiseRequest request;
     std::vector<std::string> settings;
-    int threads = 0;
     bool json = false;
   };
   auto o = std::make_shared<Opts>();
-  cmd->add_option("METHOD", o->method, "method name (see: denoisebench list methods)")->required();
-  cmd->add_option("FRAME", o->frame, "AOV frame (EXR written by denoisebench render)")->required();
-  cmd->add_option("-o,--output", o->output, "output EXR (R,G,B), written atomically")->required();
+  cmd->add_option("METHOD", o->request.method, "method name (see: denoisebench list methods)")->required();
+  cmd->add_option("FRAME", o->request.frame, "AOV frame (EXR written by denoisebench render)")->required();
+  cmd->add_option("-o,--output", o->request.output, "output EXR (R,G,B), written atomically")->required();
   cmd->add_option("--set", o->settings, "method parameter as key=value (repeatable)");
-  cmd->add_option("--threads", o->threads, "worker threads (0: all cores; the image does not depend on it)")
+  cmd->add_option("--threads", o->request.threads, "worker threads (0: all cores; the image does not depend on it)")
       ->check(CLI::Range(0, 1024));
-  cmd->add_option("--scene", o->scene,
+  cmd->add_option("--scene", o->request.scene,
                   "renderer-type methods: scene to render (default: the scene named in the frame's metadata)");
   cmd->add_flag("--json", o->json, "print the statistics as JSON instead of text");
   cmd->callback([&action, o] {
     action = [o] {
-      const MethodRegistry& registry = MethodRegistry::global();
-      const auto settings = parse_settings(o->settings);
-      std::unique_ptr<Method> method = registry.create(o->method, settings);
-      const Params params = registry.parse_params(o->method, settings);
-      std::unique_ptr<tbb::global_control> limit;
-      if (o->threads > 0)
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, o->threads);
-
-      AovFrame frame = read_frame(o->frame, method->required_layers());
-      const auto scene = scene_for_method(registry.info(o->method), frame, o->scene, o->frame);
-      const MethodInput input = frame_input(frame, scene.get());
-      MethodResult r;
-      try {
-        r = run_method(*method, input);
-      } catch (const InputError& e) {
-        throw InputError(fmt::format("'{}': {}", o->frame, e.what()));
-      }
-      std::vector<std::pair<std::string, std::string>> attrs = {
-          {"method", o->method}, {"source_frame", o->frame}, {"build_version", DNB_VERSION " (" DNB_GIT_REVISION ")"}};
-      for (const auto& [k, v] : params.as_strings()) attrs.emplace_back("param." + k, v);
-      write_rgb(r.image, o->output, attrs);
-
+      DenoiseRequest q = o->request;
+      q.settings = parse_settings(o->settings);
+      const DenoiseOutcome d = denoise_file(q);
+      const MethodResult& r = d.result;
+      const Params& params = d.params;
       if (o->json) {
         nlohmann::json j;
-        j["method"] = o->method;
-        j["frame"] = o->frame;
-        j["output"] = o->output;
+        j["method"] = q.method;
+        j["frame"] = q.frame;
+        j["output"] = q.output;
         j["params"] = params.as_strings();
         j["total_seconds"] = r.stats.total_seconds;
         j["phases"] = nlohmann::json::array();
@@ -73,7 +48,7 @@ void add_denoise(CLI::App& app, Action& action) {
         j["counters"] = r.stats.counters;
         fmt::print("{}\n", j.dump(2));
       } else {
-        fmt::print("method {} on '{}' ({}x{}) -> '{}'\n", o->method, o->frame, frame.width(), frame.height(), o->output);
+        fmt::print("method {} on '{}' ({}x{}) -> '{}'\n", q.method, q.frame, d.width, d.height, q.output);
         for (const auto& [k, v] : params.as_strings()) fmt::print("  param    {:<20} {}\n", k, v);
         fmt::print("  total    {:<20} {:.6f} s\n", "execute", r.stats.total_seconds);
         for (const auto& [name, s] : r.stats.phases) fmt::print("  phase    {:<20} {:.6f} s\n", name, s);

@@ -134,7 +134,7 @@ struct MethodInfo {
 
 class MethodRegistry {
  public:
-  // The registry of built-in methods (denoisers/registry.cpp lists them).
+  // The registry of built-in methods (methods/registry.cpp lists them).
   static MethodRegistry& global();
   // Throws WorkError on a duplicate or empty name, a missing create function, a duplicate
   // parameter, or a default value that its own spec refuses.
@@ -167,7 +167,7 @@ class MethodRegistry {
 //   size, every sample finite (WorkError otherwise).
 MethodResult run_method(Method& method, const MethodInput& input);
 
-// Registers every built-in method (denoisers/registry.cpp).
+// Registers every built-in method (methods/registry.cpp).
 void register_builtin_methods(MethodRegistry& registry);
 
 // Parses "key=value" into a pair; InputError when there is no '=' or no key.

@@ -86,4 +86,14 @@ double unconverged_share(const Image& reference, const Image& reference_variance
 // pixel is unconverged.
 MetricResult mse_converged(const Image& image, const Image& reference, const Image* reference_variance);
 
+// `denoisebench metrics IMAGE REF`: IMAGE's R,G,B scored against REF's with every metric, the
+// reference's variance of the mean (variance.R/G/B) used when the file has it. InputErrors name
+// the file (and the channel): a missing channel, unequal sizes, a malformed variance.
+struct FileScores {
+  std::vector<std::pair<std::string, double>> values;  // every metric, in all_metrics() order
+  bool has_variance = false;          // mse_converged is NaN without it
+  double unconverged_share = 0;       // of the reference's pixels (when has_variance)
+};
+FileScores score_files(const std::string& image_path, const std::string& reference_path);
+
 }  // namespace dnb::metrics

@@ -17,7 +17,7 @@
 //   }
 //
 // Errors: an exception on one rank while others wait in a collective would hang the job; catch
-// it at the top of the command and call `abort_job` when size() > 1 (see apps/cmd_reference.cpp).
+// it at the top of the command and call `abort_job` when size() > 1 (see tracer/jobs.cpp, reference_file).
 #pragma once
 
 #include <cstddef>

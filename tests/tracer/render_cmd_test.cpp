@@ -47,6 +47,18 @@ TEST(RenderCommand, BadInputExitsWithTwoAndSaysWhy) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("12by8"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir.file("f.exr")));
+  // One size parser for render and reference (apps/args.h): a side that overflows an int is
+  // named as given, not wrapped to another number (it was reported as "1215752191x48").
+  for (const char* cmd : {"render", "reference"}) {
+    r = test::run_denoisebench(std::string(cmd) + " cornell-box --size 99999999999x48 -o " + dir.file("f.exr"));
+    EXPECT_EQ(r.exit_code, 2) << cmd;
+    EXPECT_NE(r.output.find("'99999999999x48'"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("1215752191"), std::string::npos) << r.output;
+    r = test::run_denoisebench(std::string(cmd) + " cornell-box --size 70000x70000 -o " + dir.file("f.exr"));
+    EXPECT_EQ(r.exit_code, 2) << cmd;
+    EXPECT_NE(r.output.find("1..65536"), std::string::npos) << r.output;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("f.exr")));
 }
 
 }  // namespace

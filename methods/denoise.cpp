@@ -1,0 +1,39 @@
+#include "methods/denoise.h"
+
+#include <memory>
+
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include "core/errors.h"
+#include "core/exr_io.h"
+#include "core/version.h"
+#include "methods/inputs.h"
+#include "tracer/scene.h"
+
+namespace dnb {
+
+DenoiseOutcome denoise_file(const DenoiseRequest& q) {
+  const MethodRegistry& registry = MethodRegistry::global();
+  std::unique_ptr<Method> method = registry.create(q.method, q.settings);
+  DenoiseOutcome out{registry.parse_params(q.method, q.settings), {}, 0, 0};
+  std::unique_ptr<tbb::global_control> limit;
+  if (q.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, q.threads);
+
+  AovFrame frame = read_frame(q.frame, method->required_layers());
+  const auto scene = scene_for_method(registry.info(q.method), frame, q.scene, q.frame);
+  try {
+    out.result = run_method(*method, frame_input(frame, scene.get()));
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("'{}': {}", q.frame, e.what()));
+  }
+  std::vector<std::pair<std::string, std::string>> attrs = {
+      {"method", q.method}, {"source_frame", q.frame}, {"build_version", DNB_VERSION " (" DNB_GIT_REVISION ")"}};
+  for (const auto& [k, v] : out.params.as_strings()) attrs.emplace_back("param." + k, v);
+  write_rgb(out.result.image, q.output, attrs);
+  out.width = frame.width();
+  out.height = frame.height();
+  return out;
+}
+
+}  // namespace dnb
