@@ -1,10 +1,14 @@
 #include "core/atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -39,27 +43,115 @@ AtomicOutput::~AtomicOutput() {
   }
 }
 
-void AtomicOutput::commit() {
-  // fsync so that a crash right after the rename cannot expose an empty file.
-  int fd = ::open(temp_.c_str(), O_RDONLY);
-  if (fd < 0)
-    throw WorkError(fmt::format("writing '{}': temporary file '{}' is missing", dest_, temp_));
-  ::fsync(fd);
+namespace {
+
+std::string reason() { return std::strerror(errno); }
+
+// fsync of the folder holding `path`, so that the rename itself survives a crash.
+void sync_folder(const std::string& path) {
+  fs::path dir = fs::path(path).parent_path();
+  if (dir.empty()) dir = ".";
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) throw WorkError(fmt::format("writing '{}': cannot open its folder to sync it: {}", path, reason()));
+  const int rc = ::fsync(fd);
+  const std::string why = rc == 0 ? "" : reason();
   ::close(fd);
+  // Some file systems refuse fsync on a folder (EINVAL): the rename is then as durable as they make it.
+  if (rc != 0 && errno != EINVAL) throw WorkError(fmt::format("writing '{}': cannot sync its folder: {}", path, why));
+}
+
+}  // namespace
+
+void AtomicOutput::write(const void* data, std::size_t size) {
+  const int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw WorkError(fmt::format("cannot write '{}': {}", dest_, reason()));
+  const char* p = static_cast<const char*>(data);
+  std::size_t left = size;
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string why = n < 0 ? reason() : "no progress";
+      ::close(fd);
+      throw WorkError(fmt::format("cannot write '{}' ({} of {} bytes written): {}", dest_, size - left, size, why));
+    }
+    p += n;
+    left -= std::size_t(n);
+  }
+  if (::fsync(fd) != 0) {
+    const std::string why = reason();
+    ::close(fd);
+    throw WorkError(fmt::format("cannot write '{}': fsync failed: {}", dest_, why));
+  }
+  if (::close(fd) != 0) throw WorkError(fmt::format("cannot write '{}': close failed: {}", dest_, reason()));
+  written_ = true;
+}
+
+void AtomicOutput::commit() {
+  if (!written_) {
+    // Written by another library: make it durable here and refuse an empty file (what a writer
+    // that lost its data to a full disk leaves behind).
+    const int fd = ::open(temp_.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw WorkError(fmt::format("writing '{}': temporary file '{}' is missing: {}", dest_, temp_, reason()));
+    struct stat st {};
+    const bool empty = ::fstat(fd, &st) == 0 && st.st_size == 0;
+    const int rc = ::fsync(fd);
+    const std::string why = rc == 0 ? "" : reason();
+    ::close(fd);
+    if (rc != 0) throw WorkError(fmt::format("cannot write '{}': fsync failed: {}", dest_, why));
+    if (empty) throw WorkError(fmt::format("cannot write '{}': the writer left an empty file", dest_));
+  }
   if (std::rename(temp_.c_str(), dest_.c_str()) != 0)
-    throw WorkError(fmt::format("cannot rename '{}' to '{}': {}", temp_, dest_, std::strerror(errno)));
+    throw WorkError(fmt::format("cannot rename '{}' to '{}': {}", temp_, dest_, reason()));
   committed_ = true;
+  sync_folder(dest_);
 }
 
 void write_text_atomic(const std::string& path, const std::string& content) {
   AtomicOutput out(path);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    f << content;
-    f.flush();
-    if (!f) throw WorkError(fmt::format("cannot write '{}'", path));
-  }
+  out.write(content);
   out.commit();
+}
+
+std::size_t remove_stale_temporaries(const std::string& dir) {
+  std::size_t removed = 0;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const auto tmp = name.find(".tmp-");
+    if (name.empty() || name[0] != '.' || tmp == std::string::npos || !it->is_regular_file()) continue;
+    const long pid = std::strtol(name.c_str() + tmp + 5, nullptr, 10);
+    if (pid <= 0 || pid == ::getpid() || ::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;
+    std::error_code rm;
+    if (fs::remove(it->path(), rm)) ++removed;
+  }
+  return removed;
+}
+
+FolderLock::FolderLock(const std::string& dir, const std::function<void(const std::string&)>& waiting) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  const std::string path = dir + "/.lock";
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw WorkError(fmt::format("cannot open the lock '{}': {}", path, std::strerror(errno)));
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    if (errno != EWOULDBLOCK) throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(errno)));
+    if (waiting) {
+      char buf[64] = {};
+      const ssize_t n = ::pread(fd_, buf, sizeof buf - 1, 0);
+      waiting(n > 0 ? std::string(buf, std::size_t(n)) : std::string("another process"));
+    }
+    while (::flock(fd_, LOCK_EX) != 0)
+      if (errno != EINTR) throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(errno)));
+  }
+  const std::string me = fmt::format("process {}", ::getpid());
+  if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, me.data(), me.size(), 0) != ssize_t(me.size())) {
+    // The holder's name is a courtesy for the waiting run's message; the lock holds without it.
+  }
+}
+
+FolderLock::~FolderLock() {
+  if (fd_ >= 0) ::close(fd_);  // releases the flock
 }
 
 std::string read_text_file(const std::string& path) {

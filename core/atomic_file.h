@@ -1,7 +1,17 @@
-// Atomic file output: write to a temporary name beside the destination, rename when complete.
-// A failed or interrupted write never leaves a half-written file under the destination name.
+// Atomic, durable file output: write to a temporary name beside the destination, check that
+// every byte reached the file, then rename. A failed or interrupted write never leaves a
+// half-written file under the destination name, and a write that failed (a full disk, a
+// quota, an I/O error) is reported with the system's reason, never silently committed.
+//
+//   AtomicOutput out("dir/result.json");
+//   out.write(bytes.data(), bytes.size());   // every write(2), fsync(2) and close(2) checked
+//   out.commit();                            // rename, then fsync the folder
+//
+// Writers that can encode to memory (OpenImageIO through an IOProxy, cv::imencode, text) hand
+// the bytes to write(); the temporary file is then written by this class alone.
 #pragma once
 
+#include <functional>
 #include <string>
 
 namespace dnb {
@@ -17,17 +27,45 @@ class AtomicOutput {
 
   const std::string& temp_path() const { return temp_; }
   const std::string& destination() const { return dest_; }
-  // Flushes the temporary file to disk and renames it over the destination.
+  // Writes `size` bytes as the whole temporary file and makes them durable: every write, the
+  // fsync and the close are checked; WorkError naming the destination and the system's reason
+  // (e.g. "No space left on device") otherwise.
+  void write(const void* data, std::size_t size);
+  void write(const std::string& bytes) { write(bytes.data(), bytes.size()); }
+  // Renames the temporary file over the destination and fsyncs the folder. When write() was not
+  // used (another library wrote temp_path() itself), the file is fsynced first and must not be
+  // empty. WorkError with the system's reason on any failure.
   void commit();
 
  private:
   std::string dest_;
   std::string temp_;
+  bool written_ = false;
   bool committed_ = false;
 };
 
-// Writes `content` to `path` atomically. Throws WorkError naming the path on failure.
+// Writes `content` to `path` atomically and durably. Throws WorkError naming the path and the
+// system's reason on failure.
 void write_text_atomic(const std::string& path, const std::string& content);
+// Removes the temporary files AtomicOutput left in `dir` (recursively) when their writer died
+// before committing or removing them (a kill -9): names of the form ".NAME.tmp-PID-N.EXT" whose
+// process PID no longer runs. Returns how many were removed.
+std::size_t remove_stale_temporaries(const std::string& dir);
+
+// An exclusive advisory lock (flock) on DIR/.lock, held for the object's lifetime and released
+// by the system if the process dies. A second holder waits; `waiting` is called once with the
+// process id the lock file names (written by the holder) before it waits.
+class FolderLock {
+ public:
+  FolderLock(const std::string& dir, const std::function<void(const std::string& holder)>& waiting = {});
+  ~FolderLock();
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 // Reads a whole file. Throws InputError naming the path when it cannot be read.
 std::string read_text_file(const std::string& path);
 

@@ -6,10 +6,12 @@
 #include <memory>
 
 #include <OpenImageIO/deepdata.h>
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <fmt/format.h>
 
 #include "core/atomic_file.h"
+#include "core/hash.h"
 #include "core/errors.h"
 
 namespace dnb {
@@ -85,15 +87,34 @@ std::string layer_of(const std::string& channel) {
   return dot == std::string::npos ? std::string(layer::kColor) : channel.substr(0, dot);
 }
 
-void write_image_file(const std::string& path, OIIO::ImageSpec spec, const float* data) {
-  AtomicOutput out(path);
-  auto o = OIIO::ImageOutput::create(out.temp_path());
+// Encodes through OpenImageIO into memory, so that AtomicOutput writes the file and checks every
+// write: OpenEXR's own file writer can lose data to a full disk and still close successfully
+// (a 4096-byte unreadable frame with exit status 0).
+template <class WriteFn>
+std::vector<unsigned char> encode(const std::string& path, const std::string& temp_path, const OIIO::ImageSpec& spec,
+                                  WriteFn&& write_pixels) {
+  auto o = OIIO::ImageOutput::create(temp_path);
   if (!o) throw WorkError(fmt::format("'{}': no image writer: {}", path, OIIO::geterror()));
-  spec.attribute("compression", "zip");
-  if (!o->open(out.temp_path(), spec) || !o->write_image(TypeDesc::FLOAT, data) || !o->close())
+  if (!o->supports("ioproxy")) throw WorkError(fmt::format("'{}': the {} writer cannot encode to memory", path, o->format_name()));
+  std::vector<unsigned char> bytes;
+  OIIO::Filesystem::IOVecOutput memory(bytes);
+  if (!o->set_ioproxy(&memory) || !o->open(temp_path, spec) || !write_pixels(*o) || !o->close())
     throw WorkError(fmt::format("'{}': write failed: {}", path, o->geterror()));
-  o.reset();
-  out.commit();
+  return bytes;
+}
+
+// The image written to its temporary file (every byte checked), not yet committed.
+std::unique_ptr<AtomicOutput> stage_image(const std::string& path, OIIO::ImageSpec spec, const float* data) {
+  auto out = std::make_unique<AtomicOutput>(path);
+  spec.attribute("compression", "zip");
+  const auto bytes =
+      encode(path, out->temp_path(), spec, [&](OIIO::ImageOutput& o) { return o.write_image(TypeDesc::FLOAT, data); });
+  out->write(bytes.data(), bytes.size());
+  return out;
+}
+
+void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, const float* data) {
+  stage_image(path, spec, data)->commit();
 }
 
 const char* kDeepChannels[] = {"normal.X", "normal.Y", "normal.Z", "Z",          "albedo.R",
@@ -110,7 +131,11 @@ void unpack(const float* v, EdgeSample& s) {
   for (int c = 0; c < 3; ++c) { s.albedo[c] = v[4 + c]; s.direct[c] = v[7 + c]; s.indirect[c] = v[10 + c]; }
 }
 
-void write_edges(const EdgeSubpixels& e, int width, int height, const std::string& path) {
+// The edge file written to its temporary file and read back, not yet committed; `digest` gets
+// the SHA-256 of its bytes (the frame records it, so that a reader never pairs a frame with
+// an edge file of another render).
+std::unique_ptr<AtomicOutput> stage_edges(const EdgeSubpixels& e, int width, int height, const std::string& path,
+                                          std::string& digest) {
   OIIO::ImageSpec spec(width, height, kDeepCount, TypeDesc::FLOAT);
   spec.deep = true;
   spec.channelnames.assign(std::begin(kDeepChannels), std::end(kDeepChannels));
@@ -125,12 +150,23 @@ void write_edges(const EdgeSubpixels& e, int width, int height, const std::strin
       pack(e.of(i)[s], v);
       for (int c = 0; c < kDeepCount; ++c) dd.set_deep_value(e.pixels[i], c, s, v[c]);
     }
-  AtomicOutput out(path);
-  auto o = OIIO::ImageOutput::create(out.temp_path());
-  if (!o || !o->open(out.temp_path(), spec) || !o->write_deep_image(dd) || !o->close())
+  // OpenImageIO's OpenEXR writer encodes deep images to files only (through an IOProxy it writes
+  // nothing and reports success), and it does not notice a full disk: the file is read back
+  // before it may be committed.
+  auto out = std::make_unique<AtomicOutput>(path);
+  auto o = OIIO::ImageOutput::create(out->temp_path());
+  if (!o || !o->open(out->temp_path(), spec) || !o->write_deep_image(dd) || !o->close())
     throw WorkError(fmt::format("'{}': deep write failed: {}", path, o ? o->geterror() : OIIO::geterror()));
   o.reset();
-  out.commit();
+  auto in = OIIO::ImageInput::open(out->temp_path());
+  OIIO::DeepData back;
+  if (!in || !in->read_native_deep_image(0, 0, back) || back.pixels() != dd.pixels() ||
+      back.all_samples().size() != dd.all_samples().size())
+    throw WorkError(fmt::format("cannot write '{}': the file did not read back ({})", path,
+                                in ? in->geterror() : OIIO::geterror()));
+  in.reset();
+  digest = sha256_file(out->temp_path());
+  return out;
 }
 
 EdgeSubpixels read_edges(const std::string& path, int width, int height) {
@@ -196,9 +232,18 @@ void write_frame(const AovFrame& frame, const std::string& path) {
   OIIO::ImageSpec spec(w, h, nch, TypeDesc::FLOAT);
   spec.channelnames = names;
   put_meta(spec, frame.meta, w, h, frame.edges ? frame.edges->size() : 0);
-  // The edge file first: a frame on disk that names an edge file always has it complete.
-  if (frame.edges) write_edges(*frame.edges, w, h, edges_path(path));
-  write_image_file(path, spec, buf.data());
+  // Both files are written in full (and checked) before either is committed; the edge file is
+  // committed first, so a frame on disk that names an edge file always has it complete, and the
+  // frame records the edge file's SHA-256 so that a stale one is never paired with it.
+  std::unique_ptr<AtomicOutput> edges;
+  if (frame.edges) {
+    std::string digest;
+    edges = stage_edges(*frame.edges, w, h, edges_path(path), digest);
+    spec.attribute(std::string(kAttrPrefix) + "edges_sha256", digest);
+  }
+  auto image = stage_image(path, spec, buf.data());
+  if (edges) edges->commit();
+  image->commit();
 }
 
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required) {
@@ -256,6 +301,10 @@ AovFrame read_frame(const std::string& path, const std::vector<std::string>& req
     if (!fs::exists(ep))
       throw InputError(fmt::format("'{}': header lists {} edge pixels but the edge file '{}' is missing",
                                    path, edge_pixels, ep));
+    if (const std::string want = attr_string(spec, "edges_sha256"); !want.empty() && sha256_file(ep) != want)
+      throw InputError(fmt::format("'{}': the edge file '{}' is not the one written with this frame (its SHA-256 "
+                                   "differs from the frame's record): render the frame again",
+                                   path, ep));
     frame.edges = read_edges(ep, w, h);
     if (frame.edges->size() != edge_pixels)
       throw InputError(fmt::format("'{}': holds {} edge pixels, '{}' lists {}", ep, frame.edges->size(),

@@ -39,8 +39,10 @@ void write_table(const std::string& dir, const std::string& stem, const Table& t
 
 void write_png(const cv::Mat& bgr8, const std::string& path) {
   fs::create_directories(fs::path(path).parent_path());
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", bgr8, png)) throw WorkError(fmt::format("cannot encode '{}' as PNG", path));
   AtomicOutput out(path);
-  if (!cv::imwrite(out.temp_path(), bgr8)) throw WorkError(fmt::format("cannot write '{}'", path));
+  out.write(png.data(), png.size());
   out.commit();
 }
 

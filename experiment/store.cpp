@@ -2,6 +2,8 @@
 
 #include <filesystem>
 
+#include <spdlog/spdlog.h>
+
 #include "core/atomic_file.h"
 #include "core/csv.h"
 #include "core/json_file.h"
@@ -31,8 +33,15 @@ std::vector<CellRecord> read_finished_cells(const std::string& path) {
 
 }  // namespace
 
-ResultsStore::ResultsStore(std::string dir, ResultsDocument header) : dir_(std::move(dir)), doc_(std::move(header)) {
+ResultsStore::ResultsStore(std::string dir, ResultsDocument header)
+    : dir_(std::move(dir)),
+      lock_(dir_, [this](const std::string& holder) {
+        spdlog::warn("results folder '{}' is in use by {}: waiting for it to finish", dir_, holder);
+      }),
+      doc_(std::move(header)) {
   doc_.records.clear();
+  if (const std::size_t n = remove_stale_temporaries(dir_))
+    spdlog::info("removed {} temporary files of runs that died in '{}'", n, dir_);
   for (const char* name : {"finished_cells.json", "results.json"}) {
     const std::string path = dir_ + "/" + name;
     if (!fs::exists(path)) continue;

@@ -3,11 +3,15 @@
 // keeps every cell ever finished in the folder, by cell key, so that a run that stops early
 // (killed, or a config listing fewer cells) does not forget the cells it had not reached. All
 // three are rewritten atomically after every cell: an interrupted run resumes from them.
+// The store holds the folder's lock (DIR/.lock) for its lifetime: a second run into the same
+// folder waits for the first, then starts from every cell the first finished, so no finished
+// cell is lost to two runs rewriting finished_cells.json at once.
 #pragma once
 
 #include <map>
 #include <string>
 
+#include "core/atomic_file.h"
 #include "experiment/results.h"
 
 namespace dnb::experiment {
@@ -16,9 +20,10 @@ inline constexpr const char* kFinishedCellsFormat = "denoisebench-finished-cells
 
 class ResultsStore {
  public:
-  // Reads finished cells from DIR's finished_cells.json and results.json when they exist (an
-  // InputError naming the file when one cannot be resumed from). `header` is this run's
-  // document without records.
+  // Takes DIR's lock (waiting, with a warning naming the holder, while another run has it),
+  // removes the temporary files of writers that died, then reads finished cells from DIR's
+  // finished_cells.json and results.json when they exist (an InputError naming the file when
+  // one cannot be resumed from). `header` is this run's document without records.
   ResultsStore(std::string dir, ResultsDocument header);
 
   // The finished record of `cell_key` (this run's or an earlier one's), or nullptr.
@@ -32,6 +37,7 @@ class ResultsStore {
 
  private:
   std::string dir_;
+  FolderLock lock_;
   ResultsDocument doc_;
   std::map<std::string, CellRecord> cells_;
 };

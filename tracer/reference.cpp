@@ -165,16 +165,12 @@ void write_checkpoint(const std::string& path, const Checkpoint& ck) {
   h["sum_sq_sha256"] = sha256_hex(s.sum_sq.data(), bytes);
   const std::string header = h.dump();
 
+  std::string content = fmt::format("{}\n{} {}\n{}", kCheckpointMagic, header.size(), sha256_hex(header), header);
+  content.append(reinterpret_cast<const char*>(s.sum.data()), bytes);
+  content.append(reinterpret_cast<const char*>(s.sum_sq.data()), bytes);
   AtomicOutput out(path);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    f << kCheckpointMagic << "\n" << header.size() << " " << sha256_hex(header) << "\n" << header;
-    f.write(reinterpret_cast<const char*>(s.sum.data()), std::streamsize(bytes));
-    f.write(reinterpret_cast<const char*>(s.sum_sq.data()), std::streamsize(bytes));
-    f.flush();
-    if (!f) throw WorkError(fmt::format("cannot write checkpoint '{}'", path));
-  }
-  out.commit();  // fsync, then rename over the previous checkpoint
+  out.write(content);  // every write checked, fsynced
+  out.commit();        // then renamed over the previous checkpoint
 }
 
 std::optional<Checkpoint> read_checkpoint(const std::string& path, std::string* damage) {
@@ -407,8 +403,15 @@ void write_reference(const Reference& ref, const std::string& exr_path, const st
   frame.meta = ref.meta;
   frame.set(layer::kColor, ref.color);
   frame.set(layer::kVariance, ref.variance);
+  // The log is written (and checked) before the image, and committed after it: a full disk
+  // fails the call before either file appears.
+  std::optional<AtomicOutput> csv;
+  if (!csv_path.empty()) {
+    csv.emplace(csv_path);
+    csv->write(convergence_csv(ref.convergence));
+  }
   write_frame(frame, exr_path);
-  if (!csv_path.empty()) write_text_atomic(csv_path, convergence_csv(ref.convergence));
+  if (csv) csv->commit();
 }
 
 }  // namespace dnb

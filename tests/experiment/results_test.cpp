@@ -3,7 +3,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <fstream>
+#include <thread>
+
+#include <unistd.h>
+
+#include <fmt/format.h>
 
 #include "core/errors.h"
 #include "experiment/results.h"
@@ -156,12 +163,14 @@ TEST(ResultsStore, KeepsEveryFinishedCellAcrossRunsAndRefusesAnOlderFolder) {
     ResultsStore store(dir.path().string(), header);
     store.add(method_record());
   }
-  // A second run of a config without that cell: it is not listed, but still known as finished.
-  ResultsStore again(dir.path().string(), header);
-  ASSERT_NE(again.finished("k1"), nullptr);
-  EXPECT_EQ(again.finished("k1")->to_json(), method_record().to_json());
-  EXPECT_TRUE(again.document().records.empty());
-  again.write();
+  {
+    // A second run of a config without that cell: it is not listed, but still known as finished.
+    ResultsStore again(dir.path().string(), header);
+    ASSERT_NE(again.finished("k1"), nullptr);
+    EXPECT_EQ(again.finished("k1")->to_json(), method_record().to_json());
+    EXPECT_TRUE(again.document().records.empty());
+    again.write();
+  }  // (one store at a time: each holds the folder's lock)
   ResultsStore third(dir.path().string(), header);
   EXPECT_NE(third.finished("k1"), nullptr) << "finished_cells.json lost a cell results.json no longer lists";
 
@@ -174,6 +183,52 @@ TEST(ResultsStore, KeepsEveryFinishedCellAcrossRunsAndRefusesAnOlderFolder) {
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), AllOf(HasSubstr("results.json"), HasSubstr("cannot be resumed"), HasSubstr("older")));
   }
+}
+
+TEST(ResultsStore, ASecondRunIntoTheFolderWaitsAndKeepsTheFirstRunsCells) {
+  // Before: finished_cells.json was read-modify-written without a lock, and two configs run at
+  // once into one folder left only one config's cells.
+  test::TempDir dir;
+  ResultsDocument header = document();
+  header.records.clear();
+  std::atomic<bool> second_started{false}, second_ready{false};
+  std::thread second;
+  {
+    ResultsStore first(dir.path().string(), header);
+    second = std::thread([&] {
+      second_started = true;
+      ResultsStore s(dir.path().string(), header);  // waits for `first`
+      second_ready = true;
+      EXPECT_NE(s.finished("k1"), nullptr) << "the second run did not see the first run's cell";
+      CellRecord other = method_record();
+      other.cell_key = "k2";
+      s.add(other);
+    });
+    while (!second_started) std::this_thread::yield();
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    EXPECT_FALSE(second_ready) << "a second store opened the folder while the first held it";
+    first.add(method_record());
+  }
+  second.join();
+  EXPECT_TRUE(second_ready);
+  ResultsStore after(dir.path().string(), header);
+  EXPECT_NE(after.finished("k1"), nullptr);
+  EXPECT_NE(after.finished("k2"), nullptr);
+}
+
+TEST(ResultsStore, RemovesTheTemporaryFilesOfWritersThatDied) {
+  test::TempDir dir;
+  std::filesystem::create_directories(dir.path() / "images/c");
+  // A pid that cannot be running (above the kernel's pid_max of 2^22), and one that is (ours).
+  const std::string dead = (dir.path() / "images/c/.x_16.tmp-99999999-0.exr").string();
+  const std::string alive = (dir.path() / fmt::format(".results.tmp-{}-7.json", ::getpid())).string();
+  std::ofstream(dead) << "partial";
+  std::ofstream(alive) << "in flight";
+  ResultsDocument header = document();
+  header.records.clear();
+  ResultsStore store(dir.path().string(), header);
+  EXPECT_FALSE(std::filesystem::exists(dead));
+  EXPECT_TRUE(std::filesystem::exists(alive));
 }
 
 TEST(ResultsCsv, OneRowPerRecordWithMetricsAndTimes) {
