@@ -2,6 +2,7 @@
 // paper's decomposition per sample and per pixel, and determinism over thread counts.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/errors.h"
@@ -313,6 +314,41 @@ TEST(Determinism, BitIdenticalForOneAndTwoThreads) {
   const Image& F = a.layer(layer::kColor);
   for (std::size_t i = 0; i < m.size(); ++i)
     EXPECT_NEAR(m.data()[i], F.data()[i], 1e-6 * std::fabs(F.data()[i]) + 1e-9);
+}
+
+// Another seed gives another image of the same scene: the pixels differ (a tracer that ignored
+// the seed would repeat the image) but the image means agree (the seed picks samples, not the
+// estimate's expectation).
+TEST(Determinism, AnotherSeedGivesAnotherImageWithTheSameMean) {
+  auto scene = load_scene("cornell-box");
+  RenderSettings s;
+  s.width = 48;
+  s.height = 36;
+  s.spp = 64;  // then the standard error of the means' difference is about 1% of the mean
+  s.seed = 1;
+  const Image a = render_frame(*scene, s).layer(layer::kColor);
+  s.seed = 2;
+  const Image b = render_frame(*scene, s).layer(layer::kColor);
+  const double n = double(a.pixel_count());
+  for (int c = 0; c < 3; ++c) {
+    // The per-pixel differences d = a - b of two independent renders: their mean is the
+    // difference of the image means, and their spread (pixels are independent) gives its
+    // standard error sd(d) / sqrt(n). 5 standard errors: a false failure about once in 1.7 million.
+    double sum = 0, sq = 0;
+    int differ = 0;
+    for (int y = 0; y < a.height(); ++y)
+      for (int x = 0; x < a.width(); ++x) {
+        const double d = double(a.at(x, y, c)) - b.at(x, y, c);
+        sum += d;
+        sq += d * d;
+        if (d != 0) ++differ;
+      }
+    const double mean = sum / n, sd = std::sqrt(std::max(0.0, (sq - sum * mean) / (n - 1)));
+    // Pixels that see only the light or only the background may agree; most must not.
+    EXPECT_GT(differ, int(n / 2)) << "channel " << c << ": seeds 1 and 2 gave the same pixels";
+    EXPECT_GT(sd, 0.0) << "channel " << c;
+    EXPECT_LE(std::fabs(mean), 5 * sd / std::sqrt(n)) << "channel " << c << ": image means differ by " << mean;
+  }
 }
 
 TEST(Frame, HasEveryChannelOfTheDesign) {
