@@ -12,7 +12,7 @@
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/method.h"
 #include "denoisers/synthetic_frame.h"
-#include "denoisers/thread_count.h"
+#include "thread_count.h"
 
 namespace dnb {
 namespace {

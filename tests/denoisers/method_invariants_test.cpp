@@ -11,7 +11,7 @@
 #include "core/errors.h"
 #include "denoisers/method.h"
 #include "denoisers/synthetic_frame.h"
-#include "denoisers/thread_count.h"
+#include "thread_count.h"
 
 namespace dnb {
 namespace {

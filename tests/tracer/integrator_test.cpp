@@ -7,6 +7,7 @@
 
 #include "core/errors.h"
 #include "test_util.h"
+#include "thread_count.h"
 #include "tracer/integrator.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
@@ -300,8 +301,12 @@ TEST(Determinism, BitIdenticalForOneAndTwoThreads) {
   s.spp = 9;
   s.threads = 1;
   AovFrame a = render_frame(*scene, s);
+  // The tracer's task_arena(2) alone gets one thread on a one-core runner (TBB's worker limit,
+  // tests/thread_count.h); run_on_threads lifts that limit and checks two threads really ran.
   s.threads = 2;
-  AovFrame b = render_frame(*scene, s);
+  AovFrame b;
+  ASSERT_GT(test::run_on_threads(2, [&] { b = render_frame(*scene, s); }), 1)
+      << "the two-thread render had one thread: the comparison would be 1 against 1";
   ASSERT_EQ(a.layers().size(), b.layers().size());
   for (const auto& [name, img] : a.layers()) EXPECT_TRUE(img == b.layer(name)) << name;
   EXPECT_TRUE(a.edges == b.edges);
