@@ -40,15 +40,29 @@ TempDir::~TempDir() {
   fs::remove_all(path_, ec);
 }
 
-CommandResult run_command(const std::string& command) {
+namespace {
+// Runs `command` with `redirect` appended (how stderr is routed), capturing stdout.
+CommandResult run_with(const std::string& command, const std::string& redirect) {
   CommandResult r;
-  FILE* p = ::popen((command + " 2>&1").c_str(), "r");
+  FILE* p = ::popen((command + redirect).c_str(), "r");
   if (!p) return r;
   std::array<char, 4096> buf;
   std::size_t n;
   while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
   int status = ::pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+}  // namespace
+
+CommandResult run_command(const std::string& command) { return run_with(command, " 2>&1"); }
+
+CommandResult run_command_stdout(const std::string& command) {
+  TempDir dir;
+  const std::string err = dir.file("stderr");
+  // The command is grouped so that a redirection inside it (cmd 2>x) cannot be overridden.
+  CommandResult r = run_with("{ " + command + "; }", " 2>'" + err + "'");
+  r.errors = slurp(err);
   return r;
 }
 
@@ -59,6 +73,10 @@ static std::string env_or(const char* name, const char* fallback) {
 
 CommandResult run_denoisebench(const std::string& args) {
   return run_command(env_or("DNB_BINARY", "./denoisebench") + " " + args);
+}
+
+CommandResult run_denoisebench_stdout(const std::string& args) {
+  return run_command_stdout(env_or("DNB_BINARY", "./denoisebench") + " " + args);
 }
 
 std::string source_dir() { return env_or("DNB_SOURCE_DIR", "."); }

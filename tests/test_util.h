@@ -20,13 +20,18 @@ class TempDir {
 
 struct CommandResult {
   int exit_code = -1;
-  std::string output;  // stdout and stderr together
+  std::string output;  // stdout and stderr together (the *_stdout runners: stdout only)
+  std::string errors;  // the *_stdout runners: stderr, kept apart for failure messages
 };
 
 // Runs the built denoisebench ($DNB_BINARY) with the given arguments through the shell.
 CommandResult run_denoisebench(const std::string& args);
 // Runs any shell command, capturing stdout and stderr together.
 CommandResult run_command(const std::string& command);
+// The same with stdout alone in `output` and stderr in `errors`: for output that is parsed
+// (--json), which a log line on stderr must not break.
+CommandResult run_denoisebench_stdout(const std::string& args);
+CommandResult run_command_stdout(const std::string& command);
 // The source tree ($DNB_SOURCE_DIR).
 std::string source_dir();
 

@@ -16,19 +16,19 @@ TEST(MetricsCommand, PrintsEveryMetricAsJson) {
   test::TempDir dir;
   write_rgb(Image(8, 6, 3, 0.0f), dir.file("a.exr"));
   write_rgb(Image(8, 6, 3, 1.0f), dir.file("b.exr"));
-  auto r = test::run_denoisebench("metrics --json " + dir.file("a.exr") + " " + dir.file("b.exr") + " 2>/dev/null");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto r = test::run_denoisebench_stdout("metrics --json " + dir.file("a.exr") + " " + dir.file("b.exr"));
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
   auto j = nlohmann::json::parse(r.output);
   for (const char* m : {"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip"}) EXPECT_TRUE(j.contains(m)) << m;
   EXPECT_DOUBLE_EQ(j["mse"].get<double>(), 255.0 * 255.0);  // black against white, 8-bit
   EXPECT_DOUBLE_EQ(j["mse_hdr"].get<double>(), 1.0);
   // Identical images: psnr is infinite, written as null.
-  auto same = test::run_denoisebench("metrics --json " + dir.file("a.exr") + " " + dir.file("a.exr") + " 2>/dev/null");
-  ASSERT_EQ(same.exit_code, 0) << same.output;
+  auto same = test::run_denoisebench_stdout("metrics --json " + dir.file("a.exr") + " " + dir.file("a.exr"));
+  ASSERT_EQ(same.exit_code, 0) << same.output << same.errors;
   EXPECT_TRUE(nlohmann::json::parse(same.output)["psnr"].is_null());
   // b.exr has no variance channels: mse_converged cannot be scored and says so.
   EXPECT_TRUE(j["mse_converged"].is_null());
-  auto plain = test::run_denoisebench("metrics " + dir.file("a.exr") + " " + dir.file("b.exr") + " 2>/dev/null");
+  auto plain = test::run_denoisebench_stdout("metrics " + dir.file("a.exr") + " " + dir.file("b.exr"));
   EXPECT_THAT(plain.output, ::testing::ContainsRegex("mse_converged +n/a .*b\\.exr.*variance"));
 }
 
@@ -43,8 +43,8 @@ TEST(MetricsCommand, ScoresMseConvergedFromTheReferencesVariance) {
   ref.set(layer::kVariance, var);
   write_frame(ref, dir.file("ref.exr"));
   write_rgb(Image(8, 6, 3, 0.25f), dir.file("flat.exr"));  // right everywhere but on the firefly
-  auto r = test::run_denoisebench("metrics --json " + dir.file("flat.exr") + " " + dir.file("ref.exr") + " 2>/dev/null");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto r = test::run_denoisebench_stdout("metrics --json " + dir.file("flat.exr") + " " + dir.file("ref.exr"));
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
   auto j = nlohmann::json::parse(r.output);
   EXPECT_GT(j["mse"].get<double>(), 0.0);
   EXPECT_EQ(j["mse_converged"].get<double>(), 0.0);

@@ -5,11 +5,11 @@
 #include <cmath>
 #include <fstream>
 
-#include <tbb/global_control.h>
 
 #include "core/errors.h"
 #include "denoisers/method.h"
 #include "test_util.h"
+#include "thread_count.h"
 #include "tracer/render.h"
 #include "tracer/scene_loader.h"
 
@@ -78,14 +78,9 @@ TEST(IrradianceCacheRenderer, SameImageForAnyThreadCount) {
       {"pixel_samples", "1"}, {"direct_samples", "1"}, {"gather_theta_cells", "4"}, {"gather_phi_cells", "8"},
       {"overture_stride", "8"}, {"overture_min_stride", "2"}};
   MethodResult one, many;
-  {
-    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
-    one = render(*scene, 40, 30, s);
-  }
-  {
-    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 4);
-    many = render(*scene, 40, 30, s);
-  }
+  EXPECT_EQ(test::run_on_threads(1, [&] { one = render(*scene, 40, 30, s); }), 1);
+  ASSERT_GT(test::run_on_threads(4, [&] { many = render(*scene, 40, 30, s); }), 1)
+      << "the many-thread run had one thread: the comparison would be 1 against 1";
   ASSERT_EQ(one.image.size(), many.image.size());
   for (std::size_t i = 0; i < one.image.size(); ++i) ASSERT_EQ(one.image.data()[i], many.image.data()[i]) << i;
   EXPECT_EQ(one.stats.counters.at("records"), many.stats.counters.at("records"));

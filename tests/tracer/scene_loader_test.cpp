@@ -4,6 +4,8 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <functional>
@@ -193,6 +195,22 @@ TEST(SceneFile, BuiltInScenesLoadAndRender) {
     s.spp = 1;
     AovFrame f = render_frame(*scene, s);
     EXPECT_EQ(f.meta.dropped_samples, 0) << name;
+    // Something was seen and lit: a finite positive mean and pixels that differ (a black or
+    // flat image, such as a camera looking away or lights that emit nothing, fails here).
+    const Image& color = f.layer(layer::kColor);
+    double sum = 0;
+    float lo = color.data()[0], hi = lo;
+    bool finite = true;
+    for (std::size_t k = 0; k < color.size(); ++k) {
+      const float v = color.data()[k];
+      finite = finite && std::isfinite(v);
+      sum += v;
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    EXPECT_TRUE(finite) << name;
+    EXPECT_GT(sum / double(color.size()), 0.0) << name << ": the mean is not positive";
+    EXPECT_LT(lo, hi) << name << ": every value of the image is " << lo << " (no variance across pixels)";
   }
 }
 
