@@ -30,6 +30,10 @@
 
 namespace dnb::nightly {
 
+// How findings and verdicts print a value ("non-finite" for NaN/Inf) and a relative change.
+std::string format_value(double v);
+std::string format_percent(double relative);
+
 struct QualityEntry {
   std::string scene, method, role;  // role: "method" or "ablation"
   int spp = 0;

@@ -25,10 +25,6 @@ namespace dnb::nightly {
 
 namespace {
 
-std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : std::string("non-finite"); }
-
-std::string percent(double rel) { return fmt::format("{:+.1f}%", 100.0 * rel); }
-
 // Case name without the suffix Google Benchmark adds for the timing mode.
 std::string case_name(std::string name) {
   for (const char* suffix : {"/manual_time", "/real_time", "/process_time"}) {
@@ -275,12 +271,12 @@ std::string Verdict::markdown(const Summary& baseline, const Summary& current) c
       if (f.gate != gate) continue;
       const double rel = f.new_value / f.old_value - 1.0;
       if (gate == "ahead")
-        t += fmt::format("| {} | {} vs {} | {} | {} | {} |\n", f.scene, f.method, f.compared_with, fmt_value(f.new_value),
-                         fmt_value(f.limit), f.failed ? "**FAIL**" : "ok");
+        t += fmt::format("| {} | {} vs {} | {} | {} | {} |\n", f.scene, f.method, f.compared_with, format_value(f.new_value),
+                         format_value(f.limit), f.failed ? "**FAIL**" : "ok");
       else
-        t += fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", f.scene, f.method, fmt_value(f.old_value),
-                         fmt_value(f.new_value), std::isfinite(rel) ? percent(rel) : "-",
-                         percent(f.limit / f.old_value - 1.0),
+        t += fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", f.scene, f.method, format_value(f.old_value),
+                         format_value(f.new_value), std::isfinite(rel) ? format_percent(rel) : "-",
+                         format_percent(f.limit / f.old_value - 1.0),
                          f.failed                                          ? "**FAIL**"
                          : f.report_only && !(f.new_value <= f.limit)      ? "over (report only)"
                          : f.report_only                                   ? "ok (report only)"
@@ -363,5 +359,9 @@ void append_history(const std::string& path, const Summary& current, const Verdi
   if (!fs::path(path).parent_path().empty()) fs::create_directories(fs::path(path).parent_path());
   write_text_atomic(path, out);
 }
+
+std::string format_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : std::string("non-finite"); }
+
+std::string format_percent(double relative) { return fmt::format("{:+.1f}%", 100.0 * relative); }
 
 }  // namespace dnb::nightly

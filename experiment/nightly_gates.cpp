@@ -17,14 +17,6 @@ using nlohmann::json;
 
 namespace dnb::nightly {
 
-namespace {
-
-std::string fmt_value(double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : std::string("non-finite"); }
-
-std::string percent(double rel) { return fmt::format("{:+.1f}%", 100.0 * rel); }
-
-}  // namespace
-
 // ---------------------------------------------------------------------------------------------
 // Gates
 
@@ -80,8 +72,8 @@ void check_quality(const Summary& baseline, const Summary& current, const Qualit
     Finding f{"quality", old.scene, old.method, "mse", old.mse, cur.mse, old.mse * (1.0 + tol), "", false, ""};
     f.failed = !std::isfinite(cur.mse) || !(cur.mse <= f.limit);
     f.message = fmt::format("quality: scene {}, method {}, mse {} from {} to {} ({}, tolerance +{:.1f}%)", old.scene,
-                            old.method, f.failed ? "rose" : "went", fmt_value(old.mse), fmt_value(cur.mse),
-                            std::isfinite(cur.mse) ? percent(cur.mse / old.mse - 1.0) : "non-finite", 100.0 * tol);
+                            old.method, f.failed ? "rose" : "went", format_value(old.mse), format_value(cur.mse),
+                            std::isfinite(cur.mse) ? format_percent(cur.mse / old.mse - 1.0) : "non-finite", 100.0 * tol);
     v.findings.push_back(f);
   }
   for (const auto& e : current.quality)
@@ -111,7 +103,7 @@ void check_ahead(const Summary& current, const QualityIndex& now, const Gates& g
         const double a = lead->second->mse, b = it->second->mse;
         Finding f{"ahead", scene, gates.ahead_method, "mse", b, a, b, other, !(a < b), ""};
         f.message = fmt::format("ahead: scene {}, method {} mse {} is {} method {} mse {}", scene, gates.ahead_method,
-                                fmt_value(a), f.failed ? "not below" : "below", other, fmt_value(b));
+                                format_value(a), f.failed ? "not below" : "below", other, format_value(b));
         v.findings.push_back(f);
       }
     }
@@ -138,11 +130,11 @@ void check_performance(const Summary& baseline, const Summary& current, const Ga
     f.failed = over && !f.report_only;
     f.message = fmt::format("performance: case {}, method {}, time_ratio {} from {} to {} ({}, tolerance +{:.1f}%; "
                             "method {:.3g} ms, reference workload {:.3g} ms)",
-                            f.scene, old.method, over ? "rose" : "went", fmt_value(old.ratio), fmt_value(cur.ratio),
-                            percent(cur.ratio / old.ratio - 1.0), 100.0 * tol, cur.method_ms, cur.reference_ms);
+                            f.scene, old.method, over ? "rose" : "went", format_value(old.ratio), format_value(cur.ratio),
+                            format_percent(cur.ratio / old.ratio - 1.0), 100.0 * tol, cur.method_ms, cur.reference_ms);
     if (!cur.error.empty())
       f.message = fmt::format("performance: case {}, method {}, time_ratio was {}, now the case fails: {}", f.scene,
-                              old.method, fmt_value(old.ratio), cur.error);
+                              old.method, format_value(old.ratio), cur.error);
     if (over && f.report_only) v.notes.push_back("over its tolerance, reported only (not gated): " + f.message);
     v.findings.push_back(f);
   }

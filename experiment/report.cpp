@@ -93,11 +93,6 @@ std::string html_table(const Table& t) {
 
 std::string png_of(const std::string& exr_rel) { return "web/" + fs::path(exr_rel).replace_extension(".png").string(); }
 
-std::string file_of(const CellRecord& r, const std::string& key) {
-  auto it = r.files.find(key);
-  return it == r.files.end() ? std::string() : it->second;
-}
-
 // ---------------------------------------------------------------------------------------------
 // One scene's comparison
 
@@ -105,7 +100,7 @@ std::string file_of(const CellRecord& r, const std::string& key) {
 cv::Rect worst_crop(const std::string& dir, const CellRecord& pick, int width, int height) {
   const int cw = std::max(8, width / 6), ch = std::max(8, height / 6);
   cv::Rect crop(0, 0, cw, ch);
-  const std::string flip = file_of(pick, "error_flip");
+  const std::string flip = pick.file("error_flip");
   if (flip.empty()) return crop;
   Image e = read_rgb(dir + "/" + flip);
   cv::Mat m(e.height(), e.width(), CV_32F);
@@ -163,7 +158,7 @@ std::string scene_section(const ResultsDocument& res, const std::string& dir, co
     const std::string c_rel = "web/" + s + "/crop_" + r->method + ".png";
     write_crop(dir, png, crop, c_rel);
     std::string err_rel;
-    if (const std::string flip = file_of(*r, "error_flip"); !flip.empty()) {
+    if (const std::string flip = r->file("error_flip"); !flip.empty()) {
       err_rel = png_of(flip);
       write_png(false_colour(read_rgb(dir + "/" + flip)), dir + "/" + err_rel);
     }
@@ -172,7 +167,7 @@ std::string scene_section(const ResultsDocument& res, const std::string& dir, co
     crops += fmt::format("<figure><img src=\"{}\" alt=\"{} crop\"><figcaption>{}</figcaption></figure>", c_rel,
                          html_escape(r->method), html_escape(r->method));
   }
-  const std::string first_err = file_of(*first, "error_flip").empty() ? "" : png_of(file_of(*first, "error_flip"));
+  const std::string first_err = first->file("error_flip").empty() ? "" : png_of(first->file("error_flip"));
   return fmt::format(R"(<section class="scene">
 <h3>{0}</h3>
 <label>method <select class="method">{1}</select></label>

@@ -80,8 +80,8 @@ std::optional<double> CellRecord::metric(const std::string& name) const {
   return it == metrics.end() ? std::nullopt : it->second;
 }
 
-std::string CellRecord::image() const {
-  auto it = files.find("image");
+std::string CellRecord::file(const std::string& name) const {
+  auto it = files.find(name);
   return it == files.end() ? std::string() : it->second;
 }
 

@@ -113,7 +113,8 @@ struct CellRecord {
 
   // The metric's value, or nullopt when it is absent or non-finite.
   std::optional<double> metric(const std::string& name) const;
-  std::string image() const;  // files["image"], or ""
+  std::string file(const std::string& name) const;  // files[name], or ""
+  std::string image() const { return file("image"); }
 
   nlohmann::json to_json() const;
   static CellRecord from_json(const nlohmann::json& j, const std::string& where);
