@@ -17,8 +17,17 @@ namespace dnb {
 // indirect.R/G/B; sample s of a pixel is sub-pixel (s % 4, s / 4) of its 4x4 strata.
 std::string edges_path(const std::string& frame_path);
 
+struct FrameWriteOptions {
+  bool compress = true;  // false: uncompressed (a plug-in's input: read fastest, by any reader)
+  bool edges = true;     // false: no edge file even when the frame has edge sub-pixels
+  std::vector<std::string> layers = {};  // only these layers (each must exist); empty: every layer
+  // false: written straight to `path`, without the temporary name, the fsyncs and the in-memory
+  // encode (every call still checked): for scratch files nobody must find half-written after a
+  // crash, such as a plug-in's input in the harness's private folder.
+  bool durable = true;
+};
 // Writes every layer, the metadata and (if present) the edge file.
-void write_frame(const AovFrame& frame, const std::string& path);
+void write_frame(const AovFrame& frame, const std::string& path, const FrameWriteOptions& options = {});
 
 // Reads a frame. `required` lists layer names that must be present; a missing one is an
 // InputError naming the file and the missing channels. The edge file is read when the
