@@ -9,6 +9,7 @@
 
 #include "apps/commands.h"
 #include "methods/denoise.h"
+#include "methods/plugins.h"
 
 namespace dnb::app {
 
@@ -29,8 +30,10 @@ void add_denoise(CLI::App& app, Action& action) {
   cmd->add_option("--scene", o->request.scene,
                   "renderer-type methods: scene to render (default: the scene named in the frame's metadata)");
   cmd->add_flag("--json", o->json, "print the statistics as JSON instead of text");
-  cmd->callback([&action, o] {
-    action = [o] {
+  auto plugins = add_plugins_option(cmd);
+  cmd->callback([&action, o, plugins] {
+    action = [o, plugins] {
+      load_plugins(*plugins);
       DenoiseRequest q = o->request;
       q.settings = parse_settings(o->settings);
       const DenoiseOutcome d = denoise_file(q);
@@ -43,6 +46,7 @@ void add_denoise(CLI::App& app, Action& action) {
         j["output"] = q.output;
         j["params"] = params.as_strings();
         j["total_seconds"] = r.stats.total_seconds;
+        if (r.stats.setup_seconds) j["setup_seconds"] = *r.stats.setup_seconds;
         j["phases"] = nlohmann::json::array();
         for (const auto& [name, s] : r.stats.phases) j["phases"].push_back({{"name", name}, {"seconds", s}});
         j["counters"] = r.stats.counters;
@@ -51,6 +55,7 @@ void add_denoise(CLI::App& app, Action& action) {
         fmt::print("method {} on '{}' ({}x{}) -> '{}'\n", q.method, q.frame, d.width, d.height, q.output);
         for (const auto& [k, v] : params.as_strings()) fmt::print("  param    {:<20} {}\n", k, v);
         fmt::print("  total    {:<20} {:.6f} s\n", "execute", r.stats.total_seconds);
+        if (r.stats.setup_seconds) fmt::print("  setup    {:<20} {:.6f} s\n", "worker start-up", *r.stats.setup_seconds);
         for (const auto& [name, s] : r.stats.phases) fmt::print("  phase    {:<20} {:.6f} s\n", name, s);
         for (const auto& [name, v] : r.stats.counters) fmt::print("  counter  {:<20} {:.9g}\n", name, v);
       }

@@ -5,6 +5,7 @@
 #include "apps/commands.h"
 #include "core/errors.h"
 #include "denoisers/method.h"
+#include "methods/plugins.h"
 #include "metrics/metrics.h"
 #include "tracer/scene_loader.h"
 
@@ -12,7 +13,8 @@ namespace dnb::app {
 
 static int list_methods() {
   for (const MethodInfo* m : MethodRegistry::global().all()) {
-    fmt::print("{}  ({})\n    {}\n", m->name, to_string(m->kind), m->description);
+    if (m->origin.empty()) fmt::print("{}  ({})\n    {}\n", m->name, to_string(m->kind), m->description);
+    else fmt::print("{}  ({}, plug-in: {})\n    {}\n", m->name, to_string(m->kind), m->origin, m->description);
     try {
       auto instance = MethodRegistry::global().create(m->name);
       auto layers = instance->required_layers();
@@ -46,9 +48,13 @@ void add_list(CLI::App& app, Action& action) {
   cmd->add_option("WHAT", *what, "methods, scenes or metrics")
       ->required()
       ->check(CLI::IsMember({"methods", "scenes", "metrics"}));
-  cmd->callback([&action, what] {
-    action = [what] {
-      if (*what == "methods") return list_methods();
+  auto plugins = add_plugins_option(cmd);
+  cmd->callback([&action, what, plugins] {
+    action = [what, plugins] {
+      if (*what == "methods") {
+        load_plugins(*plugins);
+        return list_methods();
+      }
       if (*what == "scenes") return list_scenes();
       return list_metrics();
     };

@@ -11,6 +11,7 @@
 
 #include "apps/commands.h"
 #include "experiment/nightly.h"
+#include "methods/plugins.h"
 
 namespace dnb::app {
 
@@ -108,9 +109,18 @@ void add_tolerances(CLI::App& parent, Action& action) {
 void add_nightly(CLI::App& app, Action& action) {
   auto* cmd = app.add_subcommand("nightly", "The nightly quality and performance gates (see .ci/nightly)");
   cmd->require_subcommand(1, 1);
+  // Before the sub-command: `nightly --plugins DIR check RUN_DIR`. The plug-ins are registered
+  // before the sub-command's work, so that it sees them as methods.
+  auto plugins = add_plugins_option(cmd);
   add_check(*cmd, action);
   add_accept(*cmd, action);
   add_tolerances(*cmd, action);
+  cmd->callback([&action, plugins] {  // runs after the sub-command's own callback has set `action`
+    action = [inner = action, plugins] {
+      load_plugins(*plugins);
+      return inner ? inner() : 2;
+    };
+  });
 }
 
 }  // namespace dnb::app

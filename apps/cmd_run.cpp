@@ -5,8 +5,12 @@
 #include <filesystem>
 #include <optional>
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include "apps/commands.h"
 #include "experiment/runner.h"
+#include "methods/plugins.h"
 
 namespace dnb::app {
 
@@ -23,16 +27,23 @@ void add_run(CLI::App& app, Action& action) {
   cmd->add_flag("--no-cache", o->no_cache, "render inputs and references again instead of using the cache");
   cmd->add_option("--seed", o->seed, "seed of the input frames instead of the config's (the reference keeps its own)");
   cmd->add_option("--cache-dir", o->cache_dir, "render cache folder (default: $DENOISEBENCH_CACHE or ~/.cache/denoisebench)");
-  cmd->callback([&action, o] {
-    action = [o] {
+  auto plugins = add_plugins_option(cmd);
+  cmd->callback([&action, o, plugins] {
+    action = [o, plugins] {
+      load_plugins(*plugins);
       experiment::ExperimentConfig c = experiment::load_config(o->config);
       if (o->seed) c.seed = *o->seed;
       experiment::RunOptions opt;
       opt.out_dir = o->out.empty() ? "results/" + c.name : o->out;
       opt.use_cache = !o->no_cache;
       opt.cache_dir = o->cache_dir;
-      experiment::run_experiment(c, opt);
-      return 0;
+      const auto doc = experiment::run_experiment(c, opt);
+      if (doc.failures.empty()) return 0;
+      // The run kept every other cell; the failed ones are listed in results.json and tried
+      // again by the next run into the folder.
+      for (const auto& f : doc.failures) spdlog::error("failed cell: {} / {} / {} spp: {}", f.scene, f.method, f.spp, f.reason);
+      spdlog::error("{} of the run's cells failed (listed in {}/results.json, key 'failures')", doc.failures.size(), opt.out_dir);
+      return 1;
     };
   });
 }

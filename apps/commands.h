@@ -3,7 +3,9 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -20,6 +22,11 @@ void add_run(CLI::App& app, Action& action);
 void add_report(CLI::App& app, Action& action);
 void add_list(CLI::App& app, Action& action);
 void add_nightly(CLI::App& app, Action& action);
+
+// --plugins DIR (repeatable) on the commands that name methods: plug-in folders searched before
+// $DENOISEBENCH_PLUGINS and the repository's plugins/ (methods/plugins.h). The folders are read
+// when the command runs (load_plugins), not at parse time.
+std::shared_ptr<std::vector<std::string>> add_plugins_option(CLI::App* cmd);
 
 // A sub-command whose issue has not landed: it parses anything, says it is not available and
 // exits 2. No fake output.

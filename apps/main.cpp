@@ -8,6 +8,7 @@
 #include "apps/commands.h"
 #include "core/errors.h"
 #include "core/version.h"
+#include "methods/plugins.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"denoisebench " DNB_VERSION
@@ -34,13 +35,16 @@ int main(int argc, char** argv) {
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
+  int status = 2;
   try {
-    return action ? action() : 2;
+    status = action ? action() : 2;
   } catch (const dnb::InputError& e) {
     spdlog::error("{}", e.what());
-    return 2;
+    status = 2;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
-    return 1;
+    status = 1;
   }
+  dnb::shutdown_plugin_workers();  // worker plug-ins end while the log still runs
+  return status;
 }

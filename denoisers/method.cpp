@@ -284,7 +284,7 @@ MethodResult run_method(Method& method, const MethodInput& input) {
   const double repair_seconds = repair_watch.seconds();
   Stopwatch sw;
   MethodResult r = method.execute(in);
-  r.stats.total_seconds = sw.seconds();
+  r.stats.total_seconds = r.stats.own_seconds.value_or(sw.seconds());
   // The repair is the harness's work, not the method's: it is reported apart from total_seconds.
   if (repaired_samples) r.stats.counters["repair_seconds"] = repair_seconds;
   r.stats.counters["repaired_samples"] = double(repaired_samples);

@@ -81,6 +81,13 @@ struct MethodStats {
   std::vector<std::pair<std::string, double>> phases;  // wall seconds per phase, in order
   std::map<std::string, double> counters;              // method-specific counters
   double total_seconds = 0;  // wall seconds of execute(), set by run_method
+  // Set by a method that times itself: run_method takes it as total_seconds instead of the wall
+  // time of execute(). A plug-in reports its program's wall time (the process, or the request's
+  // round trip), so that the harness's own file traffic around it (phases) is not charged to it.
+  std::optional<double> own_seconds;
+  // Start-up paid once per run, not per frame (a worker plug-in loading its model): recorded
+  // apart (results.json times.setup_seconds), never part of total_seconds.
+  std::optional<double> setup_seconds;
   void add_phase(const std::string& name, double seconds) { phases.emplace_back(name, seconds); }
 };
 
@@ -127,6 +134,11 @@ struct MethodInfo {
   std::string description = {};  // one line
   MethodKind kind = MethodKind::Filter;
   std::vector<ParamSpec> params = {};
+  // Plug-ins (methods/plugins.h): the manifest's path, and a hash of the manifest and every file
+  // of its folder (the cell key includes it, so editing a plug-in reruns its cells). Empty for
+  // built-in methods, which the build identity covers.
+  std::string origin = {};
+  std::string content_hash = {};
   // Builds the method from validated parameters (every declared one present, in range). May
   // throw InputError for combinations of values that are invalid together.
   std::function<std::unique_ptr<Method>(const Params&)> create = {};

@@ -5,8 +5,12 @@
 #include <filesystem>
 #include <tuple>
 
+#include <spdlog/spdlog.h>
+
+#include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/hash.h"
+#include "methods/plugins.h"
 #include "metrics/metrics.h"
 
 namespace fs = std::filesystem;
@@ -62,14 +66,25 @@ const CellRecord* reusable(const std::string& key, const CellContext& c) {
 
 }  // namespace
 
-CellRecord run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
+std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
   const std::string key = sha256_hex(plan.identity.dump());
   if (const CellRecord* old = reusable(key, c)) {
     c.store->reuse(*old);
     c.progress->add(1);
     return *old;
   }
-  CellOutput out = plan.compute();
+  CellOutput out;
+  try {
+    out = plan.compute();
+  } catch (const std::exception& e) {
+    if (!plan.contain_failures || !(dynamic_cast<const WorkError*>(&e) || dynamic_cast<const InputError*>(&e))) throw;
+    FailedCell f{scene.scene, plan.method, plan.spp, key, e.what(), {}};
+    if (auto* pe = dynamic_cast<const PluginError*>(&e)) f.reason = pe->reason(), f.log_tail = pe->log_tail();
+    spdlog::error("cell {} / {} / {} spp failed: {}", scene.scene, plan.method, plan.spp, e.what());
+    c.store->fail(std::move(f));
+    c.progress->add(1);
+    return std::nullopt;
+  }
   CellRecord r = base_record(plan, scene, c);
   const std::string stem = scene.image_dir + "/" + plan.stem;
   write_rgb(out.image, c.out_dir + "/" + stem + ".exr");

@@ -8,6 +8,7 @@
 //   compute  the plan's compute(): the image and its times
 //   write    the image as EXR under images/<scene>/<stem>.exr
 //   score    every metric against the scene's reference, and the error maps the report shows
+//   fail     (method cells) a compute() that throws: a FailedCell, and the run goes on
 //   store    the record into results.json / results.csv / finished_cells.json (ResultsStore)
 //   progress one more cell done
 #pragma once
@@ -53,6 +54,9 @@ struct CellPlan {
   std::string base_method, kind;                          // method cells
   std::optional<std::map<std::string, std::string>> params;  // method cells: validated values
   std::function<CellOutput()> compute;
+  // Method cells: a compute() that throws (a plug-in that crashed, a method that failed on this
+  // frame) fails this cell only: it is recorded as a FailedCell and the run goes on.
+  bool contain_failures = false;
 };
 
 // The settings every record repeats (from the config).
@@ -64,8 +68,9 @@ struct CellContext {
   Progress* progress = nullptr;
 };
 
-// Runs one plan through the steps above; returns its record (reused or new).
-CellRecord run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& context);
+// Runs one plan through the steps above; returns its record (reused or new), or nullopt when the
+// cell failed and was recorded as failed (contain_failures).
+std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& context);
 
 // Scores `image` against the reference with every metric and writes the error maps the report
 // shows (flip, relmse) beside the image; their paths go into `files`.

@@ -11,6 +11,7 @@
 #include "core/config.h"
 #include "core/errors.h"
 #include "denoisers/method.h"
+#include "methods/plugins.h"
 
 namespace fs = std::filesystem;
 
@@ -113,6 +114,14 @@ ExperimentConfig load_config(const std::string& path) {
   c.scenes = root.get("scenes", std::vector<std::string>{});
   if (c.scenes.empty()) throw InputError(fmt::format("{}: expected a non-empty list of scene names", root.where("scenes")));
   c.spp = int_list(root, "spp", {256});
+  // Plug-in folders, relative to the config file; registered before the methods are checked.
+  for (const auto& d : root.get("plugins", std::vector<std::string>{})) {
+    const fs::path p = fs::path(d).is_absolute() ? fs::path(d) : fs::absolute(path).parent_path() / d;
+    if (!fs::is_directory(p))
+      throw InputError(fmt::format("{}: plug-in folder '{}' is not a folder", root.where("plugins"), p.string()));
+    c.plugins.push_back(p.lexically_normal().string());
+  }
+  load_plugins(c.plugins);
   read_sections(root, c);
   read_methods(root, c);
   root.finish();

@@ -41,11 +41,14 @@ struct ExperimentConfig {
   double repeat_below_seconds = 1.0;
   int threads = 0;
   Table2Columns table2;               // [table2] filter_cpu, filter_opencl, irradiance_cache
+  std::vector<std::string> plugins;   // plug-in folders (`plugins = [...]`, relative to the file)
 
   // The config as results.json records it.
   RunConfig recorded() const;
 };
 
+// Also registers the plug-ins the config's `plugins` folders, $DENOISEBENCH_PLUGINS and the
+// repository's plugins/ hold (methods/plugins.h), so that its methods can name them.
 ExperimentConfig load_config(const std::string& path);
 
 }  // namespace dnb::experiment

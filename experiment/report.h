@@ -46,6 +46,8 @@ PowerFit fit_power_law(const std::vector<double>& x, const std::vector<double>& 
 // The tables of a results document (pure: used by the report and by the tests).
 Table table1(const ResultsDocument& results, const std::string& metric);
 Table table2(const ResultsDocument& results);
+// The run's failed cells with their reasons (no rows when none failed).
+Table failures_table(const ResultsDocument& results);
 Table speedup_table(const ResultsDocument& results, const std::string& metric = "mse");
 Table ablation_table(const ResultsDocument& results, const std::string& metric = "mse");
 // `method`'s mse and mse_converged over every other method's, per scene (Table 1's methods).

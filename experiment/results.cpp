@@ -96,6 +96,7 @@ json CellRecord::to_json() const {
   json t = {{"input_render", times.input_render}, {"filter", times.filter}, {"total", times.total}};
   if (times.reference) t["reference"] = *times.reference;
   if (times.filter_runs) t["filter_runs"] = *times.filter_runs;
+  if (times.setup) t["setup_seconds"] = *times.setup;
   r["times"] = t;
   json ref = {{"spp", reference.spp}, {"seconds", reference.seconds}, {"image", reference.image},
               {"unconverged_share", reference.unconverged_share ? json(*reference.unconverged_share) : json(nullptr)}};
@@ -137,6 +138,7 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   r.times.total = jf::number(times, "total", tw);
   r.times.reference = optional_number(times, "reference", tw);
   r.times.filter_runs = optional_value<std::vector<double>>(times, "filter_runs", tw);
+  r.times.setup = optional_number(times, "setup_seconds", tw);
 
   const json ref = jf::get<json>(j, "reference", where);
   const std::string rw = where + ": reference";
@@ -241,6 +243,28 @@ std::vector<std::string> ResultsDocument::methods(Role role) const {
   return m;
 }
 
+json FailedCell::to_json() const {
+  return {{"scene", scene}, {"method", method}, {"spp", spp}, {"cell_key", cell_key}, {"reason", reason}, {"log_tail", log_tail}};
+}
+
+FailedCell FailedCell::from_json(const json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected an object", where));
+  FailedCell f;
+  f.scene = jf::get<std::string>(j, "scene", where);
+  f.method = jf::get<std::string>(j, "method", where);
+  f.spp = jf::get<int>(j, "spp", where);
+  f.cell_key = jf::get_or<std::string>(j, "cell_key", "", where);
+  f.reason = jf::get<std::string>(j, "reason", where);
+  f.log_tail = jf::get_or<std::vector<std::string>>(j, "log_tail", {}, where);
+  return f;
+}
+
+const FailedCell* ResultsDocument::failure(const std::string& scene, const std::string& method, int spp) const {
+  for (const auto& f : failures)
+    if (f.scene == scene && f.method == method && f.spp == spp) return &f;
+  return nullptr;
+}
+
 const CellRecord* ResultsDocument::find(const std::string& scene, const std::string& method, int spp) const {
   for (const auto& r : records)
     if (r.scene == scene && r.method == method && r.spp == spp) return &r;
@@ -259,6 +283,9 @@ json ResultsDocument::to_json() const {
   json recs = json::array();
   for (const auto& r : records) recs.push_back(r.to_json());
   j["records"] = std::move(recs);
+  json fails = json::array();
+  for (const auto& f : failures) fails.push_back(f.to_json());
+  j["failures"] = std::move(fails);
   return j;
 }
 
@@ -273,9 +300,9 @@ ResultsDocument ResultsDocument::from_json(const json& j, const std::string& whe
     throw InputError(fmt::format("{}: key 'format': expected \"{}\" (a results.json of `denoisebench run`), got \"{}\"", where,
                                  kResultsFormat, format));
   const int version = jf::get<int>(j, "schema_version", where);
-  if (version != kResultsSchemaVersion)
-    throw InputError(fmt::format("{}: key 'schema_version': this denoisebench reads version {}, the file has {}", where,
-                                 kResultsSchemaVersion, version));
+  if (version < kOldestResultsSchemaVersion || version > kResultsSchemaVersion)
+    throw InputError(fmt::format("{}: key 'schema_version': this denoisebench reads versions {} to {}, the file has {}", where,
+                                 kOldestResultsSchemaVersion, kResultsSchemaVersion, version));
   ResultsDocument d;
   d.config = config_from_json(jf::get_or<json>(j, "config", json::object(), where), where + ": config");
   d.machine = object_or_empty(j, "machine", where);
@@ -286,6 +313,10 @@ ResultsDocument ResultsDocument::from_json(const json& j, const std::string& whe
   if (!records.is_array()) throw InputError(fmt::format("{}: key 'records': expected an array", where));
   for (std::size_t i = 0; i < records.size(); ++i)
     d.records.push_back(CellRecord::from_json(records[i], fmt::format("{}: records[{}]", where, i)));
+  const json failures = jf::get_or<json>(j, "failures", json::array(), where);
+  if (!failures.is_array()) throw InputError(fmt::format("{}: key 'failures': expected an array", where));
+  for (std::size_t i = 0; i < failures.size(); ++i)
+    d.failures.push_back(FailedCell::from_json(failures[i], fmt::format("{}: failures[{}]", where, i)));
   return d;
 }
 

@@ -10,20 +10,23 @@
 //     "git_revision": "...", "written": <unix time>,
 //     "records": [ CellRecord, ... ]   one per cell: scene x method x input spp, the input
 //                                      itself, and the plain path-tracing curve
+//     "failures": [ FailedCell, ... ]  cells of this run that failed (a plug-in that crashed,
+//                                      timed out or wrote a bad image): no record, a reason
 //   }
 //
 // A CellRecord's keys (absent keys are optional ones that the cell's role does not have):
 //   scene, scene_hash, method (the column name), role (plain | input | method | ablation),
 //   spp, width, height, seed, cell_key (the hash of everything that determines the cell),
 //   metrics {name: value | null for a non-finite value}, times {input_render, filter, total,
-//   reference[, filter_runs]}, reference {spp, seed, seconds, cache_hit, image,
+//   reference[, filter_runs, setup_seconds]}, reference {spp, seed, seconds, cache_hit, image,
 //   unconverged_share, unconverged_rse}, files {image, error_flip, error_relmse},
 //   input_cache_hit; method cells also base_method, kind, params, phases, counters.
 //
 // Reading is strict: a file of another format, of an older schema_version, or with a missing
 // or mistyped key is an InputError naming the file and the key (the record's index too).
 // Version history: 1 (format "denoisebench-results-1", no schema_version); 2 (this header:
-// the same records, the schema named and versioned).
+// the same records, the schema named and versioned); 3 (failures; times.setup_seconds of
+// worker plug-ins). Version 2 files are read as version 3 without failures.
 #pragma once
 
 #include <cstdint>
@@ -38,7 +41,8 @@
 namespace dnb::experiment {
 
 inline constexpr const char* kResultsFormat = "denoisebench-results";
-inline constexpr int kResultsSchemaVersion = 2;
+inline constexpr int kResultsSchemaVersion = 3;
+inline constexpr int kOldestResultsSchemaVersion = 2;  // still read
 
 // What a record is a measurement of.
 enum class Role {
@@ -83,6 +87,7 @@ struct CellTimes {
   double input_render = 0, filter = 0, total = 0;
   std::optional<double> reference;            // absent only in hand-written files
   std::optional<std::vector<double>> filter_runs;  // method cells: every timed run
+  std::optional<double> setup;  // worker plug-ins: the worker's start-up, paid once per run ("setup_seconds")
 };
 
 struct ReferenceInfo {
@@ -120,6 +125,18 @@ struct CellRecord {
   static CellRecord from_json(const nlohmann::json& j, const std::string& where);
 };
 
+// A cell of the run that failed: the run went on without it and exits 1 naming it. Failed cells
+// are not finished: the next run into the folder tries them again.
+struct FailedCell {
+  std::string scene, method;
+  int spp = 0;
+  std::string cell_key, reason;
+  std::vector<std::string> log_tail;  // the last lines the method (a plug-in) printed on stderr
+
+  nlohmann::json to_json() const;
+  static FailedCell from_json(const nlohmann::json& j, const std::string& where);
+};
+
 struct ResultsDocument {
   RunConfig config;
   nlohmann::json machine = nlohmann::json::object();  // provenance, kept as written
@@ -127,12 +144,14 @@ struct ResultsDocument {
   std::string git_revision;
   std::optional<std::int64_t> written;
   std::vector<CellRecord> records;
+  std::vector<FailedCell> failures;
 
   // Queries the tables and gates are written in.
   std::vector<std::string> scenes() const;  // the config's, else in record order
   int table_spp() const;                    // the input spp the tables are drawn for: the first
   std::vector<std::string> methods(Role role) const;  // names in record order
   const CellRecord* find(const std::string& scene, const std::string& method, int spp) const;
+  const FailedCell* failure(const std::string& scene, const std::string& method, int spp) const;
 
   nlohmann::json to_json() const;
   static ResultsDocument from_json(const nlohmann::json& j, const std::string& where);

@@ -156,6 +156,9 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
   p.identity = {{"method", m.method}, {"params", *p.params}, {"input", frame.key().digest()},
                 {"ref", c.reference_spp}, {"repeats", c.repeats}, {"repeat_below", c.repeat_below_seconds},
                 {"build", build_id()}};
+  // A plug-in's code is not in the build: its folder's hash is (built-in cells keep their keys).
+  if (!info.content_hash.empty()) p.identity["method_content"] = info.content_hash;
+  p.contain_failures = true;
   p.stem = safe_file_name(m.name) + "_" + std::to_string(spp);
   p.compute = [&c, &m, &info, &scene, &frame] {
     auto method = MethodRegistry::global().create(m.method, m.params);
@@ -171,6 +174,7 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
     out.times.filter = filter;
     out.times.total = input_used + filter;
     out.times.filter_runs = runs;
+    out.times.setup = first.stats.setup_seconds;
     out.phases.emplace();
     for (const auto& [name, sec] : first.stats.phases) (*out.phases)[name] = sec;
     out.counters = first.stats.counters;

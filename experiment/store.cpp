@@ -20,10 +20,11 @@ namespace {
 std::vector<CellRecord> read_finished_cells(const std::string& path) {
   const json j = json_file::read(path);
   const std::string where = "'" + path + "'";
+  const int version = json_file::get_or<int>(j, "schema_version", 0, where);
   if (json_file::get_or<std::string>(j, "format", "", where) != kFinishedCellsFormat ||
-      json_file::get<int>(j, "schema_version", where) != kResultsSchemaVersion)
-    throw InputError(fmt::format("{}: key 'format': expected \"{}\" with schema_version {}", where, kFinishedCellsFormat,
-                                 kResultsSchemaVersion));
+      version < kOldestResultsSchemaVersion || version > kResultsSchemaVersion)
+    throw InputError(fmt::format("{}: key 'format': expected \"{}\" with schema_version {} to {}", where, kFinishedCellsFormat,
+                                 kOldestResultsSchemaVersion, kResultsSchemaVersion));
   const json records = json_file::get<json>(j, "records", where);
   std::vector<CellRecord> out;
   for (std::size_t i = 0; i < records.size(); ++i)
@@ -66,6 +67,11 @@ void ResultsStore::add(CellRecord record) {
 }
 
 void ResultsStore::reuse(const CellRecord& record) { doc_.records.push_back(record); }
+
+void ResultsStore::fail(FailedCell failure) {
+  doc_.failures.push_back(std::move(failure));
+  write();
+}
 
 void ResultsStore::write() {
   doc_.written = std::int64_t(std::time(nullptr));

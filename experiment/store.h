@@ -32,6 +32,9 @@ class ResultsStore {
   void add(CellRecord record);
   // A finished cell of an earlier run, listed again in this run's results (no write).
   void reuse(const CellRecord& record);
+  // A cell of this run that failed: listed in results.json's failures, not kept as finished (the
+  // next run tries it again); every file rewritten.
+  void fail(FailedCell failure);
   void write();
   const ResultsDocument& document() const { return doc_; }
 

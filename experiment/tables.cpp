@@ -109,21 +109,42 @@ std::string unconverged_cell(const ResultsDocument& res, const std::string& scen
 Table table1(const ResultsDocument& res, const std::string& metric) {
   Table t;
   const int spp = res.table_spp();
-  const auto methods = res.methods(Role::Method);
+  // Methods whose cells failed in this run are columns too: their cells say "failed", not n/a.
+  auto methods = res.methods(Role::Method);
+  for (const auto& f : res.failures) {
+    const bool ablation = std::any_of(res.config.methods.begin(), res.config.methods.end(),
+                                      [&](const MethodEntry& e) { return e.name == f.method && !e.group.empty(); });
+    if (f.spp == spp && !ablation && std::find(methods.begin(), methods.end(), f.method) == methods.end())
+      methods.push_back(f.method);
+  }
   t.title = fmt::format("Table 1: {} at {} spp input", metric, spp);
   t.header = {"scene"};
   for (const auto& m : methods) t.header.push_back(m);
   t.header.push_back(fmt::format("input ({} spp)", spp));
   for (const auto& s : res.scenes()) {
     std::vector<std::string> row{s};
-    for (const auto& m : methods) row.push_back(format_metric(metric_of(res.find(s, m, spp), metric)));
+    for (const auto& m : methods)
+      row.push_back(res.failure(s, m, spp) ? "failed" : format_metric(metric_of(res.find(s, m, spp), metric)));
     row.push_back(format_metric(metric_of(res.find(s, "input", spp), metric)));
     if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
     t.rows.push_back(row);
   }
   if (metric == "mse_converged") t.header.push_back("reference pixels left out");
   const auto& info = metrics::metric(metric);
-  t.note = fmt::format("{}; {} is better. From results.json.", info.description, info.lower_is_better ? "lower" : "higher");
+  t.note = fmt::format("{}; {} is better. From results.json.{}", info.description, info.lower_is_better ? "lower" : "higher",
+                       res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).");
+  return t;
+}
+
+Table failures_table(const ResultsDocument& res) {
+  Table t;
+  t.title = "Failed cells";
+  t.header = {"scene", "method", "spp", "reason", "last lines of its stderr"};
+  for (const auto& f : res.failures)
+    t.rows.push_back({f.scene, f.method, std::to_string(f.spp), f.reason.substr(0, f.reason.find('\n')),
+                      fmt::format("{}", fmt::join(f.log_tail, " / "))});
+  t.note = "Cells of this run that failed (results.json, key failures): the run kept every other cell and exited 1; the next "
+           "run into the folder tries these again.";
   return t;
 }
 

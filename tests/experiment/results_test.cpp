@@ -41,6 +41,7 @@ CellRecord method_record() {
   r.times.total = 1.25;
   r.times.reference = 600;
   r.times.filter_runs = std::vector<double>{0.3, 0.25, 0.2};
+  r.times.setup = 2.5;
   r.reference = {.spp = 1024, .seed = 1000003, .seconds = 600, .cache_hit = true, .image = "images/c/reference.exr",
                  .unconverged_share = 0.0125, .unconverged_rse = 0.5};
   r.files = {{"image", "images/c/x_16.exr"}, {"error_flip", "images/c/x_16.err_flip.exr"}};
@@ -72,13 +73,14 @@ ResultsDocument document() {
   input.spp = 16;
   input.metrics = {{"mse", 90.0}};
   d.records = {input, method_record()};
+  d.failures = {{"cornell-box", "plug", 16, "k2", "plug-in 'plug' (p.toml): the program exited with status 1", {"Traceback", "E"}}};
   return d;
 }
 
 TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   const json j = document().to_json();
   EXPECT_EQ(j.at("format"), "denoisebench-results");
-  EXPECT_EQ(j.at("schema_version"), 2);
+  EXPECT_EQ(j.at("schema_version"), 3);
   EXPECT_TRUE(j.at("records")[1].at("metrics").at("psnr").is_null());  // non-finite as null
   const ResultsDocument back = ResultsDocument::from_json(json::parse(j.dump()), "results.json");
   EXPECT_EQ(back.to_json(), j);
@@ -90,6 +92,19 @@ TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   EXPECT_EQ(r.image(), "images/c/x_16.exr");
   EXPECT_EQ(back.config.table2.filter_opencl, "proposed:opencl");
   EXPECT_EQ(back.config.table2.filter_cpu, "proposed");  // the default, written once
+  EXPECT_EQ(r.times.setup, 2.5);
+  ASSERT_EQ(back.failures.size(), 1u);
+  EXPECT_EQ(back.failures[0].log_tail, (std::vector<std::string>{"Traceback", "E"}));
+  EXPECT_NE(back.failure("cornell-box", "plug", 16), nullptr);
+  EXPECT_EQ(back.failure("cornell-box", "plug", 4), nullptr);
+  // A version 2 file (no failures, no setup_seconds) is still read.
+  json v2 = j;
+  v2["schema_version"] = 2;
+  v2.erase("failures");
+  EXPECT_TRUE(ResultsDocument::from_json(v2, "results.json").failures.empty());
+  json v9 = j;
+  v9["schema_version"] = 9;
+  EXPECT_THROW(ResultsDocument::from_json(v9, "results.json"), InputError);
   // A record that has no optional fields writes none of them.
   EXPECT_FALSE(j.at("records")[0].contains("params"));
   EXPECT_FALSE(j.at("records")[0].contains("base_method"));

@@ -1,0 +1,537 @@
+#include "methods/plugins.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <regex>
+#include <set>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "core/config.h"
+#include "core/exr_io.h"
+#include "core/hash.h"
+#include "core/subprocess.h"
+#include "core/timer.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace dnb {
+
+namespace {
+
+// The repository's folders (the source tree; $DNB_SOURCE_DIR overrides at run time, as for the
+// built-in scenes).
+fs::path source_dir(const char* sub, const char* compiled) {
+  if (const char* s = std::getenv("DNB_SOURCE_DIR"); s && *s) return fs::path(s) / sub;
+  return fs::path(compiled);
+}
+fs::path python_dir() { return source_dir("python", DNB_SOURCE_PYTHON_DIR); }
+
+bool known_layer(const std::string& name) {
+  static const std::set<std::string> base = {layer::kColor,    layer::kDirect,           layer::kIndirect,
+                                             layer::kAlbedo,   layer::kReflection,       layer::kEmission,
+                                             layer::kNormal,   layer::kDepth,            layer::kVariance,
+                                             layer::kDirectVariance, layer::kIndirectVariance, layer::kEdge,
+                                             layer::kSamples};
+  if (base.count(name)) return true;
+  static const std::regex level(R"(refl([1-9][0-9]?)\.([a-z_]+))");
+  std::smatch m;
+  return std::regex_match(name, m, level) && (base.count(m[2].str()) || m[2].str() == layer::kTint);
+}
+
+bool executable(const fs::path& p) {
+  std::error_code ec;
+  return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
+}
+
+// argv[0] as it will be run: absolute, relative to the manifest's folder, or found on PATH.
+std::string resolve_program(const std::string& program, const fs::path& folder, const std::string& where) {
+  if (program.empty()) throw InputError(fmt::format("{}: the program (first element) is empty", where));
+  if (program.find('/') != std::string::npos) {
+    const fs::path p = fs::path(program).is_absolute() ? fs::path(program) : folder / program;
+    if (!executable(p))
+      throw InputError(fmt::format("{}: program '{}' {}", where, p.string(),
+                                   fs::exists(p) ? "is not an executable file" : "does not exist"));
+    return fs::absolute(p).lexically_normal().string();
+  }
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "/usr/local/bin:/usr/bin:/bin";
+  std::size_t start = 0;
+  while (start <= dirs.size()) {
+    const std::size_t end = std::min(dirs.find(':', start), dirs.size());
+    const std::string d = dirs.substr(start, end - start);
+    if (!d.empty() && executable(fs::path(d) / program)) return program;
+    start = end + 1;
+  }
+  throw InputError(fmt::format("{}: program '{}' is not on PATH ({})", where, program, dirs));
+}
+
+ParamType param_type(const std::string& t, const std::string& where) {
+  if (t == "float") return ParamType::Float;
+  if (t == "int") return ParamType::Int;
+  if (t == "bool") return ParamType::Bool;
+  if (t == "string") return ParamType::String;
+  throw InputError(fmt::format("{}: type '{}': expected float, int, bool or string", where, t));
+}
+
+ParamSpec read_param(ConfigTable& t, const std::string& name) {
+  ParamSpec s;
+  s.name = name;
+  s.type = param_type(t.require_string("type"), t.where("type"));
+  if (!t.contains("default")) throw InputError(fmt::format("{}: parameter '{}' has no key 'default'", t.where("type"), name));
+  const std::string default_where = t.where("default");
+  s.default_value = t.raw("default");
+  s.doc = t.get("doc", "");
+  if (t.contains("min")) s.min = t.get("min", 0.0);
+  if (t.contains("max")) s.max = t.get("max", 0.0);
+  s.choices = t.get("choices", std::vector<std::string>{});
+  t.finish();
+  if ((s.min || s.max) && s.type != ParamType::Float && s.type != ParamType::Int)
+    throw InputError(fmt::format("{}: min and max apply to float and int parameters only", t.where("type")));
+  if (!s.choices.empty() && s.type != ParamType::String)
+    throw InputError(fmt::format("{}: choices apply to string parameters only", t.where("choices")));
+  if (s.min && s.max && *s.min > *s.max)
+    throw InputError(fmt::format("{}: min {} is above max {}", t.where("min"), *s.min, *s.max));
+  // The default must be accepted by its own spec: checked by a registry of one.
+  MethodRegistry probe;
+  try {
+    probe.add({.name = "probe", .params = {s}, .create = [](const Params&) -> std::unique_ptr<Method> { return nullptr; }});
+  } catch (const WorkError&) {
+    throw InputError(fmt::format("{}: default '{}' is not {}", default_where, s.default_value, s.expected()));
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Running a plug-in.
+
+std::map<std::string, std::string> child_env() {
+  // The helper module (python/denoisebench_plugin.py) importable without installing it; no
+  // bytecode written into plug-in folders (they are hashed); stderr unbuffered, line by line.
+  std::string pp = python_dir().string();
+  if (const char* old = std::getenv("PYTHONPATH"); old && *old) pp += std::string(":") + old;
+  return {{"PYTHONPATH", pp}, {"PYTHONDONTWRITEBYTECODE", "1"}, {"PYTHONUNBUFFERED", "1"}};
+}
+
+std::function<void(const std::string&)> log_to(const std::string& name) {
+  return [name](const std::string& line) { spdlog::info("[{}] {}", name, line); };
+}
+
+std::vector<std::string> tail_of(const Subprocess& p) { return {p.log_tail().begin(), p.log_tail().end()}; }
+
+[[noreturn]] void fail(const PluginManifest& m, const std::string& reason, std::vector<std::string> tail = {}) {
+  const std::string what = fmt::format("plug-in '{}' ({}): {}", m.name, m.path, reason);
+  std::string msg = what;
+  if (!tail.empty()) msg += fmt::format("; the last lines of its stderr:\n  {}", fmt::join(tail, "\n  "));
+  throw PluginError(what, std::move(tail), msg);
+}
+
+// Where the scratch folders go: memory (/dev/shm) when it has room for large frames (a 1024x768
+// input with guides is tens of MB; containers often give /dev/shm only 64 MB), else the system's
+// temporary folder. $DENOISEBENCH_PLUGIN_TMP overrides.
+fs::path parent_dir() {
+  if (const char* t = std::getenv("DENOISEBENCH_PLUGIN_TMP"); t && *t) return t;
+  struct statvfs v {};
+  if (::statvfs("/dev/shm", &v) == 0 && double(v.f_bavail) * double(v.f_frsize) >= 1024.0 * 1024 * 1024 &&
+      ::access("/dev/shm", W_OK) == 0)
+    return "/dev/shm";
+  return fs::temp_directory_path();
+}
+
+// A private folder for one method's IN.exr and OUT.exr, removed with it.
+class WorkDir {
+ public:
+  WorkDir() {
+    const fs::path parent = parent_dir();
+    std::string tmpl = (parent / "denoisebench-plugin-XXXXXX").string();
+    if (!::mkdtemp(tmpl.data()))
+      throw WorkError(fmt::format("cannot create a folder in '{}': {}", parent.string(), std::strerror(errno)));
+    path_ = tmpl;
+  }
+  ~WorkDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+// A worker plug-in's process, shared by every method instance (cell) of the plug-in in this
+// process: started on first use, restarted once if it dies, then failing.
+class Worker {
+ public:
+  explicit Worker(const PluginManifest& m) : m_(m) {}
+  ~Worker() { stop(false); }
+
+  // Sends one request; returns the round trip's wall seconds. PluginError on any failure.
+  double request(const json& req) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    start();
+    Stopwatch sw;
+    if (!proc_->write_line(req.dump())) died("closed its stdin before the request");
+    std::string answer;
+    const auto r = proc_->read_line(answer, m_.timeout_seconds);
+    const double seconds = sw.seconds();
+    if (r == Subprocess::Read::Timeout) {
+      proc_->kill_group();
+      fail(m_, fmt::format("no answer within timeout_seconds = {} (its process group was killed)", m_.timeout_seconds),
+           tail_of(*proc_));
+    }
+    if (r == Subprocess::Read::Eof) died("ended before answering");
+    json a;
+    try {
+      a = json::parse(answer);
+    } catch (const json::exception&) {
+      fail(m_, fmt::format("answered '{}', expected one JSON line {{\"ok\": true}} or {{\"ok\": false, \"error\": ...}}",
+                           answer.substr(0, 200)),
+           tail_of(*proc_));
+    }
+    if (!a.is_object() || !a.contains("ok") || !a["ok"].is_boolean())
+      fail(m_, fmt::format("answered {}, expected an object with a boolean \"ok\"", a.dump().substr(0, 200)), tail_of(*proc_));
+    if (!a["ok"].get<bool>())
+      fail(m_, fmt::format("reported an error: {}", a.value("error", json("(no \"error\" given)")).dump()), tail_of(*proc_));
+    return seconds;
+  }
+  double setup_seconds() const { return setup_seconds_; }
+
+  // Closes stdin and waits for the worker to end; kills its group after a grace period.
+  void stop(bool log) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!proc_) return;
+    if (!log) proc_->set_on_log_line({});  // at exit the log may already be gone
+    proc_->close_stdin();
+    if (!proc_->wait(5.0)) proc_->kill_group();
+    proc_.reset();
+  }
+
+ private:
+  void start() {
+    if (proc_ && proc_->running()) return;
+    if (proc_) proc_->kill_group();  // a dead one's leftovers
+    if (starts_ >= 2) fail(m_, "the worker died twice; its remaining cells are not run", last_tail_);
+    ++starts_;
+    Stopwatch sw;
+    proc_ = std::make_unique<Subprocess>(ProcessOptions{.argv = m_.command, .cwd = m_.folder, .env = child_env(),
+                                                        .pipe_stdin = true, .pipe_stdout = true,
+                                                        .on_log_line = log_to(m_.name)});
+    std::string line;
+    const auto r = proc_->read_line(line, m_.timeout_seconds);
+    if (r == Subprocess::Read::Timeout) {
+      proc_->kill_group();
+      fail(m_, fmt::format("not ready within timeout_seconds = {} (its process group was killed)", m_.timeout_seconds),
+           keep_tail());
+    }
+    if (r == Subprocess::Read::Eof) died("ended during start-up, before its ready line");
+    json ready;
+    try {
+      ready = json::parse(line);
+    } catch (const json::exception&) {
+    }
+    if (!ready.is_object() || ready.value("ready", false) != true) {
+      proc_->kill_group();
+      fail(m_, fmt::format("printed '{}' as its first line, expected {{\"ready\": true}}", line.substr(0, 200)), keep_tail());
+    }
+    setup_seconds_ = sw.seconds();
+    spdlog::info("plug-in '{}': worker {} ready in {:.3f} s", m_.name, proc_->pid(), setup_seconds_);
+  }
+  std::vector<std::string> keep_tail() { return last_tail_ = tail_of(*proc_); }
+  [[noreturn]] void died(const std::string& when) {
+    auto st = proc_->wait(2.0);
+    if (!st) st = proc_->kill_group();
+    fail(m_, fmt::format("the worker {} ({}){}", when, st->describe(), starts_ < 2 ? "; it is restarted for the next cell" : ""),
+         keep_tail());
+  }
+
+  PluginManifest m_;
+  std::mutex mutex_;
+  std::unique_ptr<Subprocess> proc_;
+  int starts_ = 0;
+  double setup_seconds_ = 0;
+  std::vector<std::string> last_tail_;
+};
+
+std::mutex& workers_mutex() {
+  static std::mutex m;
+  return m;
+}
+std::vector<std::weak_ptr<Worker>>& workers() {
+  static std::vector<std::weak_ptr<Worker>> w;
+  return w;
+}
+
+class PluginMethod : public Method {
+ public:
+  PluginMethod(std::shared_ptr<const PluginManifest> m, Params params, std::shared_ptr<Worker> worker)
+      : m_(std::move(m)), params_(std::move(params)), worker_(std::move(worker)) {}
+
+  std::vector<std::string> required_layers() const override { return m_->layers; }
+
+  MethodResult execute(const MethodInput& input) override {
+    if (!input.frame) throw InputError(fmt::format("plug-in '{}' needs a frame", m_->name));
+    const AovFrame& f = *input.frame;
+    if (!dir_) dir_ = std::make_unique<WorkDir>();
+    const std::string in = dir_->file("in.exr"), out = dir_->file("out.exr");
+    MethodResult r;
+    {
+      ScopedPhase p(r.stats, "write_input");
+      write_frame(f, in, {.compress = false, .edges = false, .layers = m_->layers, .durable = false});
+      std::error_code ec;
+      fs::remove(out, ec);
+    }
+    {
+      // The program's time: the process's wall time, or the request's round trip (a worker's
+      // start-up is setup_seconds, apart).
+      std::vector<std::string> tail;
+      if (worker_) {
+        r.stats.own_seconds = worker_->request({{"input", in}, {"output", out}, {"params", typed_params()}});
+        r.stats.setup_seconds = worker_->setup_seconds();
+      } else {
+        r.stats.own_seconds = run_frame_process(in, out, tail);
+      }
+      r.stats.add_phase("program", *r.stats.own_seconds);
+      ScopedPhase p(r.stats, "read_output");
+      r.image = read_output(out, f.width(), f.height(), tail);
+    }
+    return r;
+  }
+
+ private:
+  json typed_params() const {
+    json j = json::object();
+    for (const ParamSpec& s : m_->params) {
+      switch (s.type) {
+        case ParamType::Float: j[s.name] = params_.f(s.name); break;
+        case ParamType::Int: j[s.name] = params_.i(s.name); break;
+        case ParamType::Bool: j[s.name] = params_.b(s.name); break;
+        case ParamType::String: j[s.name] = params_.s(s.name); break;
+      }
+    }
+    return j;
+  }
+
+  double run_frame_process(const std::string& in, const std::string& out, std::vector<std::string>& tail) {
+    std::vector<std::string> argv = m_->command;
+    for (const std::string& a : {std::string("--input"), in, std::string("--output"), out}) argv.push_back(a);
+    for (const auto& [k, v] : params_.as_strings()) argv.push_back("--param"), argv.push_back(k + "=" + v);
+    Stopwatch sw;
+    Subprocess p(ProcessOptions{.argv = argv, .cwd = m_->folder, .env = child_env(), .on_log_line = log_to(m_->name)});
+    auto st = p.wait(m_->timeout_seconds);
+    const double seconds = sw.seconds();
+    if (!st) {
+      p.kill_group();
+      fail(*m_, fmt::format("timed out after timeout_seconds = {} (its process group was killed)", m_->timeout_seconds),
+           tail_of(p));
+    }
+    if (!st->ok()) fail(*m_, fmt::format("the program {}", st->describe()), tail_of(p));
+    tail = tail_of(p);
+    return seconds;
+  }
+
+  Image read_output(const std::string& out, int w, int h, const std::vector<std::string>& tail) const {
+    if (!fs::exists(out)) fail(*m_, fmt::format("reported success but wrote no output '{}'", out), tail);
+    Image img;
+    try {
+      img = read_rgb(out);
+    } catch (const std::exception& e) {
+      fail(*m_, fmt::format("wrote an output the harness cannot use (channels R, G, B expected): {}", e.what()), tail);
+    }
+    if (img.width() != w || img.height() != h)
+      fail(*m_, fmt::format("wrote a {}x{} image for a {}x{} frame", img.width(), img.height(), w, h), tail);
+    if (const std::size_t bad = count_non_finite(img.view()))
+      fail(*m_, fmt::format("wrote {} non-finite samples (NaN or Inf) of {}", bad, img.size()), tail);
+    return img;
+  }
+
+  std::shared_ptr<const PluginManifest> m_;
+  Params params_;
+  std::shared_ptr<Worker> worker_;
+  std::unique_ptr<WorkDir> dir_;
+};
+
+std::vector<fs::path> manifests_in(const fs::path& dir) {
+  std::vector<fs::path> out;
+  std::error_code ec;
+  auto add_from = [&](const fs::path& d) {
+    for (const auto& e : fs::directory_iterator(d, ec))
+      if (e.is_regular_file() && e.path().extension() == ".toml") out.push_back(e.path());
+  };
+  add_from(dir);
+  for (const auto& e : fs::directory_iterator(dir, ec))
+    if (e.is_directory() && e.path().filename().string().front() != '.') add_from(e.path());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+bool has_plugin_table(const fs::path& p) {
+  try {
+    return ConfigFile::load(p.string()).root().contains("plugin");
+  } catch (const InputError&) {
+    return true;  // malformed: let load_plugin_manifest report it
+  }
+}
+
+}  // namespace
+
+PluginManifest load_plugin_manifest(const std::string& path, const std::vector<std::string>& builtins) {
+  ConfigFile file = ConfigFile::load(path);
+  ConfigTable root = file.root();
+  auto pl = root.table("plugin");
+  if (!pl) throw InputError(fmt::format("{}: expected a [plugin] table (name, command, protocol, layers)", path));
+  PluginManifest m;
+  m.path = fs::absolute(path).lexically_normal().string();
+  m.folder = fs::path(m.path).parent_path().string();
+  m.name = pl->require_string("name");
+  if (!std::regex_match(m.name, std::regex("[A-Za-z0-9][A-Za-z0-9_.-]*")))
+    throw InputError(fmt::format("{}: name '{}': expected letters, digits, '_', '-' or '.'", pl->where("name"), m.name));
+  if (std::find(builtins.begin(), builtins.end(), m.name) != builtins.end())
+    throw InputError(fmt::format("{}: name '{}' is a built-in method's; choose another", pl->where("name"), m.name));
+  m.description = pl->get("description", "");
+  m.command = pl->get("command", std::vector<std::string>{});
+  if (m.command.empty()) throw InputError(fmt::format("{}: expected command = [\"program\", \"arg\", ...]", pl->where("command")));
+  m.command[0] = resolve_program(m.command[0], m.folder, pl->where("command"));
+  for (std::size_t i = 1; i < m.command.size(); ++i) {
+    std::error_code ec;
+    const fs::path p = fs::path(m.folder) / m.command[i];
+    if (fs::path(m.command[i]).is_relative() && !m.command[i].empty() && m.command[i][0] != '-' && fs::exists(p, ec))
+      m.command[i] = p.lexically_normal().string();
+  }
+  const std::string protocol = pl->get("protocol", "frame");
+  if (protocol == "frame") m.protocol = PluginProtocol::Frame;
+  else if (protocol == "worker") m.protocol = PluginProtocol::Worker;
+  else throw InputError(fmt::format("{}: protocol '{}': expected \"frame\" or \"worker\"", pl->where("protocol"), protocol));
+  m.layers = pl->get("layers", std::vector<std::string>{});
+  if (m.layers.empty()) throw InputError(fmt::format("{}: expected a non-empty list of frame layers", pl->where("layers")));
+  for (const auto& l : m.layers)
+    if (!known_layer(l))
+      throw InputError(fmt::format("{}: unknown layer '{}' (layers: color, direct, indirect, albedo, reflection, emission, "
+                                   "normal, depth, variance, direct_variance, indirect_variance, edge, samples, reflK.<layer>)",
+                                   pl->where("layers"), l));
+  m.timeout_seconds = pl->get("timeout_seconds", m.timeout_seconds);
+  if (!(m.timeout_seconds > 0 && m.timeout_seconds <= 86400))
+    throw InputError(fmt::format("{}: expected seconds in (0, 86400]", pl->where("timeout_seconds")));
+  pl->finish();
+  if (auto params = root.table("params"))
+    for (const auto& k : params->keys()) {
+      auto t = params->table(k);
+      if (!t) throw InputError(fmt::format("{}: expected a table [params.{}] with type, default, doc", params->where(k), k));
+      m.params.push_back(read_param(*t, k));
+    }
+  root.finish();
+  return m;
+}
+
+std::string plugin_content_hash(const PluginManifest& m) {
+  // Every regular file under the folder and under the helper's, by relative path and content;
+  // hidden entries and Python caches are left out (they do not change what the program does).
+  std::vector<std::string> parts;
+  auto add_tree = [&](const fs::path& root, const std::string& label) {
+    std::error_code ec;
+    if (!fs::is_directory(root, ec)) return;
+    std::vector<std::pair<std::string, std::string>> files;
+    for (auto it = fs::recursive_directory_iterator(root, ec); !ec && it != fs::recursive_directory_iterator();
+         it.increment(ec)) {
+      const std::string leaf = it->path().filename().string();
+      if (leaf.front() == '.' || leaf == "__pycache__") {
+        if (it->is_directory()) it.disable_recursion_pending();
+        continue;
+      }
+      if (it->is_regular_file())
+        files.emplace_back(fs::relative(it->path(), root).string(), sha256_file(it->path().string()));
+    }
+    std::sort(files.begin(), files.end());
+    for (const auto& [rel, h] : files) parts.push_back(label + "/" + rel + ":" + h);
+  };
+  add_tree(m.folder, "plugin");
+  add_tree(python_dir(), "harness-python");
+  return sha256_hex(fmt::format("{}", fmt::join(parts, "\n")));
+}
+
+std::vector<std::string> plugin_search_dirs(const std::vector<std::string>& extra) {
+  std::vector<std::string> dirs = extra;
+  if (const char* env = std::getenv("DENOISEBENCH_PLUGINS"); env && *env) {
+    std::string s = env;
+    std::size_t start = 0;
+    while (start <= s.size()) {
+      const std::size_t end = std::min(s.find(':', start), s.size());
+      if (end > start) dirs.push_back(s.substr(start, end - start));
+      start = end + 1;
+    }
+  }
+  dirs.push_back(source_dir("plugins", DNB_SOURCE_PLUGINS_DIR).string());
+  return dirs;
+}
+
+std::vector<std::string> register_plugins(const std::vector<std::string>& dirs) {
+  MethodRegistry& registry = MethodRegistry::global();
+  static std::mutex mutex;
+  std::lock_guard<std::mutex> lock(mutex);
+  std::vector<std::string> builtins;
+  for (const MethodInfo* mi : registry.all())
+    if (mi->origin.empty()) builtins.push_back(mi->name);
+  std::vector<std::string> added;
+  for (const std::string& d : dirs) {
+    std::error_code ec;
+    if (!fs::is_directory(d, ec)) {
+      // The repository's own folder may be absent in an installed copy; a folder the user named must exist.
+      if (d == source_dir("plugins", DNB_SOURCE_PLUGINS_DIR).string()) continue;
+      throw InputError(fmt::format("plug-in folder '{}' {}", d, fs::exists(d, ec) ? "is not a folder" : "does not exist"));
+    }
+    for (const fs::path& p : manifests_in(d)) {
+      if (!has_plugin_table(p)) continue;
+      PluginManifest m = load_plugin_manifest(p.string(), builtins);
+      if (registry.contains(m.name)) {
+        const MethodInfo& old = registry.info(m.name);
+        if (old.origin == m.path) continue;  // the same manifest, found again
+        throw InputError(fmt::format("{}: plug-in name '{}' is already taken by '{}'", m.path, m.name, old.origin));
+      }
+      auto manifest = std::make_shared<const PluginManifest>(m);
+      std::shared_ptr<Worker> worker;
+      if (m.protocol == PluginProtocol::Worker) {
+        worker = std::make_shared<Worker>(m);
+        std::lock_guard<std::mutex> wl(workers_mutex());
+        workers().push_back(worker);
+      }
+      MethodInfo info;
+      info.name = m.name;
+      info.description = m.description;
+      info.kind = MethodKind::Filter;
+      info.params = m.params;
+      info.origin = m.path;
+      info.content_hash = plugin_content_hash(m);
+      info.create = [manifest, worker](const Params& p) -> std::unique_ptr<Method> {
+        return std::make_unique<PluginMethod>(manifest, p, worker);
+      };
+      registry.add(std::move(info));
+      added.push_back(m.name);
+    }
+  }
+  return added;
+}
+
+std::vector<std::string> load_plugins(const std::vector<std::string>& extra) {
+  return register_plugins(plugin_search_dirs(extra));
+}
+
+void shutdown_plugin_workers() {
+  std::vector<std::shared_ptr<Worker>> live;
+  {
+    std::lock_guard<std::mutex> lock(workers_mutex());
+    for (auto& w : workers())
+      if (auto s = w.lock()) live.push_back(s);
+  }
+  for (auto& w : live) w->stop(true);
+}
+
+}  // namespace dnb

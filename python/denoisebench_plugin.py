@@ -1,0 +1,179 @@
+"""Helper for denoisebench plug-ins written in Python (docs/plugins.md).
+
+A plug-in is any program that speaks one of two protocols; this module speaks both around one
+function of yours, so that a plug-in is a manifest and a few lines:
+
+    import numpy as np
+    from denoisebench_plugin import run
+
+    def denoise(frame, params):
+        # frame["albedo"] is an H x W x 3 float32 array; frame.meta has scene, spp, seed
+        return frame["color"]          # H x W x 3: the harness writes nothing else
+
+    run(denoise)
+
+`run` picks the protocol from the command line: `--input IN.exr --output OUT.exr [--param k=v]`
+is protocol "frame" (one frame, then exit); no arguments is protocol "worker" (print the ready
+line, then one JSON request per line on stdin until it closes). Anything your function prints
+goes to the harness's log: in worker mode stdout carries the protocol, so `print` is sent to
+stderr.
+
+Needs NumPy and OpenImageIO's Python binding (Debian: python3-numpy, python3-openimageio; the
+harness's scripts/setup installs both). The harness puts this folder on PYTHONPATH.
+"""
+
+import json
+import os
+import sys
+import traceback
+
+import numpy as np
+import OpenImageIO as oiio
+
+_ORDER = {"R": 0, "G": 1, "B": 2, "X": 0, "Y": 1, "Z": 2}
+
+
+class Frame:
+    """The layers of one input frame by the harness's layer names (DESIGN.md): 'color',
+    'direct', 'indirect', 'albedo', 'reflection', 'emission', 'normal', 'depth', 'variance',
+    ..., 'refl1.color' ... Each is an H x W x C float32 array (C = 3, or 1 for depth, edge,
+    samples). `meta` holds the frame's metadata: scene, spp, seed, size."""
+
+    def __init__(self, layers, meta):
+        self.layers = layers
+        self.meta = meta
+        first = next(iter(layers.values()))
+        self.height, self.width = first.shape[0], first.shape[1]
+
+    def __getitem__(self, name):
+        if name not in self.layers:
+            raise KeyError(f"the frame has no layer '{name}' (it has: {', '.join(sorted(self.layers))}); "
+                           "declare it in the manifest's layers")
+        return self.layers[name]
+
+    def __contains__(self, name):
+        return name in self.layers
+
+
+def _layer_of(channel):
+    # "R" -> ("color", "R"); "normal.X" -> ("normal", "X"); "refl1.color.G" -> ("refl1.color", "G")
+    if "." not in channel:
+        return "color", channel
+    layer, _, comp = channel.rpartition(".")
+    return layer, comp
+
+
+def read_frame(path):
+    """Reads an EXR written by the harness into a Frame (channels looked up by name)."""
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise RuntimeError(f"cannot open '{path}': {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        if pixels is None:
+            raise RuntimeError(f"cannot read '{path}': {inp.geterror()}")
+        pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+        groups = {}
+        for i, name in enumerate(spec.channelnames):
+            layer, comp = _layer_of(name)
+            groups.setdefault(layer, []).append((_ORDER.get(comp, 9), i))
+        layers = {layer: np.ascontiguousarray(pixels[:, :, [i for _, i in sorted(chans)]])
+                  for layer, chans in groups.items()}
+        meta = {}
+        for key in ("scene", "spp", "seed", "size", "tracer_version", "reflection_levels"):
+            v = spec.getattribute("denoisebench:" + key)
+            if v is not None:
+                meta[key] = v
+        return Frame(layers, meta)
+    finally:
+        inp.close()
+
+
+def write_rgb(path, image):
+    """Writes an H x W x 3 array as an EXR with channels R, G, B (to a temporary name, then
+    renamed, so the harness never reads half a file)."""
+    img = np.ascontiguousarray(np.asarray(image, dtype=np.float32))
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"the output must be H x W x 3, got shape {img.shape}")
+    tmp = f"{path}.tmp-{os.getpid()}.exr"
+    spec = oiio.ImageSpec(img.shape[1], img.shape[0], 3, oiio.FLOAT)
+    spec.channelnames = ("R", "G", "B")
+    spec.attribute("compression", "none")
+    out = oiio.ImageOutput.create(tmp)
+    if out is None or not out.open(tmp, spec) or not out.write_image(img) or not out.close():
+        raise RuntimeError(f"cannot write '{path}': {oiio.geterror()}")
+    os.replace(tmp, path)
+
+
+def _parse_value(text):
+    # The frame protocol passes every parameter as text; the harness has already checked it
+    # against the manifest's type, so the text says which type it is.
+    if text in ("true", "false"):
+        return text == "true"
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _run_frame(fn, argv):
+    args = {"--input": None, "--output": None}
+    params = {}
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a in args and i + 1 < len(argv):
+            args[a] = argv[i + 1]
+        elif a == "--param" and i + 1 < len(argv) and "=" in argv[i + 1]:
+            k, _, v = argv[i + 1].partition("=")
+            params[k] = _parse_value(v)
+        else:
+            sys.exit(f"unexpected argument '{a}' (expected --input IN.exr --output OUT.exr [--param key=value ...])")
+        i += 2
+    if not args["--input"] or not args["--output"]:
+        sys.exit("expected --input IN.exr --output OUT.exr")
+    write_rgb(args["--output"], fn(read_frame(args["--input"]), params))
+
+
+def _run_worker(fn, setup):
+    protocol = sys.stdout
+    sys.stdout = sys.stderr  # the user's prints go to the log, never into the protocol
+    state = setup() if setup else None
+
+    def answer(obj):
+        protocol.write(json.dumps(obj) + "\n")
+        protocol.flush()
+
+    answer({"ready": True})
+    for line in sys.stdin:
+        if not line.strip():
+            continue
+        try:
+            req = json.loads(line)
+            frame = read_frame(req["input"])
+            params = req.get("params", {})
+            out = fn(frame, params, state) if setup else fn(frame, params)
+            write_rgb(req["output"], out)
+            answer({"ok": True})
+        except Exception as e:  # one bad frame fails that frame, not the worker
+            traceback.print_exc(file=sys.stderr)
+            answer({"ok": False, "error": f"{type(e).__name__}: {e}"})
+
+
+def run(fn, setup=None):
+    """Runs `fn(frame, params) -> H x W x 3 array` under the protocol the harness started this
+    program with. With `setup` (worker protocol), `setup()` runs once before the ready line (load
+    a model there: it is timed as start-up, not per frame) and `fn(frame, params, state)` gets
+    its result."""
+    argv = sys.argv[1:]
+    if argv:
+        if setup:
+            fn_frame = fn
+            state = setup()
+            fn = lambda frame, params: fn_frame(frame, params, state)  # noqa: E731
+        _run_frame(fn, argv)
+    else:
+        _run_worker(fn, setup)

@@ -1,0 +1,251 @@
+// Plug-in denoisers (methods/plugins.h, docs/plugins.md) end to end through the program: both
+// protocols through `run`, `denoise` and `report`; the worker's start-up timed apart; every
+// kind of plug-in failure contained to its cell; bad manifests refused naming file and key;
+// editing a plug-in reruns its cells only. The test plug-ins are in tests/apps/data/plugins/.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+
+namespace dnb {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+using ::testing::HasSubstr;
+using test::slurp;
+using test::write;
+
+fs::path binary() {
+  const char* bin = std::getenv("DNB_BINARY");
+  return fs::absolute(bin && *bin ? bin : "./denoisebench");
+}
+std::string test_plugins() { return test::source_dir() + "/tests/apps/data/plugins"; }
+
+test::CommandResult run_in(const test::TempDir& dir, const std::string& args) {
+  return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
+}
+
+// A tiny matrix (one scene, 32x24, 4 spp input, 64 spp reference) of the given methods.
+std::string config(const std::string& methods, const std::string& plugins_dir, const std::string& extra = "") {
+  return "name = \"plug\"\nwidth = 32\nheight = 24\nscenes = [\"cornell-box\"]\nspp = [4]\nmethods = [" + methods +
+         "]\nplugins = [\"" + plugins_dir + "\"]\n[reference]\nspp = 64\nblock_spp = 16\n[timing]\nrepeats = 2\n" + extra;
+}
+
+std::map<std::string, json> records_by_method(const json& res) {
+  std::map<std::string, json> out;
+  for (const auto& r : res["records"]) out[r["method"].get<std::string>()] = r;
+  return out;
+}
+
+TEST(Plugins, BothProtocolsRunScoreAndReportLikeBuiltIns) {
+  test::TempDir dir;
+  // The repository's examples: illum_box (frame) and illum_atrous_worker (worker).
+  write(dir.path() / "c.toml", config("\"illum_box\", \"illum_atrous_worker\", \"bilateral\"", test_plugins()));
+  const std::string out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json res = json::parse(slurp(out + "/results.json"));
+  auto recs = records_by_method(res);
+  ASSERT_TRUE(recs.count("input") && recs.count("illum_box") && recs.count("illum_atrous_worker")) << res.dump(1);
+  const double input_mse = recs["input"]["metrics"]["mse"].get<double>();
+  for (const char* m : {"illum_box", "illum_atrous_worker"}) {
+    const json& rec = recs[m];
+    EXPECT_EQ(rec["role"], "method") << m;
+    EXPECT_EQ(rec["kind"], "filter") << m;
+    // Both filter the illumination of a 4 spp frame: they must beat the unfiltered input against
+    // a 64 spp reference (the input's error is mostly its own noise at this sample count).
+    EXPECT_LT(rec["metrics"]["mse"].get<double>(), 0.9 * input_mse) << m;
+    EXPECT_GT(rec["times"]["filter"].get<double>(), 0.0) << m;
+    EXPECT_TRUE(fs::exists(out + "/" + rec["files"]["image"].get<std::string>())) << m;
+    EXPECT_TRUE(rec["phases"].contains("write_input") && rec["phases"].contains("program")) << m;
+  }
+  EXPECT_TRUE(recs["illum_atrous_worker"]["times"].contains("setup_seconds"));
+  EXPECT_FALSE(recs["illum_box"]["times"].contains("setup_seconds"));
+  EXPECT_EQ(recs["illum_box"]["params"]["radius"], "3");
+  EXPECT_TRUE(res["failures"].empty());
+
+  auto rep = test::run_command("'" + binary().string() + "' report " + out);
+  ASSERT_EQ(rep.exit_code, 0) << rep.output;
+  const std::string table1 = slurp(out + "/table1_mse.md");
+  EXPECT_THAT(table1, HasSubstr("illum_box"));
+  EXPECT_THAT(table1, HasSubstr("illum_atrous_worker"));
+  EXPECT_THAT(slurp(out + "/index.html"), HasSubstr("illum_atrous_worker"));
+}
+
+TEST(Plugins, DenoiseRunsAPluginAndListShowsIt) {
+  test::TempDir dir;
+  const std::string frame = dir.file("f.exr");
+  ASSERT_EQ(run_in(dir, "render cornell-box --size 24x16 --spp 2 -o " + frame).exit_code, 0);
+  auto d = run_in(dir, "denoise t_copy " + frame + " -o " + dir.file("d.exr") + " --plugins " + test_plugins() +
+                           " --set gain=2 --json");
+  ASSERT_EQ(d.exit_code, 0) << d.output;
+  EXPECT_THAT(d.output, HasSubstr("\"gain\": \"2\""));
+  // t_copy returns the frame's colour: scoring it against the frame's own colour gives 0.
+  auto m = run_in(dir, "metrics " + dir.file("d.exr") + " " + frame + " --json");
+  ASSERT_EQ(m.exit_code, 0) << m.output;
+  EXPECT_THAT(m.output, HasSubstr("\"mse_hdr\":0.0"));
+
+  auto l = run_in(dir, "list methods --plugins " + test_plugins());
+  ASSERT_EQ(l.exit_code, 0) << l.output;
+  EXPECT_THAT(l.output, HasSubstr("t_copy  (filter, plug-in: "));
+  EXPECT_THAT(l.output, HasSubstr("illum_box  (filter, plug-in: "));  // the repository's own plugins/
+  EXPECT_THAT(l.output, HasSubstr("gain"));
+  // $DENOISEBENCH_PLUGINS is searched too.
+  auto e = test::run_command("DENOISEBENCH_PLUGINS='" + test_plugins() + "' '" + binary().string() + "' list methods");
+  EXPECT_THAT(e.output, HasSubstr("t_sleepy_worker  (filter, plug-in: "));
+}
+
+TEST(Plugins, AWorkersStartUpIsTimedApartFromItsFrames) {
+  test::TempDir dir;
+  // t_sleepy_worker sleeps 2 s before its ready line and answers each frame at once.
+  write(dir.path() / "c.toml", config("\"t_sleepy_worker\"", test_plugins()));
+  auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto recs = records_by_method(json::parse(slurp(dir.file("out") + "/results.json")));
+  const json& t = recs.at("t_sleepy_worker")["times"];
+  EXPECT_LT(t["filter"].get<double>(), 0.5) << t.dump();  // per frame: files and a round trip only
+  EXPECT_GE(t["setup_seconds"].get<double>(), 2.0) << t.dump();
+  for (const auto& run : t["filter_runs"]) EXPECT_LT(run.get<double>(), 0.5) << t.dump();
+}
+
+TEST(Plugins, EveryKindOfFailureFailsItsCellOnlyAndTheRunExits1) {
+  test::TempDir dir;
+  write(dir.path() / "c.toml", config("\"t_crash\", \"t_copy\", \"t_hang\", \"t_nan\", \"t_wrongsize\", \"t_nothing\", \"bilateral\"",
+                                      test_plugins()));
+  const std::string out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + out);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("5 of the run's cells failed"));
+  const json res = json::parse(slurp(out + "/results.json"));
+  std::map<std::string, json> failed;
+  for (const auto& f : res["failures"]) failed[f["method"].get<std::string>()] = f;
+  ASSERT_EQ(failed.size(), 5u) << res["failures"].dump(1);
+  EXPECT_THAT(failed["t_crash"]["reason"].get<std::string>(), HasSubstr("killed by signal 11"));
+  EXPECT_EQ(failed["t_crash"]["log_tail"], json::array({"about to crash on purpose"}));
+  EXPECT_THAT(failed["t_hang"]["reason"].get<std::string>(), HasSubstr("timed out after timeout_seconds = 1"));
+  EXPECT_THAT(failed["t_nan"]["reason"].get<std::string>(), HasSubstr("non-finite samples"));
+  EXPECT_THAT(failed["t_wrongsize"]["reason"].get<std::string>(), HasSubstr("wrote a 16x12 image for a 32x24 frame"));
+  EXPECT_THAT(failed["t_nothing"]["reason"].get<std::string>(), HasSubstr("wrote no output"));
+  for (const auto& [m, f] : failed) EXPECT_FALSE(f["cell_key"].get<std::string>().empty()) << m;
+  // Every other cell is kept, the ones after the failures included.
+  auto recs = records_by_method(res);
+  EXPECT_TRUE(recs.count("input") && recs.count("t_copy") && recs.count("bilateral")) << res["records"].dump(1);
+  EXPECT_EQ(recs.size(), 3u);
+  // The hanging plug-in's process group was killed: the child it started is gone too.
+  EXPECT_NE(test::run_command("pgrep -f 'sleep 61[3].25'").exit_code, 0) << "a timed-out plug-in's child outlived it";
+
+  // The report shows them: "failed" in Table 1, and a table of reasons.
+  auto rep = test::run_command("'" + binary().string() + "' report " + out + " --no-plots");
+  ASSERT_EQ(rep.exit_code, 0) << rep.output;
+  EXPECT_THAT(slurp(out + "/table1_mse.md"), HasSubstr("| failed |"));
+  EXPECT_THAT(slurp(out + "/failures.md"), HasSubstr("wrote a 16x12 image for a 32x24 frame"));
+
+  // Failed cells are not finished: the next run tries them again (and they fail again), while
+  // the finished ones are reused.
+  const auto kept = fs::last_write_time(out + "/images/cornell-box/t_copy_4.exr");
+  auto again = run_in(dir, "run " + dir.file("c.toml") + " -o " + out);
+  EXPECT_EQ(again.exit_code, 1) << again.output;
+  EXPECT_THAT(again.output, HasSubstr("about to crash on purpose"));
+  EXPECT_EQ(fs::last_write_time(out + "/images/cornell-box/t_copy_4.exr"), kept);
+  EXPECT_EQ(json::parse(slurp(out + "/results.json"))["failures"].size(), 5u);
+}
+
+TEST(Plugins, AWorkerThatDiesIsRestartedOnceThenItsCellsFail) {
+  test::TempDir dir;
+  // Three input spp: three cells of the worker.
+  std::string text = config("\"t_dying_worker\", \"bilateral\"", test_plugins());
+  text.replace(text.find("spp = [4]"), 9, "spp = [2, 3, 4]");
+  write(dir.path() / "c.toml", text);
+  auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + dir.file("out"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  const json res = json::parse(slurp(dir.file("out") + "/results.json"));
+  ASSERT_EQ(res["failures"].size(), 3u) << res.dump(1);
+  EXPECT_THAT(res["failures"][0]["reason"].get<std::string>(), HasSubstr("exited with status 3); it is restarted"));
+  EXPECT_EQ(res["failures"][0]["log_tail"].back(), "dying on purpose");
+  EXPECT_THAT(res["failures"][1]["reason"].get<std::string>(), HasSubstr("exited with status 3"));
+  EXPECT_THAT(res["failures"][2]["reason"].get<std::string>(), HasSubstr("died twice"));
+  EXPECT_EQ(records_by_method(res).count("bilateral"), 1u);
+  // Two starts in all, not one per cell.
+  std::size_t starts = 0;
+  for (std::size_t p = 0; (p = r.output.find("plug-in 't_dying_worker': worker ", p)) != std::string::npos; ++p) ++starts;
+  EXPECT_EQ(starts, 2u) << r.output;
+}
+
+TEST(Plugins, EditingAPluginRerunsItsCellsOnly) {
+  test::TempDir dir;
+  const fs::path plugs = dir.path() / "plugs";
+  fs::create_directories(plugs);
+  fs::copy(fs::path(test_plugins()) / "t_copy", plugs / "t_copy", fs::copy_options::recursive);
+  write(dir.path() / "c.toml", config("\"t_copy\", \"bilateral\"", plugs.string()));
+  const std::string out = dir.file("out");
+  ASSERT_EQ(run_in(dir, "run " + dir.file("c.toml") + " -o " + out).exit_code, 0);
+  auto keys = [&] {
+    std::map<std::string, std::string> k;
+    const json res = json::parse(slurp(out + "/results.json"));
+    for (const auto& r : res["records"])
+      k[r["method"].get<std::string>()] = r["cell_key"].get<std::string>();
+    return k;
+  };
+  const auto before = keys();
+  ASSERT_EQ(before.size(), 3u) << slurp(out + "/results.json");
+  const auto plugin_image = out + "/images/cornell-box/t_copy_4.exr", builtin_image = out + "/images/cornell-box/bilateral_4.exr";
+  const auto plugin_time = fs::last_write_time(plugin_image), builtin_time = fs::last_write_time(builtin_image);
+
+  std::ofstream(plugs / "t_copy" / "t_copy.py", std::ios::app) << "# an edit\n";
+  ASSERT_EQ(run_in(dir, "run " + dir.file("c.toml") + " -o " + out).exit_code, 0);
+  const auto after = keys();
+  EXPECT_NE(after.at("t_copy"), before.at("t_copy"));
+  EXPECT_NE(fs::last_write_time(plugin_image), plugin_time) << "the edited plug-in's cell was not rerun";
+  EXPECT_EQ(after.at("bilateral"), before.at("bilateral"));
+  EXPECT_EQ(after.at("input"), before.at("input"));
+  EXPECT_EQ(fs::last_write_time(builtin_image), builtin_time) << "a built-in's cell was rerun";
+}
+
+// Each bad manifest is refused with exit 2, naming the manifest and the key.
+TEST(Plugins, BadManifestsExit2NamingTheFileAndKey) {
+  const std::string good_plugin = "[plugin]\nname = \"p\"\ncommand = [\"/bin/true\"]\nprotocol = \"frame\"\nlayers = [\"color\"]\n";
+  struct Case {
+    std::string text, expected;
+  };
+  const Case cases[] = {
+      {good_plugin + "colour = 1\n", "6: unknown key 'plugin.colour'"},
+      {"[plugin]\nname = \"p\"\ncommand = [\"./no_such_program\"]\nlayers = [\"color\"]\n", "key 'plugin.command'"},
+      {"[plugin]\nname = \"p\"\ncommand = [\"no-such-program-on-path\"]\nlayers = [\"color\"]\n", "is not on PATH"},
+      {"[plugin]\nname = \"bilateral\"\ncommand = [\"/bin/true\"]\nlayers = [\"color\"]\n", "is a built-in method's"},
+      {"[plugin]\nname = \"p\"\ncommand = [\"/bin/true\"]\nprotocol = \"socket\"\nlayers = [\"color\"]\n", "key 'plugin.protocol'"},
+      {"[plugin]\nname = \"p\"\ncommand = [\"/bin/true\"]\nlayers = [\"colour\"]\n", "unknown layer 'colour'"},
+      {good_plugin + "[params.r]\ntype = \"int\"\ndefault = \"99\"\nmin = 0\nmax = 8\n", "key 'params.r.default'"},
+      {good_plugin + "[params.r]\ntype = \"integer\"\ndefault = \"1\"\n", "key 'params.r.type'"},
+      {good_plugin + "[params.r]\ntype = \"int\"\n", "has no key 'default'"},
+      {good_plugin + "timeout_seconds = -1\n", "key 'plugin.timeout_seconds'"},
+  };
+  for (const auto& c : cases) {
+    test::TempDir dir;
+    write(dir.path() / "p" / "p.toml", c.text);
+    auto r = test::run_command("'" + binary().string() + "' list methods --plugins " + dir.file(""));
+    EXPECT_EQ(r.exit_code, 2) << c.text << r.output;
+    EXPECT_THAT(r.output, HasSubstr((dir.path() / "p" / "p.toml").string())) << c.text;
+    EXPECT_THAT(r.output, HasSubstr(c.expected)) << c.text;
+  }
+  // Two manifests of one name.
+  test::TempDir dir;
+  write(dir.path() / "a" / "a.toml", good_plugin);
+  write(dir.path() / "b" / "b.toml", good_plugin);
+  auto r = test::run_command("'" + binary().string() + "' list methods --plugins " + dir.file(""));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.output, HasSubstr("already taken by"));
+  // A folder that does not exist.
+  auto missing = test::run_command("'" + binary().string() + "' list methods --plugins /no/such/folder");
+  EXPECT_EQ(missing.exit_code, 2);
+  EXPECT_THAT(missing.output, HasSubstr("'/no/such/folder' does not exist"));
+}
+
+}  // namespace
+}  // namespace dnb
