@@ -82,6 +82,29 @@ TEST_P(FilterInvariants, NonFiniteInputIsRepairedAndCounted) {
   EXPECT_EQ(count_non_finite(r.image.view()), 0u);
 }
 
+// Extreme but finite values in any one layer the method reads (a guide such as normal, depth or
+// albedo, or a colour layer) give a finite output: 1e30 and -1e30 (an emitter seen directly,
+// a far-away depth), and 1e-30 (values whose squares underflow to 0). Set in a block and in
+// scattered pixels, one layer and one value at a time, so a failure names both.
+TEST_P(FilterInvariants, ExtremeFiniteInputGivesFiniteOutput) {
+  for (float value : {1e30f, -1e30f, 1e-30f}) {
+    for (const auto& name : method()->required_layers()) {
+      AovFrame f = test::planes_frame(40, 30, 0.2f);
+      Image& img = f.layer(name);
+      for (int y = 10; y < 16; ++y)
+        for (int x = 12; x < 20; ++x)
+          for (int c = 0; c < img.channels(); ++c) img.at(x, y, c) = value;
+      for (int k = 0; k < 40 * 30; k += 37) img.data()[std::size_t(k) * img.channels()] = value;
+      try {
+        MethodResult r = run(f);
+        EXPECT_EQ(count_non_finite(r.image.view()), 0u) << "layer " << name << " holding " << value;
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << "layer " << name << " holding " << value << ": " << e.what();
+      }
+    }
+  }
+}
+
 // The same input gives the bit-identical output: twice in a row on four threads, and on one
 // (an explicit count, since the default is one thread on a one-core runner).
 TEST_P(FilterInvariants, BitIdenticalOutputWhateverTheThreadCount) {
