@@ -36,6 +36,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "core/bounds.h"
 #include "core/errors.h"
 #include "core/timer.h"
 #include "core/version.h"
@@ -62,12 +63,12 @@ void set_ftz_daz() { enable_flush_to_zero(); }
 
 void check_settings(const RenderSettings& s) {
   Image::check_size(s.width, s.height, 3, "render size");
-  if (s.spp < 1) throw InputError(fmt::format("spp must be at least 1 (got {})", s.spp));
-  if (s.max_depth < 1) throw InputError(fmt::format("max depth must be at least 1 (got {})", s.max_depth));
+  check_bound(s.spp, bounds::kSpp, "render: spp");
+  check_bound(s.max_depth, bounds::kMaxDepth, "render: max depth");
   if (s.reflection_levels < 0 || s.reflection_levels > kMaxReflectionLevels)
     throw InputError(fmt::format("reflection levels must be in 0..{} (got {})", kMaxReflectionLevels,
                                  s.reflection_levels));
-  if (s.threads < 0) throw InputError(fmt::format("threads must be >= 0 (got {})", s.threads));
+  check_bound(s.threads, bounds::kThreads, "render: threads");
 }
 
 // Film position of sample s inside its pixel, in [0, 1)^2 (see top of file).
