@@ -17,6 +17,11 @@ namespace dnb {
 // indirect.R/G/B; sample s of a pixel is sub-pixel (s % 4, s / 4) of its 4x4 strata.
 std::string edges_path(const std::string& frame_path);
 
+// Frames and RGB images are written as OpenEXR only (32-bit float, channels by name, the deep
+// edge file): InputError naming `path` as given and the accepted extension otherwise. The
+// writers below check it; commands call it before any work, so a typo costs no render.
+void require_exr_output(const std::string& path);
+
 // Writes every layer, the metadata and (if present) the edge file.
 void write_frame(const AovFrame& frame, const std::string& path);
 
