@@ -49,5 +49,19 @@ TEST(CommandLineBounds, SppAndDepthAreBounded) {
   expect_refused(dir, "reference cornell-box --size 8x6 --spp 4 --block-spp 0", "--block-spp", "'0'", "1..16777216");
 }
 
+// `run` refuses a config whose spp overflowed an int (it ran a cell, then failed with "spp must
+// be at least 1 (got -2147483648)") before any cell: exit 2 naming file:line and key, and no
+// results folder.
+TEST(CommandLineBounds, RunRefusesAnOutOfBoundsConfigBeforeAnyCell) {
+  test::TempDir dir;
+  const std::string config = dir.file("big.toml");
+  test::write(config, "name = \"big\"\nwidth = 8\nheight = 6\nscenes = [\"cornell-box\"]\nspp = [1e12]\n"
+                      "methods = [\"bilateral\"]\n");
+  auto r = test::run_denoisebench("run " + config + " -o " + dir.file("results"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(config + ":5: key 'spp'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir.file("results"))) << "work started before the config was checked";
+}
+
 }  // namespace
 }  // namespace dnb
