@@ -3,6 +3,8 @@
 // and the key that wrote it (not a command-line flag, and not an hour into the run).
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "core/errors.h"
 #include "experiment/config.h"
 #include "test_util.h"
@@ -73,6 +75,17 @@ TEST(ExperimentConfig, MethodParameterErrorsNameFileLineAndKey) {
   msg = load_error(dir, config_text("", "[[variant]]\nname = \"v\"\nmethod = \"bilateral\"\nset = { no_such = 2 }\n"));
   EXPECT_TRUE(names(msg, file + ":8: key 'variant[0].set.no_such'")) << msg;
   EXPECT_TRUE(names(msg, "no_such")) << msg;
+}
+
+// The bounds refuse nothing the repository's own configs use.
+TEST(ExperimentConfig, TheRepositorysConfigsLoad) {
+  int loaded = 0;
+  for (const auto& e : std::filesystem::directory_iterator(test::source_dir() + "/configs"))
+    if (e.path().extension() == ".toml") {
+      EXPECT_NO_THROW(load_config(e.path().string())) << e.path();
+      ++loaded;
+    }
+  EXPECT_GE(loaded, 3);
 }
 
 }  // namespace
