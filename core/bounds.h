@@ -44,6 +44,8 @@ inline constexpr Bound kSegments{3, 2048, "a sphere of N segments has N^2 triang
 inline constexpr Bound kArchSegments{2, 2048, "the same bound as a sphere's"};
 inline constexpr Bound kObjectCopies{1, 10000, "copies of one object (`repeat`)"};
 inline constexpr std::int64_t kMaxTriangles = std::int64_t(1) << 28;  // per mesh: 32-bit vertex indices of 3 per triangle
+// An image texture is held as float RGB: 2^26 texels (8192 x 8192) take 768 MB.
+inline constexpr std::int64_t kMaxTexels = std::int64_t(1) << 26;
 inline constexpr Bound kTextureOctaves{1, 24, "noise octaves beyond 24 are below float precision"};
 // Scene coordinates and sizes: beyond this, float positions have less than a millimetre.
 inline constexpr RealBound kLength{0, 1e6, "scene lengths beyond 1e6 lose float precision", true};

@@ -159,11 +159,10 @@ std::unique_ptr<Texture> load_image_texture(const std::string& path) {
   {
     const OIIO::ImageSpec& s = in.spec();
     if (!within(s.width, bounds::kSide) || !within(s.height, bounds::kSide) ||
-        std::int64_t(s.width) * s.height > bounds::kMaxPixels || s.nchannels < 1)
-      throw InputError(fmt::format("texture '{}': {}x{} with {} channels is too large (each side 1..{}, at most {} "
-                                   "pixels: {})",
-                                   path, s.width, s.height, s.nchannels, bounds::kSide.max, bounds::kMaxPixels,
-                                   bounds::kSide.why));
+        std::int64_t(s.width) * s.height > bounds::kMaxTexels || s.nchannels < 1 || s.nchannels > 64)
+      throw InputError(fmt::format("texture '{}': {}x{} with {} channels is not accepted (each side 1..{}, at most "
+                                   "{} texels: they are held as float RGB, 768 MB at the bound)",
+                                   path, s.width, s.height, s.nchannels, bounds::kSide.max, bounds::kMaxTexels));
   }
   if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT))
     throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <vector>
 
 #include "core/errors.h"
 #include "core/image.h"
@@ -166,6 +167,19 @@ TEST(SceneValues, ObjIndexErrorsNameTheLine) {
     const std::string msg = error_of([&] { load_scene(test::write_text(dir.file("s.toml"), obj_scene())); });
     EXPECT_TRUE(names(msg, dir.file("t.obj") + line)) << obj << " -> " << msg;
   }
+}
+
+// A texture larger than the bound is refused from its header, before its texels are allocated.
+TEST(SceneValues, OversizedTextureIsRefusedFromItsHeader) {
+  test::TempDir dir;
+  // A PGM header claiming 16384 x 8192 grey texels (2^27), and no texels: only the header is read.
+  test::write(dir.file("big.pgm"), "P5\n16384 8192\n255\n");
+  const std::string path = test::write_text(
+      dir.file("s.toml"), "[camera]\neye = [0, 0, 3]\nlook_at = [0, 0, 0]\n[textures.t]\ntype = \"image\"\nfile = \"big.pgm\"\n"
+                          "[materials.a]\ntexture = \"t\"\n[[objects]]\ntype = \"sphere\"\nmaterial = \"a\"\nradius = 1\n");
+  const std::string msg = error_of([&] { load_scene(path); });
+  EXPECT_TRUE(names(msg, "16384x8192")) << msg;
+  EXPECT_TRUE(names(msg, "big.pgm")) << msg;
 }
 
 }  // namespace
