@@ -38,10 +38,10 @@ inline constexpr Bound kThreads{0, 1024,
 inline constexpr Bound kSeed{0, std::numeric_limits<std::int64_t>::max(), "seeds are non-negative integers"};
 inline constexpr Bound kMaxDepth{1, 1024, "path length in segments; longer paths carry no measurable light"};
 inline constexpr Bound kRepeats{1, 1000, "timing repeats of one method on one frame"};
-// A sphere of N segments has N^2 triangles: 2048 segments already make 4M triangles, some
-// 400 MB of mesh and BVH.
-inline constexpr Bound kSegments{3, 2048, "a sphere of N segments has N^2 triangles (memory)"};
-inline constexpr Bound kArchSegments{2, 2048, "the same bound as a sphere's"};
+// A sphere of N segments has N^2 triangles: 1024 segments make 1M triangles, some 300 MB of
+// mesh and BVH and a second to build (2048 took 1.2 GB and 5 s).
+inline constexpr Bound kSegments{3, 1024, "a sphere of N segments has N^2 triangles (memory)"};
+inline constexpr Bound kArchSegments{2, 1024, "the same bound as a sphere's"};
 inline constexpr Bound kObjectCopies{1, 10000, "copies of one object (`repeat`)"};
 inline constexpr std::int64_t kMaxTriangles = std::int64_t(1) << 28;  // per mesh: 32-bit vertex indices of 3 per triangle
 // An image texture is held as float RGB: 2^26 texels (8192 x 8192) take 768 MB.

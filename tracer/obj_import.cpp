@@ -107,6 +107,27 @@ std::string bad_face_index(const fs::path& path) {
   return "";
 }
 
+// Positions and normals are finite: "v 1e39 0 0" reads as an infinite float. The line of the
+// first one that is not, as "FILE:LINE: ..." (found only after the values showed one).
+void check_finite_vertices(const fs::path& path, const tinyobj::attrib_t& attrib) {
+  const auto finite = [](const std::vector<tinyobj::real_t>& v) {
+    return std::all_of(v.begin(), v.end(), [](tinyobj::real_t x) { return std::isfinite(x); });
+  };
+  if (finite(attrib.vertices) && finite(attrib.normals)) return;
+  std::ifstream in(path);
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    std::istringstream words(line);
+    std::string key, w;
+    words >> key;
+    if (key != "v" && key != "vn") continue;
+    for (int k = 0; k < 3 && words >> w; ++k)
+      if (!std::isfinite(float(std::strtod(w.c_str(), nullptr))))
+        throw InputError(fmt::format("{}:{}: '{}' value '{}' is not a finite float", path.string(), n, key, w));
+  }
+  throw InputError(fmt::format("'{}': a vertex position or normal is not finite", path.string()));
+}
+
 [[noreturn]] void throw_index_error(const fs::path& path, const std::string& fallback) {
   const std::string at = bad_face_index(path);
   throw InputError(at.empty() ? fallback : at);
@@ -258,6 +279,7 @@ void import_obj(Scene& scene, const fs::path& path, const Transform& x, std::opt
   check_mtl_colours(path);
   scene.files.push_back(path.string());
   append_mtllib_files(path, scene.files);
+  check_finite_vertices(path, reader.GetAttrib());
   const MaterialMap mat_map = import_materials(scene, path, reader.GetMaterials());
   Mesh mesh = obj_triangles(reader, path, x, mat_map, material);
   if (mesh.positions.empty()) throw InputError(fmt::format("'{}': the OBJ file has no triangles", path.string()));

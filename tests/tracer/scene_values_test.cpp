@@ -182,5 +182,13 @@ TEST(SceneValues, OversizedTextureIsRefusedFromItsHeader) {
   EXPECT_TRUE(names(msg, "big.pgm")) << msg;
 }
 
+TEST(SceneValues, NonFiniteObjVerticesNameTheLine) {
+  test::TempDir dir;
+  test::write_text(dir.file("t.obj"), "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\nv 1e39 -1 0\nv 0 1 -1\nf 1 4 5\n");
+  const std::string msg = error_of([&] { load_scene(test::write_text(dir.file("s.toml"), obj_scene())); });
+  EXPECT_TRUE(names(msg, dir.file("t.obj") + ":5:")) << msg;
+  EXPECT_TRUE(names(msg, "1e39")) << msg;
+}
+
 }  // namespace
 }  // namespace dnb
