@@ -43,7 +43,8 @@ inline constexpr Bound kRepeats{1, 1000, "timing repeats of one method on one fr
 inline constexpr Bound kSegments{3, 1024, "a sphere of N segments has N^2 triangles (memory)"};
 inline constexpr Bound kArchSegments{2, 1024, "the same bound as a sphere's"};
 inline constexpr Bound kObjectCopies{1, 10000, "copies of one object (`repeat`)"};
-inline constexpr std::int64_t kMaxTriangles = std::int64_t(1) << 28;  // per mesh: 32-bit vertex indices of 3 per triangle
+// Triangles of one mesh: its 3 vertex indices per triangle are 32-bit.
+inline constexpr std::int64_t kMaxTriangles = std::int64_t(1) << 28;
 // An image texture is held as float RGB: 2^26 texels (8192 x 8192) take 768 MB.
 inline constexpr std::int64_t kMaxTexels = std::int64_t(1) << 26;
 inline constexpr Bound kTextureOctaves{1, 24, "noise octaves beyond 24 are below float precision"};

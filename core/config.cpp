@@ -91,7 +91,8 @@ std::array<double, 3> ConfigTable::get(const std::string& key, std::array<double
   if (table_->contains(key))
     for (double x : v)
       if (!within(x, b))
-        throw InputError(fmt::format("{}: {}", where(key), bound_violation(b, fmt::format("[{}, {}, {}]", v[0], v[1], v[2]))));
+        throw InputError(
+            fmt::format("{}: {}", where(key), bound_violation(b, fmt::format("[{}, {}, {}]", v[0], v[1], v[2]))));
   return v;
 }
 

@@ -165,7 +165,8 @@ std::unique_ptr<AtomicOutput> stage_edges(const EdgeSubpixels& e, int width, int
     std::string why = o ? o->geterror() : OIIO::geterror();
     for (auto at = why.find(out->temp_path()); at != std::string::npos; at = why.find(out->temp_path()))
       why.replace(at, out->temp_path().size(), path);
-    throw WorkError(fmt::format("cannot write '{}': {}{}", path, why, err ? fmt::format(" ({})", std::strerror(err)) : ""));
+    throw WorkError(
+        fmt::format("cannot write '{}': {}{}", path, why, err ? fmt::format(" ({})", std::strerror(err)) : ""));
   }
   o.reset();
   auto in = OIIO::ImageInput::open(out->temp_path());

@@ -39,8 +39,8 @@
 namespace dnb {
 namespace {
 
-constexpr int kBandRows = 64;
-constexpr float kMaxRelativeDepth = 1e3f;  // depth / median beyond this is as far as "background"  // output rows per band: fixed, so bands never depend on threads
+constexpr int kBandRows = 64;  // output rows per band: fixed, so bands never depend on threads
+constexpr float kMaxRelativeDepth = 1e3f;  // depth / median beyond this is as far as "background"
 constexpr int kMaxGuide = 7;
 
 // Per-thread buffers of one band, reused from band to band (a fresh 20 MB per band costs more

@@ -68,10 +68,9 @@ void check_mtl_colours(const fs::path& obj) {
         const double v = std::strtod(w.c_str(), &end);
         // Compared in float: "Ke 1e30" reads as a float slightly above the double 1e30.
         if (end == w.c_str() || *end != '\0' || !std::isfinite(v) || v < 0 || float(v) > float(max))
-          throw InputError(fmt::format("{}:{}: material '{}': key '{}': expected finite non-negative numbers{}, got '{}'",
-                                       lib, n, material, key,
-                                       key == "Ke" ? fmt::format(" at most {:g} ({})", max, bounds::kRadiance.why) : "",
-                                       w));
+          throw InputError(fmt::format(
+              "{}:{}: material '{}': key '{}': expected finite non-negative numbers{}, got '{}'", lib, n, material, key,
+              key == "Ke" ? fmt::format(" at most {:g} ({})", max, bounds::kRadiance.why) : "", w));
       }
     }
   }
@@ -214,7 +213,8 @@ Mesh obj_triangles(const tinyobj::ObjReader& reader, const fs::path& path, const
       for (int k = 0; k < 3; ++k) {
         const auto& ix = idx[3 * f + k];
         if (ix.vertex_index < 0 || std::size_t(3 * ix.vertex_index + 2) >= attrib.vertices.size())
-          throw_index_error(path, fmt::format("'{}': face index out of range in shape '{}'", path.string(), shape.name));
+          throw_index_error(path,
+                            fmt::format("'{}': face index out of range in shape '{}'", path.string(), shape.name));
         p[k] = x.point(Vec3(attrib.vertices[3 * ix.vertex_index], attrib.vertices[3 * ix.vertex_index + 1],
                             attrib.vertices[3 * ix.vertex_index + 2]));
         if (ix.normal_index >= 0 && std::size_t(3 * ix.normal_index + 2) < attrib.normals.size())

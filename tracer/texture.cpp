@@ -199,8 +199,9 @@ std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_d
     tex = load_image_texture(p.string());
   } else if (type == "checker") {
     float scale = float(t.get("scale", 8.0, kTextureScale));
-    tex = std::make_unique<Checker>(scale, vec3(t.get("color_a", std::array<double, 3>{0.8, 0.8, 0.8}, bounds::kReflectance)),
-                                    vec3(t.get("color_b", std::array<double, 3>{0.2, 0.2, 0.2}, bounds::kReflectance)));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.8, 0.8, 0.8}, bounds::kReflectance));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.2, 0.2, 0.2}, bounds::kReflectance));
+    tex = std::make_unique<Checker>(scale, a, b);
   } else if (type == "wood") {
     float scale = float(t.get("scale", 4.0, kTextureScale));
     Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.62, 0.42, 0.24}, bounds::kReflectance));
@@ -212,7 +213,8 @@ std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_d
     Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.75, 0.73, 0.70}, bounds::kReflectance));
     float rows = float(t.get("rows", 12.0, kTexturePattern));
     float mortar = float(t.get("mortar", 0.08, RealBound{0, 1, "a fraction of a brick"}));
-    tex = std::make_unique<Brick>(scale, a, b, rows, mortar, float(t.get("variation", 0.3, RealBound{0, 1, "a fraction of the brick colour"})));
+    float variation = float(t.get("variation", 0.3, RealBound{0, 1, "a fraction of the brick colour"}));
+    tex = std::make_unique<Brick>(scale, a, b, rows, mortar, variation);
   } else if (type == "noise") {
     float scale = float(t.get("scale", 8.0, kTextureScale));
     Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.3, 0.3, 0.3}, bounds::kReflectance));
