@@ -39,6 +39,7 @@ TEST(CommandLineBounds, NegativeSeedIsRefused) {
   test::TempDir dir;
   expect_refused(dir, "render cornell-box --size 8x6 --spp 1 --seed -5", "--seed", "-5", ">= 0");
   expect_refused(dir, "reference cornell-box --size 8x6 --spp 1 --seed -5", "--seed", "-5", ">= 0");
+  expect_refused(dir, "run " + dir.file("no-config.toml") + " --seed -5", "--seed", "-5", ">= 0");
 }
 
 TEST(CommandLineBounds, SppAndDepthAreBounded) {
