@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "apps/args.h"
 #include "apps/commands.h"
 #include "methods/denoise.h"
 #include "methods/plugins.h"
@@ -25,8 +26,7 @@ void add_denoise(CLI::App& app, Action& action) {
   cmd->add_option("FRAME", o->request.frame, "AOV frame (EXR written by denoisebench render)")->required();
   cmd->add_option("-o,--output", o->request.output, "output EXR (R,G,B), written atomically")->required();
   cmd->add_option("--set", o->settings, "method parameter as key=value (repeatable)");
-  cmd->add_option("--threads", o->request.threads, "worker threads (0: all cores; the image does not depend on it)")
-      ->check(CLI::Range(0, 1024));
+  add_threads_option(*cmd, o->request.threads, "worker threads (0: all cores; the image does not depend on it)");
   cmd->add_option("--scene", o->request.scene,
                   "renderer-type methods: scene to render (default: the scene named in the frame's metadata)");
   cmd->add_flag("--json", o->json, "print the statistics as JSON instead of text");

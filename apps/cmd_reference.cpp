@@ -21,17 +21,21 @@ void add_reference(CLI::App& app, Action& action) {
   cmd->add_option("scene", a->job.scene, "built-in scene name or scene file")->required();
   cmd->add_option("-o,--output", a->job.output, "output EXR (R,G,B, variance.R/G/B); REF.convergence.csv is written beside it")
       ->required();
-  cmd->add_option("--spp", a->job.settings.spp, "samples per pixel")->capture_default_str()->check(CLI::Range(1, 1 << 24));
+  cmd->add_option("--spp", a->job.settings.spp, "samples per pixel")
+      ->capture_default_str()
+      ->check(in_bounds(bounds::kSpp));
   cmd->add_option("--size", a->size, "WIDTHxHEIGHT")->capture_default_str();
-  cmd->add_option("--seed", a->job.settings.seed, "random seed")->capture_default_str();
+  cmd->add_option("--seed", a->job.settings.seed, "random seed")->capture_default_str()->check(in_bounds(bounds::kSeed));
   cmd->add_option("--block-spp", a->job.settings.block_spp,
                   "samples per pixel of one block: the unit of checkpoints and MPI work (part of the cache key)")
       ->capture_default_str()
-      ->check(CLI::Range(1, 1 << 24));
-  cmd->add_option("--max-depth", a->job.settings.max_depth, "path length")->capture_default_str()->check(CLI::Range(1, 1024));
-  cmd->add_option("--threads", a->job.settings.threads, "worker threads per process (0: all cores); the image does not depend on it")
+      ->check(in_bounds(bounds::kBlockSpp));
+  cmd->add_option("--max-depth", a->job.settings.max_depth, "path length")
       ->capture_default_str()
-      ->check(CLI::Range(0, 4096));
+      ->check(in_bounds(bounds::kMaxDepth));
+  add_threads_option(*cmd, a->job.settings.threads,
+                     "worker threads per process (0: all cores); the image does not depend on it")
+      ->capture_default_str();
   cmd->add_option("--checkpoint", a->job.options.checkpoint_dir,
                   "checkpoint folder (one per reference; default: inside the cache folder)");
   cmd->add_flag("--no-checkpoint", a->no_checkpoint, "write no checkpoints (a crash loses the render)")

@@ -16,11 +16,12 @@ void add_render(CLI::App& app, Action& action) {
   auto* cmd = app.add_subcommand("render", "Render an AOV frame of a scene with the shared path tracer");
   cmd->add_option("scene", args->job.scene, "built-in scene name or scene TOML file")->required();
   cmd->add_option("-o,--output", args->job.output, "output frame (OpenEXR)")->required();
-  cmd->add_option("--spp", args->job.settings.spp, "samples per pixel")->check(CLI::PositiveNumber);
+  cmd->add_option("--spp", args->job.settings.spp, "samples per pixel")->check(in_bounds(bounds::kSpp));
   cmd->add_option("--size", args->size, "image size WIDTHxHEIGHT");
-  cmd->add_option("--seed", args->job.settings.seed, "random seed");
-  cmd->add_option("--threads", args->job.settings.threads, "worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
-  cmd->add_option("--max-depth", args->job.settings.max_depth, "path length in segments")->check(CLI::PositiveNumber);
+  cmd->add_option("--seed", args->job.settings.seed, "random seed")->check(in_bounds(bounds::kSeed));
+  add_threads_option(*cmd, args->job.settings.threads, "worker threads (0: all cores)");
+  cmd->add_option("--max-depth", args->job.settings.max_depth, "path length in segments")
+      ->check(in_bounds(bounds::kMaxDepth));
   cmd->add_option("--reflection-levels", args->job.settings.reflection_levels, "decomposed reflection levels (refl1..reflK)")
       ->check(CLI::Range(0, 8));
   cmd->add_option("--scenes-dir", args->job.load.scenes_dir, "folder of the McGuire scenes (else $DENOISEBENCH_SCENES, ../shared/scenes)");

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "apps/args.h"
 #include "apps/commands.h"
 #include "experiment/runner.h"
 #include "methods/plugins.h"
@@ -25,7 +26,8 @@ void add_run(CLI::App& app, Action& action) {
   cmd->add_option("CONFIG", o->config, "experiment config (TOML), e.g. configs/quick.toml")->required();
   cmd->add_option("-o,--output", o->out, "results folder (default: results/<config name>)");
   cmd->add_flag("--no-cache", o->no_cache, "render inputs and references again instead of using the cache");
-  cmd->add_option("--seed", o->seed, "seed of the input frames instead of the config's (the reference keeps its own)");
+  cmd->add_option("--seed", o->seed, "seed of the input frames instead of the config's (the reference keeps its own)")
+      ->check(in_bounds(bounds::kSeed));
   cmd->add_option("--cache-dir", o->cache_dir, "render cache folder (default: $DENOISEBENCH_CACHE or ~/.cache/denoisebench)");
   auto plugins = add_plugins_option(cmd);
   cmd->callback([&action, o, plugins] {

@@ -31,6 +31,11 @@ AtomicOutput::AtomicOutput(std::string destination) : dest_(std::move(destinatio
     fs::create_directories(dir, ec);
     if (ec) throw WorkError(fmt::format("cannot create folder '{}' for '{}': {}", dir.string(), dest_, ec.message()));
   }
+  // Refused here, before anything is staged: found only at the rename, a frame's edge file would
+  // already be committed beside a frame that never comes.
+  if (!dir.empty() && !fs::is_directory(dir))
+    throw WorkError(fmt::format("cannot write '{}': '{}': {}", dest_, dir.string(), std::strerror(ENOTDIR)));
+  if (fs::is_directory(p)) throw WorkError(fmt::format("cannot write '{}': {}", dest_, std::strerror(EISDIR)));
   std::string name = fmt::format(".{}.tmp-{}-{}{}", p.stem().string(), ::getpid(), g_counter++,
                                  p.extension().string());
   temp_ = (dir / name).string();
@@ -102,7 +107,7 @@ void AtomicOutput::commit() {
     if (empty) throw WorkError(fmt::format("cannot write '{}': the writer left an empty file", dest_));
   }
   if (std::rename(temp_.c_str(), dest_.c_str()) != 0)
-    throw WorkError(fmt::format("cannot rename '{}' to '{}': {}", temp_, dest_, reason()));
+    throw WorkError(fmt::format("cannot write '{}': renaming its temporary file failed: {}", dest_, reason()));
   committed_ = true;
   sync_folder(dest_);
 }

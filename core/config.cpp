@@ -1,6 +1,8 @@
 #include "core/config.h"
 
+#include <cmath>
 #include <filesystem>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -61,6 +63,61 @@ std::int64_t ConfigTable::get_int(const std::string& key, std::int64_t def) {
   auto v = n->value_exact<std::int64_t>();
   if (!v) type_error(key, "an integer");
   return *v;
+}
+
+int ConfigTable::get(const std::string& key, int def) {
+  return int(get(key, std::int64_t(def),
+                 Bound{std::numeric_limits<int>::min(), std::numeric_limits<int>::max(), "a 32-bit integer"}));
+}
+
+std::int64_t ConfigTable::get(const std::string& key, std::int64_t def, const Bound& b) {
+  const std::int64_t v = get_int(key, def);
+  if (table_->contains(key)) check_bound(v, b, where(key));
+  return v;
+}
+
+int ConfigTable::get(const std::string& key, int def, const Bound& b) {
+  return int(get(key, std::int64_t(def), b));  // b lies inside int's range
+}
+
+double ConfigTable::get(const std::string& key, double def, const RealBound& b) {
+  const double v = get(key, def);
+  if (table_->contains(key)) check_bound(v, b, where(key));
+  return v;
+}
+
+std::array<double, 3> ConfigTable::get(const std::string& key, std::array<double, 3> def, const RealBound& b) {
+  const auto v = get(key, def);
+  if (table_->contains(key))
+    for (double x : v)
+      if (!within(x, b))
+        throw InputError(
+            fmt::format("{}: {}", where(key), bound_violation(b, fmt::format("[{}, {}, {}]", v[0], v[1], v[2]))));
+  return v;
+}
+
+std::vector<int> ConfigTable::get(const std::string& key, const std::vector<int>& def, const Bound& b) {
+  const toml::node* n = mark(key);
+  if (!n) return def;
+  const toml::array* a = n->as_array();
+  if (!a) type_error(key, "an array of integers");
+  std::vector<int> out;
+  for (const auto& e : *a) {
+    std::int64_t v = 0;
+    if (auto i = e.value_exact<std::int64_t>()) {
+      v = *i;
+    } else if (auto d = e.value_exact<double>()) {
+      // Compared as a double first: converting 1e30 to an integer is undefined.
+      if (!(*d == std::floor(*d)) || *d < double(b.min) || *d > double(b.max))
+        throw InputError(fmt::format("{}: {}", where(key), bound_violation(b, fmt::format("{}", *d))));
+      v = std::int64_t(*d);
+    } else {
+      type_error(key, "an array of integers");
+    }
+    check_bound(v, b, where(key));
+    out.push_back(int(v));
+  }
+  return out;
 }
 
 double ConfigTable::get(const std::string& key, double def) {
@@ -129,6 +186,17 @@ std::array<double, 3> ConfigTable::require_vec3(const std::string& key) {
     throw InputError(fmt::format("{}: required key '{}' is missing (expected an array of 3 numbers)", file_,
                                  prefix_.empty() ? key : prefix_ + "." + key));
   return get(key, std::array<double, 3>{0, 0, 0});
+}
+
+double ConfigTable::require_double(const std::string& key, const RealBound& b) {
+  const double v = require_double(key);
+  check_bound(v, b, where(key));
+  return v;
+}
+
+std::array<double, 3> ConfigTable::require_vec3(const std::string& key, const RealBound& b) {
+  require_vec3(key);  // the missing-key message
+  return get(key, std::array<double, 3>{0, 0, 0}, b);
 }
 
 std::optional<ConfigTable> ConfigTable::table(const std::string& key) {

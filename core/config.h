@@ -13,6 +13,8 @@
 
 #include <toml++/toml.h>
 
+#include "core/bounds.h"
+
 namespace dnb {
 
 class ConfigTable;
@@ -39,11 +41,20 @@ class ConfigTable {
   const std::string& prefix() const { return prefix_; }
   bool contains(const std::string& key) const { return table_->contains(key); }
 
-  // Typed reads with a default; a present key of the wrong type is an InputError.
+  // Typed reads with a default; a present key of the wrong type is an InputError, and so is an
+  // integer that does not fit the type read (no silent wrap-around).
   bool get(const std::string& key, bool def) { return get_impl<bool>(key, def, "a boolean"); }
-  int get(const std::string& key, int def) { return int(get_int(key, def)); }
+  int get(const std::string& key, int def);
   std::int64_t get(const std::string& key, std::int64_t def) { return get_int(key, def); }
   double get(const std::string& key, double def);
+  // Bounded reads (core/bounds.h): a value outside the bound is an InputError naming file, line,
+  // key, the bound and its reason. Real-number reads refuse NaN and infinities.
+  int get(const std::string& key, int def, const Bound& b);
+  std::int64_t get(const std::string& key, std::int64_t def, const Bound& b);
+  double get(const std::string& key, double def, const RealBound& b);
+  std::array<double, 3> get(const std::string& key, std::array<double, 3> def, const RealBound& b);
+  // A list of integers (whole numbers written as reals, `1e3`, are accepted), each within b.
+  std::vector<int> get(const std::string& key, const std::vector<int>& def, const Bound& b);
   std::string get(const std::string& key, const char* def) { return get(key, std::string(def)); }
   std::string get(const std::string& key, const std::string& def) {
     return get_impl<std::string>(key, def, "a string");
@@ -56,6 +67,8 @@ class ConfigTable {
   std::string require_string(const std::string& key);
   double require_double(const std::string& key);
   std::array<double, 3> require_vec3(const std::string& key);
+  std::array<double, 3> require_vec3(const std::string& key, const RealBound& b);
+  double require_double(const std::string& key, const RealBound& b);
 
   // Sub-tables and arrays of tables ([[geometry]]). Reading them marks the key as read.
   std::optional<ConfigTable> table(const std::string& key);

@@ -1,6 +1,9 @@
 #include "core/exr_io.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -156,9 +159,17 @@ std::unique_ptr<AtomicOutput> stage_edges(const EdgeSubpixels& e, int width, int
   // nothing and reports success), and it does not notice a full disk: the file is read back
   // before it may be committed.
   auto out = std::make_unique<AtomicOutput>(path);
+  errno = 0;
   auto o = OIIO::ImageOutput::create(out->temp_path());
-  if (!o || !o->open(out->temp_path(), spec) || !o->write_deep_image(dd) || !o->close())
-    throw WorkError(fmt::format("'{}': deep write failed: {}", path, o ? o->geterror() : OIIO::geterror()));
+  if (!o || !o->open(out->temp_path(), spec) || !o->write_deep_image(dd) || !o->close()) {
+    const int err = errno;  // the system's reason, when the writer's file calls failed
+    // The writer's message names the temporary file; the user gave `path`.
+    std::string why = o ? o->geterror() : OIIO::geterror();
+    for (auto at = why.find(out->temp_path()); at != std::string::npos; at = why.find(out->temp_path()))
+      why.replace(at, out->temp_path().size(), path);
+    throw WorkError(
+        fmt::format("cannot write '{}': {}{}", path, why, err ? fmt::format(" ({})", std::strerror(err)) : ""));
+  }
   o.reset();
   auto in = OIIO::ImageInput::open(out->temp_path());
   OIIO::DeepData back;
@@ -206,7 +217,16 @@ EdgeSubpixels read_edges(const std::string& path, int width, int height) {
 
 }  // namespace
 
+void require_exr_output(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".exr")
+    throw InputError(fmt::format("'{}': unsupported output extension '{}' (accepted: .exr, OpenEXR)", path,
+                                 fs::path(path).extension().string()));
+}
+
 void write_frame(const AovFrame& frame, const std::string& path, const FrameWriteOptions& options) {
+  require_exr_output(path);
   const int w = frame.width(), h = frame.height();
   std::vector<std::string> names;
   std::vector<const Image*> sources;
@@ -339,6 +359,7 @@ AovFrame read_frame(const std::string& path, const std::vector<std::string>& req
 
 void write_rgb(const Image& rgb, const std::string& path,
                const std::vector<std::pair<std::string, std::string>>& attributes) {
+  require_exr_output(path);
   if (rgb.channels() != 3)
     throw WorkError(fmt::format("'{}': expected a 3-channel image, got {}", path, rgb.channels()));
   OIIO::ImageSpec spec(rgb.width(), rgb.height(), 3, TypeDesc::FLOAT);

@@ -17,6 +17,11 @@ namespace dnb {
 // indirect.R/G/B; sample s of a pixel is sub-pixel (s % 4, s / 4) of its 4x4 strata.
 std::string edges_path(const std::string& frame_path);
 
+// Frames and RGB images are written as OpenEXR only (32-bit float, channels by name, the deep
+// edge file): InputError naming `path` as given and the accepted extension otherwise. The
+// writers below check it; commands call it before any work, so a typo costs no render.
+void require_exr_output(const std::string& path);
+
 struct FrameWriteOptions {
   bool compress = true;  // false: uncompressed (a plug-in's input: read fastest, by any reader)
   bool edges = true;     // false: no edge file even when the frame has edge sub-pixels
@@ -26,6 +31,7 @@ struct FrameWriteOptions {
   // crash, such as a plug-in's input in the harness's private folder.
   bool durable = true;
 };
+
 // Writes every layer, the metadata and (if present) the edge file.
 void write_frame(const AovFrame& frame, const std::string& path, const FrameWriteOptions& options = {});
 

@@ -15,7 +15,9 @@
 // Each guide group is multiplied by its weight before the fit. Since eps regularises every
 // channel alike, a larger weight lets that group explain more of the illumination (its edges are
 // kept more); weight 0 drops the group. Depth is divided by its median first, so weights do not
-// depend on the scene's scale.
+// depend on the scene's scale. Each group is clamped to the range where its values mean
+// something (albedo [0, 1], normal [-1, 1], relative depth [0, 1e3]): the fit sums squares of
+// the guide in float, and one extreme but finite value (1e30) would overflow them.
 //
 // Why not OpenCV: ximgproc::guidedFilter takes at most 3 guide channels, and this guide has 7.
 // The means are OpenCV box filters (cv::boxFilter); only the per-pixel m x m solve is written
@@ -38,6 +40,7 @@ namespace dnb {
 namespace {
 
 constexpr int kBandRows = 64;  // output rows per band: fixed, so bands never depend on threads
+constexpr float kMaxRelativeDepth = 1e3f;  // depth / median beyond this is as far as "background"
 constexpr int kMaxGuide = 7;
 
 // Per-thread buffers of one band, reused from band to band (a fresh 20 MB per band costs more
@@ -132,12 +135,15 @@ class Guided final : public Method {
     struct Group {
       const Image* img;
       float weight;
+      float lo, hi;  // the values clamped to this range (see the top of the file)
     };
     Image depth = normalized_depth(f, level);
     std::vector<Group> groups;
-    if (albedo_weight_ > 0) groups.push_back({&f.layer(layer::at_level(level, layer::kAlbedo)), albedo_weight_});
-    if (normal_weight_ > 0) groups.push_back({&f.layer(layer::at_level(level, layer::kNormal)), normal_weight_});
-    if (depth_weight_ > 0) groups.push_back({&depth, depth_weight_});
+    if (albedo_weight_ > 0)
+      groups.push_back({&f.layer(layer::at_level(level, layer::kAlbedo)), albedo_weight_, 0.0f, 1.0f});
+    if (normal_weight_ > 0)
+      groups.push_back({&f.layer(layer::at_level(level, layer::kNormal)), normal_weight_, -1.0f, 1.0f});
+    if (depth_weight_ > 0) groups.push_back({&depth, depth_weight_, 0.0f, kMaxRelativeDepth});
     int m = 0;
     for (auto& g : groups) m += g.img->channels();
     if (m == 0) return {};
@@ -145,7 +151,8 @@ class Guided final : public Method {
     for (std::size_t px = 0; px < guide.pixel_count(); ++px) {
       int c = 0;
       for (auto& g : groups)
-        for (int k = 0; k < g.img->channels(); ++k) guide.data()[px * m + c++] = g.weight * g.img->data()[px * g.img->channels() + k];
+        for (int k = 0; k < g.img->channels(); ++k)
+          guide.data()[px * m + c++] = g.weight * std::clamp(g.img->data()[px * g.img->channels() + k], g.lo, g.hi);
     }
     return guide;
   }

@@ -14,6 +14,7 @@
 namespace dnb {
 
 AovFrame render_frame_file(const RenderJob& job) {
+  require_exr_output(job.output);  // before the render, not after it
   RenderSettings s = job.settings;
   auto scene = load_scene(job.scene, job.load);
   Progress progress(fmt::format("render {} {}x{} {} spp", scene_name(*scene), s.width, s.height, s.spp),
@@ -37,6 +38,7 @@ void reference_file(const ReferenceJob& job) {
   try {
     // Rank 0 speaks for the job (one progress report); other ranks only warn.
     if (!mpi::is_root()) spdlog::set_level(std::max(spdlog::get_level(), spdlog::level::warn));
+    require_exr_output(job.output);
     auto scene = load_scene(job.scene, job.load);
     Reference ref = reference_image(*scene, job.settings, job.options);
     if (mpi::is_root()) {

@@ -4,15 +4,21 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
+#include <sstream>
 #include <vector>
 
 #include <fmt/format.h>
 #include <tiny_obj_loader.h>
 
+#include "core/bounds.h"
 #include "core/errors.h"
 #include "tracer/scene.h"
+#include "tracer/texture.h"
 
 namespace fs = std::filesystem;
 
@@ -33,6 +39,97 @@ void append_mtllib_files(const fs::path& path, std::vector<std::string>& files) 
     fs::path mp = find_file_ignoring_case(path.parent_path(), n);
     if (!mp.empty()) files.push_back(mp.string());
   }
+}
+
+// Kd, Ks and Ke of the OBJ's MTL files are finite and non-negative, and Ke at most
+// bounds::kRadiance. Checked on the text, with its line: tinyobjloader reads "nan" or "inf" as 0
+// without a word, and keeps no line numbers.
+void check_mtl_colours(const fs::path& obj) {
+  std::vector<std::string> libs;
+  append_mtllib_files(obj, libs);
+  for (const auto& lib : libs) {
+    std::ifstream in(lib);
+    std::string line, material;
+    for (int n = 1; std::getline(in, line); ++n) {
+      std::istringstream words(line);
+      std::string key;
+      words >> key;
+      if (key == "newmtl") {
+        std::getline(words >> std::ws, material);
+        while (!material.empty() && (material.back() == '\r' || material.back() == ' ')) material.pop_back();
+        continue;
+      }
+      if (key != "Kd" && key != "Ks" && key != "Ke") continue;
+      const double max = key == "Ke" ? bounds::kRadiance.max : std::numeric_limits<float>::max();
+      std::string w;
+      while (words >> w) {
+        if (w == "spectral" || w == "xyz") break;  // other colour forms of the MTL format: not read as RGB
+        char* end = nullptr;
+        const double v = std::strtod(w.c_str(), &end);
+        // Compared in float: "Ke 1e30" reads as a float slightly above the double 1e30.
+        if (end == w.c_str() || *end != '\0' || !std::isfinite(v) || v < 0 || float(v) > float(max))
+          throw InputError(fmt::format(
+              "{}:{}: material '{}': key '{}': expected finite non-negative numbers{}, got '{}'", lib, n, material, key,
+              key == "Ke" ? fmt::format(" at most {:g} ({})", max, bounds::kRadiance.why) : "", w));
+      }
+    }
+  }
+}
+
+// The first face line of the OBJ whose position index is out of range, as "FILE:LINE: face
+// index N (the file has M vertices)"; "" when none is found. Run only after an index error,
+// to name its line (tinyobjloader reports none, or the last line of the file).
+std::string bad_face_index(const fs::path& path) {
+  std::int64_t total = 0;
+  {
+    std::ifstream in(path);
+    std::string line;
+    while (std::getline(in, line))
+      if (line.size() > 2 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) ++total;
+  }
+  std::ifstream in(path);
+  std::string line;
+  std::int64_t so_far = 0;
+  for (int n = 1; std::getline(in, line); ++n) {
+    if (line.size() < 2 || (line[1] != ' ' && line[1] != '\t')) continue;
+    if (line[0] == 'v') ++so_far;
+    if (line[0] != 'f') continue;
+    std::istringstream words(line.substr(1));
+    std::string w;
+    while (words >> w) {
+      const long long idx = std::atoll(w.c_str());  // the position index: before the first '/'
+      if (idx == 0 || idx > total || (idx < 0 && -idx > so_far))
+        return fmt::format("{}:{}: face index {} is out of range (the file has {} vertices{})", path.string(), n, w,
+                           total, idx < 0 ? fmt::format(", {} before this line", so_far) : "");
+    }
+  }
+  return "";
+}
+
+// Positions and normals are finite: "v 1e39 0 0" reads as an infinite float. The line of the
+// first one that is not, as "FILE:LINE: ..." (found only after the values showed one).
+void check_finite_vertices(const fs::path& path, const tinyobj::attrib_t& attrib) {
+  const auto finite = [](const std::vector<tinyobj::real_t>& v) {
+    return std::all_of(v.begin(), v.end(), [](tinyobj::real_t x) { return std::isfinite(x); });
+  };
+  if (finite(attrib.vertices) && finite(attrib.normals)) return;
+  std::ifstream in(path);
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    std::istringstream words(line);
+    std::string key, w;
+    words >> key;
+    if (key != "v" && key != "vn") continue;
+    for (int k = 0; k < 3 && words >> w; ++k)
+      if (!std::isfinite(float(std::strtod(w.c_str(), nullptr))))
+        throw InputError(fmt::format("{}:{}: '{}' value '{}' is not a finite float", path.string(), n, key, w));
+  }
+  throw InputError(fmt::format("'{}': a vertex position or normal is not finite", path.string()));
+}
+
+[[noreturn]] void throw_index_error(const fs::path& path, const std::string& fallback) {
+  const std::string at = bad_face_index(path);
+  throw InputError(at.empty() ? fallback : at);
 }
 
 // An MTL material's colours and type (see the top of obj_import.h); the texture is added by
@@ -116,7 +213,8 @@ Mesh obj_triangles(const tinyobj::ObjReader& reader, const fs::path& path, const
       for (int k = 0; k < 3; ++k) {
         const auto& ix = idx[3 * f + k];
         if (ix.vertex_index < 0 || std::size_t(3 * ix.vertex_index + 2) >= attrib.vertices.size())
-          throw InputError(fmt::format("'{}': face index out of range in shape '{}'", path.string(), shape.name));
+          throw_index_error(path,
+                            fmt::format("'{}': face index out of range in shape '{}'", path.string(), shape.name));
         p[k] = x.point(Vec3(attrib.vertices[3 * ix.vertex_index], attrib.vertices[3 * ix.vertex_index + 1],
                             attrib.vertices[3 * ix.vertex_index + 2]));
         if (ix.normal_index >= 0 && std::size_t(3 * ix.normal_index + 2) < attrib.normals.size())
@@ -170,11 +268,18 @@ void import_obj(Scene& scene, const fs::path& path, const Transform& x, std::opt
   cfg.triangulate = true;
   cfg.vertex_color = false;
   cfg.mtl_search_path = path.parent_path().string();
+  require_regular_file(path.string(), "OBJ import", "OBJ file");
   tinyobj::ObjReader reader;
   if (!reader.ParseFromFile(path.string(), cfg))
     throw InputError(fmt::format("'{}': cannot read OBJ: {}", path.string(), reader.Error()));
+  // tinyobjloader drops a quad with an out-of-range index with only a warning.
+  if (reader.Warning().find("Face with invalid vertex index") != std::string::npos ||
+      reader.Warning().find("Vertex indices out of bounds") != std::string::npos)
+    throw_index_error(path, fmt::format("'{}': face index out of range: {}", path.string(), reader.Warning()));
+  check_mtl_colours(path);
   scene.files.push_back(path.string());
   append_mtllib_files(path, scene.files);
+  check_finite_vertices(path, reader.GetAttrib());
   const MaterialMap mat_map = import_materials(scene, path, reader.GetMaterials());
   Mesh mesh = obj_triangles(reader, path, x, mat_map, material);
   if (mesh.positions.empty()) throw InputError(fmt::format("'{}': the OBJ file has no triangles", path.string()));

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 
 #include "core/image.h"
 #include "tracer/integrator.h"
@@ -69,6 +70,24 @@ template <int N>
 inline void add_values(double* __restrict a, const float* __restrict v) {
   for (int i = 0; i < N; ++i) a[i] += double(v[i]);
 }
+template <int N>
+inline void add_values(double* __restrict a, const double* __restrict v) {
+  for (int i = 0; i < N; ++i) a[i] += v[i];
+}
+
+// Squares in double: a legal emitter of 1e30 squares to 1e60, beyond float.
+inline void put_squares(double* o, Vec3 a) {
+  o[0] = double(a.x) * a.x;
+  o[1] = double(a.y) * a.y;
+  o[2] = double(a.z) * a.z;
+}
+
+// A variance as a layer value: the variance of a mean of samples near float's limit (an emitter
+// of 1e30 seen directly) can exceed float's range, and is then clamped to its largest value
+// rather than written as Inf (render_frame warns when it does).
+inline float variance_to_float(double var) {
+  return var < double(std::numeric_limits<float>::max()) ? float(var) : std::numeric_limits<float>::max();
+}
 
 // Mean of three sums.
 inline void store(Image& img, int x, int y, const double* s, double inv) {
@@ -86,7 +105,7 @@ inline void store_var(Image& img, int x, int y, const double* sum, const double*
     }
     double mean = sum[c] / n;
     double var = std::max(0.0, (sq[c] - mean * sum[c]) / double(n - 1));
-    p[c] = float(var / n);
+    p[c] = variance_to_float(var / n);
   }
 }
 
@@ -114,7 +133,7 @@ inline void demodulated_var(const double* sum_t, const double* sq_t, const doubl
       const double t = albedo[c] / n;
       var /= t * t;
     }
-    out[c] = float(var);
+    out[c] = variance_to_float(var);
   }
 }
 

@@ -38,7 +38,7 @@ Reference read_cached(const CacheEntry& entry) {
 
 Reference reference_image(const Scene& scene, const ReferenceSettings& settings, const ReferenceOptions& options) {
   if (settings.width <= 0 || settings.height <= 0 || settings.spp <= 0 || settings.block_spp <= 0)
-    throw InputError(fmt::format("reference: size {}x{}, --spp {} and --block-spp {} must be positive",
+    throw InputError(fmt::format("reference: size {}x{}, spp {} and block spp {} must be positive",
                                  settings.width, settings.height, settings.spp, settings.block_spp));
   const bool root = mpi::is_root();
   const CacheKey key = reference_cache_key(scene, settings);

@@ -32,10 +32,12 @@
 #include <cmath>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "core/bounds.h"
 #include "core/errors.h"
 #include "core/timer.h"
 #include "core/version.h"
@@ -62,12 +64,12 @@ void set_ftz_daz() { enable_flush_to_zero(); }
 
 void check_settings(const RenderSettings& s) {
   Image::check_size(s.width, s.height, 3, "render size");
-  if (s.spp < 1) throw InputError(fmt::format("spp must be at least 1 (got {})", s.spp));
-  if (s.max_depth < 1) throw InputError(fmt::format("max depth must be at least 1 (got {})", s.max_depth));
+  check_bound(s.spp, bounds::kSpp, "render: spp");
+  check_bound(s.max_depth, bounds::kMaxDepth, "render: max depth");
   if (s.reflection_levels < 0 || s.reflection_levels > kMaxReflectionLevels)
     throw InputError(fmt::format("reflection levels must be in 0..{} (got {})", kMaxReflectionLevels,
                                  s.reflection_levels));
-  if (s.threads < 0) throw InputError(fmt::format("threads must be >= 0 (got {})", s.threads));
+  check_bound(s.threads, bounds::kThreads, "render: threads");
 }
 
 // Film position of sample s inside its pixel, in [0, 1)^2 (see top of file).
@@ -215,15 +217,15 @@ FrameLayers layers_of(AovFrame& frame, int K) {
 // level-0 colour and squares (`extra`, acc::kExtraSize values).
 inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, double* extra) {
   alignas(32) float vals[acc::kLevelSize];
-  alignas(32) float xvals[acc::kExtraSize];
+  alignas(32) double xvals[acc::kExtraSize];
   const LevelSample& l0 = r.level[0];
   const Vec3 f = l0.color(), dt = l0.direct * l0.albedo, it = l0.indirect * l0.albedo;
-  put3(xvals + acc::kColor, f);
-  put3(xvals + acc::kColorSq, f * f);
-  put3(xvals + acc::kDirectSq, l0.direct * l0.direct);
-  put3(xvals + acc::kIndirectSq, l0.indirect * l0.indirect);
-  put3(xvals + acc::kDirectTSq, dt * dt);
-  put3(xvals + acc::kIndirectTSq, it * it);
+  for (int c = 0; c < 3; ++c) xvals[acc::kColor + c] = f[c];
+  put_squares(xvals + acc::kColorSq, f);
+  put_squares(xvals + acc::kDirectSq, l0.direct);
+  put_squares(xvals + acc::kIndirectSq, l0.indirect);
+  put_squares(xvals + acc::kDirectTSq, dt);
+  put_squares(xvals + acc::kIndirectTSq, it);
   xvals[18] = xvals[19] = 0;
   add_values<acc::kExtraSize>(extra, xvals);
   for (int k = 0; k < r.levels && k <= K; ++k) {
@@ -296,6 +298,19 @@ void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image
       }
       store_pixel(out, x, y, sums, extra, depth_spread);
     }
+}
+
+// Says how many variance values were clamped to float's range (pixel_sums.h's
+// variance_to_float): legal but extreme emitters only, so once per frame, not per pixel.
+void warn_clamped_variance(const AovFrame& frame) {
+  std::size_t clamped = 0;
+  for (const char* name : {layer::kVariance, layer::kDirectVariance, layer::kIndirectVariance}) {
+    const Image& v = frame.layer(name);
+    for (std::size_t k = 0; k < v.size(); ++k) clamped += v.data()[k] == std::numeric_limits<float>::max();
+  }
+  if (clamped > 0)
+    spdlog::warn("{} variance values exceed float's range (an emitter near 1e30?) and were clamped to {:g}", clamped,
+                 std::numeric_limits<float>::max());
 }
 
 // ---- Edge set G (see top of file) ----
@@ -447,6 +462,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
     if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * settings.spp);
   });
 
+  warn_clamped_variance(frame);
   mark_edge_set(out.level[0], depth_spread, *out.edge, settings.threads);
   depth_spread = Image();
   if (settings.edge_subpixels)
@@ -532,7 +548,7 @@ Image ColorSums::variance_of_mean() const {
   for (std::size_t i = 0; i < sum.size(); ++i) {
     double m = sum[i] / n;
     double var = std::max(0.0, (sum_sq[i] - m * sum[i]) / (n - 1));
-    img.data()[i] = float(var / n);
+    img.data()[i] = variance_to_float(var / n);
   }
   return img;
 }

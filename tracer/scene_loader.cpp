@@ -15,11 +15,13 @@
 
 #include <fmt/format.h>
 
+#include "core/bounds.h"
 #include "core/config.h"
 #include "core/errors.h"
 #include "tracer/obj_import.h"
 #include "tracer/scene.h"
 #include "tracer/shapes.h"
+#include "tracer/texture.h"
 
 namespace fs = std::filesystem;
 
@@ -57,12 +59,16 @@ fs::path mcguire_dir(const SceneLoadOptions& o) {
   return {};
 }
 
+// Every number of a scene file is finite and bounded where it is read (core/bounds.h): a NaN
+// emission rendered black with exit 0, and a huge `segments` hung the loader.
+constexpr RealBound kAngle{-1e6, 1e6, "degrees"};
+constexpr RealBound kUvScale{-1e6, 1e6, "texture repeats"};
+
 Transform read_transform(ConfigTable& t) {
   Transform x;
-  x.scale = float(t.get("scale", 1.0));
-  if (!(x.scale > 0)) throw InputError(fmt::format("{}: expected a positive number", t.where("scale")));
-  x.rot_deg = vec3(t.get("rotate", Arr3{0, 0, 0}));
-  x.translate = vec3(t.get("translate", Arr3{0, 0, 0}));
+  x.scale = float(t.get("scale", 1.0, bounds::kLength));
+  x.rot_deg = vec3(t.get("rotate", Arr3{0, 0, 0}, kAngle));
+  x.translate = vec3(t.get("translate", Arr3{0, 0, 0}, bounds::kCoordinate));
   return x;
 }
 
@@ -73,6 +79,7 @@ std::vector<Vec3> read_points(ConfigTable& t, const std::string& key, std::size_
   if (v.empty()) return {};
   if (v.size() != 3 * count)
     throw InputError(fmt::format("{}: expected {} numbers ({} points x, y, z)", t.where(key), 3 * count, count));
+  for (double c : v) check_bound(c, bounds::kCoordinate, t.where(key));
   std::vector<Vec3> out;
   for (std::size_t i = 0; i < count; ++i) out.emplace_back(float(v[3 * i]), float(v[3 * i + 1]), float(v[3 * i + 2]));
   return out;
@@ -103,10 +110,10 @@ class Loader {
   void read_camera(ConfigTable& root) {
     auto c = root.table("camera");
     if (!c) throw InputError(fmt::format("{}: missing [camera] table (eye, look_at, up, vfov)", root.file()));
-    scene_.camera.eye = vec3(c->require_vec3("eye"));
-    scene_.camera.look_at = vec3(c->require_vec3("look_at"));
-    scene_.camera.up = vec3(c->get("up", Arr3{0, 1, 0}));
-    scene_.camera.vfov_degrees = float(c->get("vfov", 45.0));
+    scene_.camera.eye = vec3(c->require_vec3("eye", bounds::kCoordinate));
+    scene_.camera.look_at = vec3(c->require_vec3("look_at", bounds::kCoordinate));
+    scene_.camera.up = vec3(c->get("up", Arr3{0, 1, 0}, bounds::kCoordinate));
+    scene_.camera.vfov_degrees = float(c->get("vfov", 45.0, kAngle));
     if (!(scene_.camera.vfov_degrees > 0 && scene_.camera.vfov_degrees < 179))
       throw InputError(fmt::format("{}: expected a field of view in (0, 179) degrees", c->where("vfov")));
     if (length(scene_.camera.look_at - scene_.camera.eye) <= 0)
@@ -122,14 +129,16 @@ class Loader {
       sky.enabled = true;
       std::string type = s->get("type", std::string("constant"));
       if (type == "constant") {
-        sky.color = vec3(s->require_vec3("color"));
+        sky.color = vec3(s->require_vec3("color", bounds::kRadiance));
         sky.average = sky.color;
       } else if (type == "gradient") {
         sky.gradient = true;
-        sky.zenith = vec3(s->require_vec3("zenith"));
-        sky.horizon = vec3(s->require_vec3("horizon"));
-        sky.ground = vec3(s->get("ground", Arr3{0, 0, 0}));
-        sky.up = normalize(vec3(s->get("up", Arr3{0, 1, 0})));
+        sky.zenith = vec3(s->require_vec3("zenith", bounds::kRadiance));
+        sky.horizon = vec3(s->require_vec3("horizon", bounds::kRadiance));
+        sky.ground = vec3(s->get("ground", Arr3{0, 0, 0}, bounds::kRadiance));
+        const Vec3 up = vec3(s->get("up", Arr3{0, 1, 0}, bounds::kCoordinate));
+        if (!(length(up) > 0)) throw InputError(fmt::format("{}: expected a non-zero direction", s->where("up")));
+        sky.up = normalize(up);
         // Mean over the sphere by quadrature in the cosine (the sky depends on it only).
         Vec3 sum(0.0f);
         const int n = 512;
@@ -148,13 +157,16 @@ class Loader {
     if (auto s = root.table("sun")) {
       Sun& sun = scene_.sun;
       sun.enabled = true;
-      sun.direction = normalize(vec3(s->require_vec3("direction")));
-      float radius_deg = float(s->get("angular_radius", 0.27));
+      const Vec3 dir = vec3(s->require_vec3("direction", bounds::kCoordinate));
+      if (!(length(dir) > 0))
+        throw InputError(fmt::format("{}: expected a non-zero direction", s->where("direction")));
+      sun.direction = normalize(dir);
+      float radius_deg = float(s->get("angular_radius", 0.27, kAngle));
       if (!(radius_deg > 0 && radius_deg < 30))
         throw InputError(fmt::format("{}: expected degrees in (0, 30)", s->where("angular_radius")));
       sun.cos_max = std::cos(radius_deg * kPi / 180);
       // Irradiance on a surface facing the sun; the disc's radiance follows from its solid angle.
-      Vec3 e = vec3(s->require_vec3("irradiance"));
+      Vec3 e = vec3(s->require_vec3("irradiance", bounds::kRadiance));
       sun.radiance = e / sun.solid_angle();
       s->finish();
     }
@@ -177,7 +189,7 @@ class Loader {
     else if (type == "mirror") m.type = MaterialType::kMirror;
     else if (type == "coated") m.type = MaterialType::kCoated;
     else throw InputError(fmt::format("{}: expected \"diffuse\", \"mirror\" or \"coated\"", t.where("type")));
-    m.albedo = vec3(t.get("albedo", Arr3{0.8, 0.8, 0.8}));
+    m.albedo = vec3(t.get("albedo", Arr3{0.8, 0.8, 0.8}, bounds::kReflectance));
     std::string tex = t.get("texture", std::string());
     if (!tex.empty()) {
       auto it = texture_index_.find(tex);
@@ -185,13 +197,10 @@ class Loader {
         throw InputError(fmt::format("{}: no texture '{}' in [textures]", t.where("texture"), tex));
       m.texture = it->second;
     }
-    m.tint = vec3(t.get("tint", Arr3{1, 1, 1}));
-    m.ior = float(t.get("ior", 1.5));
-    if (!(m.ior > 1)) throw InputError(fmt::format("{}: expected an index of refraction > 1", t.where("ior")));
-    m.emission = vec3(t.get("emission", Arr3{0, 0, 0}));
+    m.tint = vec3(t.get("tint", Arr3{1, 1, 1}, bounds::kReflectance));
+    m.ior = float(t.get("ior", 1.5, RealBound{1, 10, "an index of refraction above 1", true}));
+    m.emission = vec3(t.get("emission", Arr3{0, 0, 0}, bounds::kRadiance));
     m.two_sided = t.get("two_sided", false);
-    if (max_component(m.albedo) > 1 || max_component(m.tint) > 1)
-      throw InputError(fmt::format("{}: albedo and tint must be at most 1", t.where("albedo")));
   }
 
   void read_materials(ConfigTable& root) {
@@ -214,8 +223,8 @@ class Loader {
       // A light: emission (and optionally albedo) written on the light itself.
       Material m;
       m.name = fmt::format("light{}", scene_.materials.size());
-      m.albedo = vec3(t.get("albedo", Arr3{0, 0, 0}));
-      m.emission = vec3(t.require_vec3("emission"));
+      m.albedo = vec3(t.get("albedo", Arr3{0, 0, 0}, bounds::kReflectance));
+      m.emission = vec3(t.require_vec3("emission", bounds::kRadiance));
       m.two_sided = t.get("two_sided", false);
       scene_.materials.push_back(m);
       return unsigned(scene_.materials.size() - 1);
@@ -241,6 +250,7 @@ class Loader {
     }
     auto uvs = t.get("uv_scale", std::vector<double>{1, 1});
     if (uvs.size() != 2) throw InputError(fmt::format("{}: expected [su, sv]", t.where("uv_scale")));
+    for (double u : uvs) check_bound(u, kUvScale, t.where("uv_scale"));
     float su = float(uvs[0]), sv = float(uvs[1]);
     unsigned mat = material_of(t, light);
     MeshBuilder b;
@@ -251,38 +261,33 @@ class Loader {
         // A unit square in the xz-plane facing +y, sized by `size` = [sx, sz], then transformed.
         auto sz = t.get("size", std::vector<double>{1, 1});
         if (sz.size() != 2) throw InputError(fmt::format("{}: expected [sx, sz]", t.where("size")));
+        for (double a : sz) check_bound(a, bounds::kLength, t.where("size"));
         float hx = float(sz[0]) / 2, hz = float(sz[1]) / 2;
         v = {Vec3(-hx, 0, hz), Vec3(hx, 0, hz), Vec3(hx, 0, -hz), Vec3(-hx, 0, -hz)};
       }
       for (auto& p : v) p = x.point(p);
       b.quad(v[0], v[1], v[2], v[3], su, sv, mat);
     } else if (type == "box") {
-      build_box(b, vec3(t.get("size", Arr3{1, 1, 1})), x, su, sv, mat);
+      build_box(b, vec3(t.get("size", Arr3{1, 1, 1}, bounds::kLength)), x, su, sv, mat);
     } else if (type == "sphere") {
-      float r = float(t.require_double("radius"));
-      if (!(r > 0)) throw InputError(fmt::format("{}: expected a positive radius", t.where("radius")));
-      int seg = t.get("segments", 48);
-      if (seg < 3) throw InputError(fmt::format("{}: expected at least 3 segments", t.where("segments")));
+      float r = float(t.require_double("radius", bounds::kLength));
+      int seg = t.get("segments", 48, bounds::kSegments);
       bool inward = t.get("inward", false);
-      Vec3 center = vec3(t.get("center", Arr3{0, 0, 0}));
+      Vec3 center = vec3(t.get("center", Arr3{0, 0, 0}, bounds::kCoordinate));
       build_sphere(b, center, r, seg, x, su, sv, mat, inward, t.get("smooth", true));
       if (light && !inward) sphere_light_ = SphereLight{unsigned(scene_.meshes.size()), x.point(center), r * x.scale};
     } else if (type == "arch") {
-      float r = float(t.require_double("radius"));
-      float h = float(t.require_double("height"));
-      float d = float(t.require_double("depth"));
-      if (!(r > 0 && h >= r && d > 0))
-        throw InputError(fmt::format("{}: expected radius > 0, height >= radius, depth > 0", t.where("radius")));
-      int seg = t.get("segments", 16);
-      if (seg < 2) throw InputError(fmt::format("{}: expected at least 2 segments", t.where("segments")));
+      float r = float(t.require_double("radius", bounds::kLength));
+      float h = float(t.require_double("height", bounds::kLength));
+      float d = float(t.require_double("depth", bounds::kLength));
+      if (!(h >= r)) throw InputError(fmt::format("{}: expected height >= radius", t.where("height")));
+      int seg = t.get("segments", 16, bounds::kArchSegments);
       build_arch(b, r, h, d, seg, x, su, sv, mat);
     } else if (type == "cylinder") {
-      float r = float(t.require_double("radius"));
-      float h = float(t.require_double("height"));
-      if (!(r > 0 && h > 0)) throw InputError(fmt::format("{}: expected positive radius and height", t.where("radius")));
-      int seg = t.get("segments", 32);
-      if (seg < 3) throw InputError(fmt::format("{}: expected at least 3 segments", t.where("segments")));
-      build_cylinder(b, vec3(t.get("center", Arr3{0, 0, 0})), r, h, seg, t.get("capped", true), x, su, sv, mat);
+      float r = float(t.require_double("radius", bounds::kLength));
+      float h = float(t.require_double("height", bounds::kLength));
+      int seg = t.get("segments", 32, bounds::kSegments);
+      build_cylinder(b, vec3(t.get("center", Arr3{0, 0, 0}, bounds::kCoordinate)), r, h, seg, t.get("capped", true), x, su, sv, mat);
     } else {
       throw InputError(fmt::format("{}: unknown {} type '{}' (expected {})", t.where("type"),
                                    light ? "light" : "object", type,
@@ -291,9 +296,12 @@ class Loader {
     if (light && type != "quad" && type != "sphere")
       throw InputError(fmt::format("{}: lights are quads or spheres", t.where("type")));
     // `repeat = N` copies: copy k is moved by k * repeat_offset (rows of chairs, columns).
-    int repeat = t.get("repeat", 1);
-    Vec3 step = vec3(t.get("repeat_offset", Arr3{0, 0, 0}));
-    if (repeat < 1 || repeat > 10000) throw InputError(fmt::format("{}: expected 1..10000", t.where("repeat")));
+    int repeat = t.get("repeat", 1, bounds::kObjectCopies);
+    Vec3 step = vec3(t.get("repeat_offset", Arr3{0, 0, 0}, bounds::kCoordinate));
+    if (std::int64_t(b.mesh.material.size()) * repeat > bounds::kMaxTriangles)
+      throw InputError(fmt::format("{}: {} copies of {} triangles are more than {} triangles in one mesh (32-bit "
+                                   "vertex indices)",
+                                   t.where("repeat"), repeat, b.mesh.material.size(), bounds::kMaxTriangles));
     repeat_mesh(b.mesh, repeat, step);
     t.finish();
     // A repeated sphere light is several spheres: those stay triangle emitters.
@@ -318,7 +326,7 @@ class Loader {
 
   void load_obj(ConfigTable& t, const std::string& file, const std::string& override_mat, const Transform& x) {
     fs::path path = resolve_mesh_path(t, file);
-    if (!fs::exists(path)) throw InputError(fmt::format("{}: OBJ file '{}' not found", t.where("file"), path.string()));
+    require_regular_file(path.string(), t.where("file"), "OBJ file");
     std::optional<unsigned> forced;
     if (!override_mat.empty()) {
       auto it = material_index_.find(override_mat);

@@ -141,8 +141,29 @@ float fbm_noise(float x, float y, int octaves, int period) {
   return norm > 0 ? sum / norm : 0;
 }
 
+void require_regular_file(const std::string& path, const std::string& context, const std::string& what) {
+  std::error_code ec;
+  const auto st = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(st))
+    throw InputError(fmt::format("{}: {} '{}' not found", context, what, path));
+  if (!std::filesystem::is_regular_file(st))
+    throw InputError(fmt::format("{}: {} '{}' is not a regular file", context, what, path));
+}
+
 std::unique_ptr<Texture> load_image_texture(const std::string& path) {
+  require_regular_file(path, "texture", "image file");
   OIIO::ImageBuf in(path);
+  // The size from the header first: a huge image must not be allocated before it is refused.
+  if (!in.init_spec(path, 0, 0))
+    throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
+  {
+    const OIIO::ImageSpec& s = in.spec();
+    if (!within(s.width, bounds::kSide) || !within(s.height, bounds::kSide) ||
+        std::int64_t(s.width) * s.height > bounds::kMaxTexels || s.nchannels < 1 || s.nchannels > 64)
+      throw InputError(fmt::format("texture '{}': {}x{} with {} channels is not accepted (each side 1..{}, at most "
+                                   "{} texels: they are held as float RGB, 768 MB at the bound)",
+                                   path, s.width, s.height, s.nchannels, bounds::kSide.max, bounds::kMaxTexels));
+  }
   if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT))
     throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
   const OIIO::ImageSpec& spec = in.spec();
@@ -161,6 +182,10 @@ std::unique_ptr<Texture> load_image_texture(const std::string& path) {
   return std::make_unique<ImageTexture>(w, h, std::move(rgb));
 }
 
+// Pattern scales and counts: finite, positive, and small enough that u * scale keeps float precision.
+constexpr RealBound kTextureScale{0, 1e6, "pattern repeats per unit of u and v", true};
+constexpr RealBound kTexturePattern{0, 1e6, "pattern repeats per unit", true};
+
 std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_dir,
                                       std::vector<std::string>& files) {
   const std::string type = t.require_string("type");
@@ -169,31 +194,32 @@ std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_d
     std::string file = t.require_string("file");
     std::filesystem::path p(file);
     if (p.is_relative()) p = std::filesystem::path(scene_dir) / p;
-    if (!std::filesystem::exists(p))
-      throw InputError(fmt::format("{}: texture file '{}' not found", t.where("file"), p.string()));
+    require_regular_file(p.string(), t.where("file"), "texture file");
     files.push_back(p.string());
     tex = load_image_texture(p.string());
   } else if (type == "checker") {
-    float scale = float(t.get("scale", 8.0));
-    tex = std::make_unique<Checker>(scale, vec3(t.get("color_a", std::array<double, 3>{0.8, 0.8, 0.8})),
-                                    vec3(t.get("color_b", std::array<double, 3>{0.2, 0.2, 0.2})));
+    float scale = float(t.get("scale", 8.0, kTextureScale));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.8, 0.8, 0.8}, bounds::kReflectance));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.2, 0.2, 0.2}, bounds::kReflectance));
+    tex = std::make_unique<Checker>(scale, a, b);
   } else if (type == "wood") {
-    float scale = float(t.get("scale", 4.0));
-    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.62, 0.42, 0.24}));
-    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.36, 0.21, 0.10}));
-    tex = std::make_unique<Wood>(scale, a, b, float(t.get("rings", 6.0)));
+    float scale = float(t.get("scale", 4.0, kTextureScale));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.62, 0.42, 0.24}, bounds::kReflectance));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.36, 0.21, 0.10}, bounds::kReflectance));
+    tex = std::make_unique<Wood>(scale, a, b, float(t.get("rings", 6.0, kTexturePattern)));
   } else if (type == "brick") {
-    float scale = float(t.get("scale", 1.0));
-    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.55, 0.25, 0.18}));
-    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.75, 0.73, 0.70}));
-    float rows = float(t.get("rows", 12.0));
-    float mortar = float(t.get("mortar", 0.08));
-    tex = std::make_unique<Brick>(scale, a, b, rows, mortar, float(t.get("variation", 0.3)));
+    float scale = float(t.get("scale", 1.0, kTextureScale));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.55, 0.25, 0.18}, bounds::kReflectance));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.75, 0.73, 0.70}, bounds::kReflectance));
+    float rows = float(t.get("rows", 12.0, kTexturePattern));
+    float mortar = float(t.get("mortar", 0.08, RealBound{0, 1, "a fraction of a brick"}));
+    float variation = float(t.get("variation", 0.3, RealBound{0, 1, "a fraction of the brick colour"}));
+    tex = std::make_unique<Brick>(scale, a, b, rows, mortar, variation);
   } else if (type == "noise") {
-    float scale = float(t.get("scale", 8.0));
-    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.3, 0.3, 0.3}));
-    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.7, 0.7, 0.7}));
-    tex = std::make_unique<Noise>(scale, a, b, t.get("octaves", 4));
+    float scale = float(t.get("scale", 8.0, kTextureScale));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.3, 0.3, 0.3}, bounds::kReflectance));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.7, 0.7, 0.7}, bounds::kReflectance));
+    tex = std::make_unique<Noise>(scale, a, b, t.get("octaves", 4, bounds::kTextureOctaves));
   } else {
     throw InputError(fmt::format("{}: unknown texture type '{}' (expected image, checker, wood, brick or noise)",
                                  t.where("type"), type));

@@ -26,8 +26,12 @@ class Texture {
 // An image file (any format OpenImageIO reads). 8-bit images are taken as sRGB-encoded and
 // converted to linear; float images are used as they are. Bilinear lookup, repeating edges,
 // v = 0 at the bottom row (the OBJ convention). Throws InputError naming the file when it
-// cannot be read.
+// cannot be read, is not a regular file, or is larger than an Image may be (core/bounds.h).
 std::unique_ptr<Texture> load_image_texture(const std::string& path);
+
+// InputError "CONTEXT: WHAT 'PATH' not found" or "... is not a regular file" (a folder, a
+// device such as /dev/zero, a pipe): the files a scene reads as meshes and textures.
+void require_regular_file(const std::string& path, const std::string& context, const std::string& what);
 
 // A texture described by a [textures.NAME] table of a scene file:
 //   type = "image"   file = "path" (relative to the scene file's folder)

@@ -71,5 +71,34 @@ TEST(Config, MissingFileIsAnInputError) {
   EXPECT_NE(msg.find("/nonexistent/x.toml"), std::string::npos);
 }
 
+// An integer too large for the type read is an error, never a wrapped value.
+TEST(Config, IntegerOutOfIntRangeIsAnErrorNotAWrap) {
+  auto cfg = ConfigFile::parse("a = 1\nsegments = 99999999999\n", "s.toml");
+  auto root = cfg.root();
+  std::string msg = error_of([&] { root.get("segments", 48); });
+  EXPECT_NE(msg.find("s.toml:2: key 'segments'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("99999999999"), std::string::npos) << msg;
+}
+
+// Bounded reads name file, line and key, the bound and its reason, and what was written.
+TEST(Config, BoundedReadsNameTheKeyTheBoundAndWhy) {
+  auto cfg = ConfigFile::parse("spp = [16, 1e12]\nseed = -3\nthreads = 4\nr = nan\nc = [1, inf, 0]\n", "b.toml");
+  auto root = cfg.root();
+  std::string msg = error_of([&] { root.get("spp", std::vector<int>{}, bounds::kSpp); });
+  EXPECT_NE(msg.find("b.toml:1: key 'spp'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("1000000000000"), std::string::npos) << msg;
+  EXPECT_NE(msg.find(bounds::kSpp.why), std::string::npos) << msg;
+  msg = error_of([&] { root.get("seed", std::int64_t(1), bounds::kSeed); });
+  EXPECT_NE(msg.find("b.toml:2: key 'seed'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("-3"), std::string::npos) << msg;
+  EXPECT_EQ(root.get("threads", 0, bounds::kThreads), 4);
+  EXPECT_EQ(root.get("absent", 7, bounds::kThreads), 7);
+  msg = error_of([&] { root.get("r", 1.0, bounds::kLength); });
+  EXPECT_NE(msg.find("b.toml:4: key 'r'"), std::string::npos) << msg;
+  msg = error_of([&] { root.get("c", std::array<double, 3>{0, 0, 0}, bounds::kRadiance); });
+  EXPECT_NE(msg.find("b.toml:5: key 'c'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("inf"), std::string::npos) << msg;
+}
+
 }  // namespace
 }  // namespace dnb

@@ -3,6 +3,7 @@
 // Frames are synthetic (tests/denoisers/synthetic_frame.h): no tracer involved.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -80,6 +81,36 @@ TEST_P(FilterInvariants, NonFiniteInputIsRepairedAndCounted) {
   MethodResult r = run(f);
   EXPECT_EQ(r.stats.counters.at("repaired_samples"), double(injected));
   EXPECT_EQ(count_non_finite(r.image.view()), 0u);
+}
+
+// Extreme but finite values in any one layer the method reads (a guide such as normal, depth or
+// albedo, or a colour layer) give a finite output: 1e30 and -1e30 (an emitter seen directly,
+// a far-away depth), and 1e-30 (values whose squares underflow to 0). Set in a block and in
+// scattered pixels, one layer and one value at a time, so a failure names both.
+TEST_P(FilterInvariants, ExtremeFiniteInputGivesFiniteOutput) {
+  const auto expect_finite_output = [&](const AovFrame& f, const std::string& what) {
+    try {
+      MethodResult r = run(f);
+      EXPECT_EQ(count_non_finite(r.image.view()), 0u) << what;
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << what << ": " << e.what();
+    }
+  };
+  for (float value : {1e30f, -1e30f, 1e-30f}) {
+    for (const auto& name : method()->required_layers()) {
+      AovFrame f = test::planes_frame(40, 30, 0.2f);
+      Image& img = f.layer(name);
+      for (int y = 10; y < 16; ++y)
+        for (int x = 12; x < 20; ++x)
+          for (int c = 0; c < img.channels(); ++c) img.at(x, y, c) = value;
+      for (int k = 0; k < 40 * 30; k += 37) img.data()[std::size_t(k) * img.channels()] = value;
+      expect_finite_output(f, "layer " + name + " holding " + std::to_string(value) + " in places");
+      // And the whole layer at that value (a frame of nothing but a directly seen emitter).
+      AovFrame g = test::planes_frame(40, 30, 0.2f);
+      std::fill(g.layer(name).data(), g.layer(name).data() + g.layer(name).size(), value);
+      expect_finite_output(g, "layer " + name + " holding " + std::to_string(value) + " everywhere");
+    }
+  }
 }
 
 // The same input gives the bit-identical output: twice in a row on four threads, and on one
