@@ -4,6 +4,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -132,6 +134,42 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
                               dir.file("retimed.toml") + " -o " + out);
   ASSERT_EQ(rt.exit_code, 0) << rt.output;
   EXPECT_NE(fs::last_write_time(out + "/images/cornell-box/bilateral_2.exr"), timed_before);
+}
+
+// results.json's numbers are the scores of the images it names against the reference it names:
+// each metric recomputed from the written files by `denoisebench metrics` agrees (a record that
+// stored another cell's score, or a stale image, fails here); every method beats the 2 spp input;
+// and the reference was rendered with a seed of its own, not the inputs' (issue 28).
+TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
+  test::TempDir dir;
+  write(dir.path() / "tiny.toml", kTinyConfig);
+  const std::string out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto res = nlohmann::json::parse(slurp(out + "/results.json"));
+  double input_mse = -1;
+  std::vector<double> method_mse;
+  for (const auto& rec : res["records"]) {
+    const std::string image = out + "/" + rec["files"]["image"].get<std::string>();
+    const std::string ref = out + "/" + rec["reference"]["image"].get<std::string>();
+    auto m = test::run_denoisebench_stdout("metrics '" + image + "' '" + ref + "' --json");
+    ASSERT_EQ(m.exit_code, 0) << m.errors;
+    const auto again = nlohmann::json::parse(m.output);
+    // mse_converged needs the reference's variance, which the copied reference.exr does not hold.
+    for (const char* name : {"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip"}) {
+      ASSERT_TRUE(rec["metrics"][name].is_number()) << rec["method"] << " " << name;
+      const double stored = rec["metrics"][name].get<double>(), recomputed = again[name].get<double>();
+      // The run scores the image in memory, the command reads the written EXR: float32 both, so
+      // equal up to the last bits of the sums.
+      EXPECT_NEAR(stored, recomputed, 1e-9 * std::max(1.0, std::abs(stored))) << rec["method"] << " " << name;
+    }
+    EXPECT_NE(rec["reference"]["seed"], rec["seed"]) << rec["method"];
+    if (rec["role"] == "input") input_mse = rec["metrics"]["mse"].get<double>();
+    if (rec["role"] == "method" || rec["role"] == "ablation") method_mse.push_back(rec["metrics"]["mse"].get<double>());
+  }
+  ASSERT_GT(input_mse, 0);
+  ASSERT_EQ(method_mse.size(), 2u);
+  for (double m : method_mse) EXPECT_LT(m, input_mse);
 }
 
 TEST(RunCommand, RefusesUnknownMethodsAndKeys) {
