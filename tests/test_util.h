@@ -2,6 +2,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <string>
 
 namespace dnb::test {
@@ -34,6 +35,18 @@ CommandResult run_denoisebench_stdout(const std::string& args);
 CommandResult run_command_stdout(const std::string& command);
 // The source tree ($DNB_SOURCE_DIR).
 std::string source_dir();
+
+// The message of the exception of type E (InputError, WorkError) that `f` throws, or "(no error)"
+// when it throws none: for asserting on what an error says.
+template <class E>
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
 
 // A whole file as a string ("" when it cannot be read), and a file written from a string.
 std::string slurp(const std::filesystem::path& p);

@@ -3,18 +3,12 @@
 
 #include "core/config.h"
 #include "core/errors.h"
+#include "test_util.h"
 
 namespace dnb {
 namespace {
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+std::string error_of(const std::function<void()>& f) { return test::error_of<InputError>(f); }
 
 TEST(Config, ReadsTypedValuesWithDefaults) {
   auto cfg = ConfigFile::parse("spp = 64\nsigma = 2\nname = \"x\"\n[render]\nsize = [1, 2, 3]\n", "t.toml");

@@ -65,14 +65,7 @@ class FullDisk : public ::testing::Test {
   bool mounted_ = false;
 };
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const WorkError& e) {
-    return e.what();
-  }
-  return "no error";
-}
+std::string error_of(const std::function<void()>& f) { return test::error_of<WorkError>(f); }
 
 TEST_F(FullDisk, TextWriteFailsWithTheSystemsReasonAndLeavesNothing) {
   fill(0);

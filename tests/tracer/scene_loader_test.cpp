@@ -22,14 +22,7 @@ namespace {
 
 using rt::Vec3;
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no InputError)";
-}
+std::string error_of(const std::function<void()>& f) { return test::error_of<InputError>(f); }
 
 void write_png(const std::string& path, float r, float g, float b) {
   auto out = OIIO::ImageOutput::create(path);

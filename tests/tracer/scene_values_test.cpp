@@ -19,14 +19,7 @@
 namespace dnb {
 namespace {
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no InputError)";
-}
+std::string error_of(const std::function<void()>& f) { return test::error_of<InputError>(f); }
 
 bool names(const std::string& msg, const std::string& what) { return msg.find(what) != std::string::npos; }
 
