@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 
@@ -78,8 +80,56 @@ FrameMeta get_meta(const OIIO::ImageSpec& spec, std::size_t* edge_pixels) {
   return m;
 }
 
+// Walks the OpenEXR header(s) of `path` (magic, version, then attributes: name, type name,
+// int32 size, value; an empty name ends a header, and an empty header the list of a multi-part
+// file) and refuses a value size that is negative or runs past the end of the file. OpenEXR 3.1
+// allocates an attribute's value at its declared size before reading it: a 10 KB file that
+// declares a 2 GB string took 4 GB of memory (found by fuzz/frame_fuzz.cpp). What this walk
+// cannot follow (a name without its terminator) is left to OpenEXR, which reports it.
+void check_exr_header(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::error_code ec;
+  const auto file_size = fs::file_size(path, ec);
+  if (!f || ec) return;  // OIIO reports it
+  char magic[4];
+  std::uint32_t version = 0;
+  if (!f.read(magic, 4) || !f.read(reinterpret_cast<char*>(&version), 4)) return;
+  if (std::memcmp(magic, "\x76\x2f\x31\x01", 4) != 0)
+    throw InputError(fmt::format("'{}': not an OpenEXR file (frames and images are read as OpenEXR only)", path));
+  const bool multipart = version & 0x1000;
+  auto read_name = [&](std::string& name) -> bool {
+    name.clear();
+    for (char c; f.get(c);) {
+      if (c == '\0') return true;
+      if (name.size() == 255) return false;  // the longest name OpenEXR writes
+      name += c;
+    }
+    return false;
+  };
+  std::string name, type;
+  for (bool header_empty = true;;) {
+    if (!read_name(name)) return;
+    if (name.empty()) {  // the end of a header; a multi-part file lists headers up to an empty one
+      if (!multipart || header_empty) return;
+      header_empty = true;
+      continue;
+    }
+    header_empty = false;
+    if (!read_name(type)) return;
+    std::int32_t size = 0;
+    if (!f.read(reinterpret_cast<char*>(&size), 4)) return;
+    const auto at = std::uint64_t(f.tellg());
+    if (size < 0 || std::uint64_t(size) > file_size - std::min<std::uint64_t>(at, file_size))
+      throw InputError(fmt::format("'{}': OpenEXR header attribute '{}' ({}) declares {} bytes, more than the "
+                                   "{}-byte file holds after it",
+                                   path, name, type, size, file_size - std::min<std::uint64_t>(at, file_size)));
+    f.seekg(size, std::ios::cur);
+  }
+}
+
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
   if (!fs::exists(path)) throw InputError(fmt::format("'{}': no such file", path));
+  check_exr_header(path);
   auto in = OIIO::ImageInput::open(path);
   if (!in) throw InputError(fmt::format("'{}': cannot open as an image: {}", path, OIIO::geterror()));
   return in;
