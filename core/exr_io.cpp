@@ -130,8 +130,12 @@ void check_exr_header(const std::string& path) {
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
   if (!fs::exists(path)) throw InputError(fmt::format("'{}': no such file", path));
   check_exr_header(path);
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) throw InputError(fmt::format("'{}': cannot open as an image: {}", path, OIIO::geterror()));
+  // The OpenEXR reader only: ImageInput::open(path) tries every other format's reader when the
+  // OpenEXR one refuses a file, so a damaged frame reached every decoder OIIO links.
+  auto in = OIIO::ImageInput::create("openexr");
+  OIIO::ImageSpec spec;
+  if (!in || !in->open(path, spec))
+    throw InputError(fmt::format("'{}': cannot open as an OpenEXR image: {}", path, in ? in->geterror() : OIIO::geterror()));
   return in;
 }
 
