@@ -4,12 +4,14 @@
 #include <cctype>
 #include <cerrno>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
 
+#include <OpenEXR/openexr.h>
 #include <OpenImageIO/deepdata.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -82,11 +84,11 @@ FrameMeta get_meta(const OIIO::ImageSpec& spec, std::size_t* edge_pixels) {
 
 // Walks the OpenEXR header(s) of `path` (magic, version, then attributes: name, type name,
 // int32 size, value; an empty name ends a header, and an empty header the list of a multi-part
-// file) and refuses a value size that is negative or runs past the end of the file. OpenEXR 3.1
-// allocates an attribute's value at its declared size before reading it: a 10 KB file that
-// declares a 2 GB string took 4 GB of memory (found by fuzz/frame_fuzz.cpp). What this walk
-// cannot follow (a name without its terminator) is left to OpenEXR, which reports it.
-void check_exr_header(const std::string& path) {
+// file) and refuses a value size that is negative or runs past the end of the file: OpenEXR
+// 3.1's C++ reader allocates an attribute at its declared size before reading it, and its C
+// core (below) did not refuse every such header. What this walk cannot follow (a name without
+// its terminator) is left to OpenEXR, which reports it.
+void check_attribute_sizes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   std::error_code ec;
   const auto file_size = fs::file_size(path, ec);
@@ -94,8 +96,6 @@ void check_exr_header(const std::string& path) {
   char magic[4];
   std::uint32_t version = 0;
   if (!f.read(magic, 4) || !f.read(reinterpret_cast<char*>(&version), 4)) return;
-  if (std::memcmp(magic, "\x76\x2f\x31\x01", 4) != 0)
-    throw InputError(fmt::format("'{}': not an OpenEXR file (frames and images are read as OpenEXR only)", path));
   const bool multipart = version & 0x1000;
   auto read_name = [&](std::string& name) -> bool {
     name.clear();
@@ -125,6 +125,49 @@ void check_exr_header(const std::string& path) {
                                    path, name, type, size, file_size - std::min<std::uint64_t>(at, file_size)));
     f.seekg(size, std::ios::cur);
   }
+}
+
+// Reads the OpenEXR header(s) of `path` with OpenEXR's C core (openexr.h) before OIIO opens it
+// with the C++ library. The C++ library of OpenEXR 3.1 allocates an attribute at the size the
+// file declares before reading it, and reads fixed-size attributes whatever size is declared (so
+// later attributes are read out of step): a 5 KB frame that declares a 2 GB string took 4 GB of
+// memory (found by fuzz/frame_fuzz.cpp). The C core checks each attribute's size against its
+// type and the file's size; its allocations are capped here as well, so a header it accepts is
+// one the C++ library reads in step, with allocations bounded by the file.
+struct ExrHeaderCheck {
+  std::uint64_t limit = 0;
+  std::string error;
+};
+
+void check_exr_header(const std::string& path) {
+  {
+    std::ifstream f(path, std::ios::binary);
+    char magic[4] = {};
+    if (f.read(magic, 4) && std::memcmp(magic, "\x76\x2f\x31\x01", 4) != 0)
+      throw InputError(fmt::format("'{}': not an OpenEXR file (frames and images are read as OpenEXR only)", path));
+  }
+  check_attribute_sizes(path);
+  std::error_code ec;
+  const auto file_size = fs::file_size(path, ec);
+  if (ec) return;  // OIIO reports it
+  // A header never needs more than the file holds; 1 MiB over it leaves room for the core's
+  // own tables.
+  static thread_local ExrHeaderCheck* check = nullptr;
+  ExrHeaderCheck state{file_size + (std::uint64_t(1) << 20), {}};
+  check = &state;
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  init.error_handler_fn = [](exr_const_context_t, exr_result_t code, const char* msg) {
+    if (check && check->error.empty()) check->error = msg ? msg : exr_get_default_error_message(code);
+  };
+  init.alloc_fn = [](std::size_t bytes) -> void* { return check && bytes > check->limit ? nullptr : std::malloc(bytes); };
+  init.free_fn = [](void* p) { std::free(p); };
+  exr_context_t ctx = nullptr;
+  const exr_result_t rv = exr_start_read(&ctx, path.c_str(), &init);
+  exr_finish(&ctx);
+  check = nullptr;
+  if (rv != EXR_ERR_SUCCESS)
+    throw InputError(fmt::format("'{}': not a readable OpenEXR header: {}", path,
+                                 state.error.empty() ? exr_get_default_error_message(rv) : state.error));
 }
 
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
