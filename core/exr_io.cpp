@@ -123,6 +123,16 @@ void check_attribute_sizes(const std::string& path) {
       throw InputError(fmt::format("'{}': OpenEXR header attribute '{}' ({}) declares {} bytes, more than the "
                                    "{}-byte file holds after it",
                                    path, name, type, size, file_size - std::min<std::uint64_t>(at, file_size)));
+    if (type == "chlist") {
+      // OpenEXR's C++ reader reads channels up to an empty name, whatever the declared size, and
+      // goes on reading attributes from there: the list must end exactly at the declared size.
+      const auto end = at + std::uint64_t(size);
+      std::string channel;
+      while (read_name(channel) && !channel.empty()) f.seekg(16, std::ios::cur);  // type, linear, sampling
+      if (!f || std::uint64_t(f.tellg()) != end)
+        throw InputError(fmt::format("'{}': OpenEXR channel list does not end at its declared size ({} bytes)", path, size));
+      continue;
+    }
     f.seekg(size, std::ios::cur);
   }
 }

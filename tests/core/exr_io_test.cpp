@@ -193,16 +193,22 @@ TEST(ExrIo, FuzzHeaderAttributeLargerThanTheFileIsRefusedByName) {
 // Found by fuzz/frame_fuzz.cpp (the input as it found it): every attribute size fits the file,
 // but one of them disagrees with its type, so OpenEXR's C++ reader reads the next attributes
 // out of step and finds a "string" of 1.7 GB, which it allocated. The C core refuses the header.
+// A second input of that kind that OpenEXR's C core accepted (it reads the channel list within
+// its declared size; the C++ reader reads it up to its terminator): refused by the size walk.
 TEST(ExrIo, FuzzHeaderReadOutOfStepIsRefused) {
-  const std::string path = std::string(DNB_TEST_SOURCE_DIR) + "/tests/core/data/fuzz-frame-out-of-step-header.exr";
+  for (const char* name : {"fuzz-frame-out-of-step-header.exr", "fuzz-frame-channel-list-out-of-step.exr"}) {
+  const std::string path = std::string(DNB_TEST_SOURCE_DIR) + "/tests/core/data/" + name;
   ASSERT_TRUE(fs::exists(path)) << path;
   for (auto read : {+[](const std::string& p) { (void)read_frame(p); }, +[](const std::string& p) { (void)read_rgb(p); }}) {
     try {
       read(path);
-      FAIL() << "a header read out of step was accepted";
+      FAIL() << name << ": a header read out of step was accepted";
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("OpenEXR header"), std::string::npos) << e.what();
+      const std::string msg = e.what();
+      EXPECT_TRUE(msg.find("OpenEXR header") != std::string::npos || msg.find("OpenEXR channel list") != std::string::npos)
+          << msg;
     }
+  }
   }
 }
 
