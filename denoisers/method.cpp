@@ -168,7 +168,8 @@ Params MethodRegistry::parse_params(const std::string& name,
   Params p;
   for (const auto& spec : mi.params) p.set(spec.name, parse_value(name, spec, spec.default_value));
   for (const auto& [k, v] : settings) {
-    auto it = std::find_if(mi.params.begin(), mi.params.end(), [&](const ParamSpec& s) { return s.name == k; });
+    // k by init-capture: clang before 16 cannot capture a structured binding (the fuzz build).
+    auto it = std::find_if(mi.params.begin(), mi.params.end(), [&k = k](const ParamSpec& s) { return s.name == k; });
     if (it == mi.params.end()) {
       std::vector<std::string> valid;
       for (auto& s : mi.params) valid.push_back(s.name);

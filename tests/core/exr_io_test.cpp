@@ -2,7 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 
 #include <OpenImageIO/imageio.h>
@@ -149,6 +152,85 @@ TEST(ExrIo, EdgeFileMissingBesideFrameIsRefused) {
   write_frame(f, dir.file("f.exr"));
   fs::remove(edges_path(dir.file("f.exr")));
   EXPECT_THROW(read_frame(dir.file("f.exr")), InputError);
+}
+
+// Found by fuzz/frame_fuzz.cpp: a frame whose header declares a 2 GB string attribute made
+// OpenEXR 3.1 allocate (and fill) it before finding the file too short: 4 GB and 15 s for a
+// 10 KB file. The header is now checked by OpenEXR's C core first, with no large allocation.
+TEST(ExrIo, FuzzHeaderAttributeLargerThanTheFileIsRefusedByName) {
+  test::TempDir dir;
+  AovFrame f(4, 3);
+  f.add("color", 3);
+  f.meta.scene = "cornell-box";
+  write_frame(f, dir.file("f.exr"));
+  std::string bytes;
+  {
+    std::ifstream in(dir.file("f.exr"), std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  // The attribute's name, its type "string\0", then its int32 size: made 0x7fff0000.
+  const std::string attr = std::string("denoisebench:scene") + '\0' + "string" + '\0';
+  const std::size_t at = bytes.find(attr);
+  ASSERT_NE(at, std::string::npos) << "the scene attribute is not in the header";
+  const std::int32_t huge = 0x7fff0000;
+  bytes.replace(at + attr.size(), 4, reinterpret_cast<const char*>(&huge), 4);
+  {
+    std::ofstream out(dir.file("f.exr"), std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), std::streamsize(bytes.size()));
+  }
+  for (auto read : {+[](const std::string& p) { (void)read_frame(p); }, +[](const std::string& p) { (void)read_rgb(p); }}) {
+    try {
+      read(dir.file("f.exr"));
+      FAIL() << "a header attribute of 2 GB in a small file was accepted";
+    } catch (const InputError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("f.exr"), std::string::npos) << msg;
+      EXPECT_NE(msg.find("OpenEXR header"), std::string::npos) << msg;
+    }
+  }
+}
+
+// Found by fuzz/frame_fuzz.cpp (the input as it found it): every attribute size fits the file,
+// but one of them disagrees with its type, so OpenEXR's C++ reader reads the next attributes
+// out of step and finds a "string" of 1.7 GB, which it allocated. The C core refuses the header.
+// A second input of that kind that OpenEXR's C core accepted (it reads the channel list within
+// its declared size; the C++ reader reads it up to its terminator): refused by the size walk.
+TEST(ExrIo, FuzzHeaderReadOutOfStepIsRefused) {
+  for (const char* name : {"fuzz-frame-out-of-step-header.exr", "fuzz-frame-channel-list-out-of-step.exr"}) {
+  const std::string path = std::string(DNB_TEST_SOURCE_DIR) + "/tests/core/data/" + name;
+  ASSERT_TRUE(fs::exists(path)) << path;
+  for (auto read : {+[](const std::string& p) { (void)read_frame(p); }, +[](const std::string& p) { (void)read_rgb(p); }}) {
+    try {
+      read(path);
+      FAIL() << name << ": a header read out of step was accepted";
+    } catch (const InputError& e) {
+      const std::string msg = e.what();
+      EXPECT_TRUE(msg.find("OpenEXR header") != std::string::npos || msg.find("OpenEXR channel list") != std::string::npos)
+          << msg;
+    }
+  }
+  }
+}
+
+// Frames and images are read as OpenEXR only: a PNG named f.exr used to be decoded by OIIO's
+// PNG reader (every image decoder of OIIO was reachable from a frame path); now it is refused
+// before any decoder runs.
+TEST(ExrIo, FileThatIsNotOpenExrIsRefused) {
+  test::TempDir dir;
+  Image rgb(4, 4, 3, 0.5f);
+  OIIO::ImageSpec spec(4, 4, 3, OIIO::TypeDesc::UINT8);
+  auto out = OIIO::ImageOutput::create("png");
+  ASSERT_TRUE(out && out->open(dir.file("f.exr"), spec));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()));
+  out->close();
+  for (auto read : {+[](const std::string& p) { (void)read_frame(p); }, +[](const std::string& p) { (void)read_rgb(p); }}) {
+    try {
+      read(dir.file("f.exr"));
+      FAIL() << "a PNG file named .exr was read";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("not an OpenEXR file"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Image, AbsurdAndZeroSizesAreRefused) {
