@@ -20,7 +20,7 @@ using nlohmann::json;
 // plain cast (undefined behaviour; INT_MIN in practice), and 3e9 wrapped. An integer key now
 // takes only a whole number in its type's range; anything else names the file and the key.
 TEST(JsonFile, FuzzIntegerKeyOutOfRangeOrFractionalIsRefusedByName) {
-  for (const json v : {json(1e300), json(-1e300), json(3e9), json(2.5), json(std::uint64_t(1) << 40)}) {
+  for (const json& v : {json(1e300), json(-1e300), json(3e9), json(2.5), json(std::uint64_t(1) << 40)}) {
     const json j = {{"spp", v}, {"list", {1, v}}};
     try {
       (void)jf::get<int>(j, "spp", "'r.json': records[0]");
