@@ -49,6 +49,18 @@ bool known_layer(const std::string& name) {
   return std::regex_match(name, m, level) && (base.count(m[2].str()) || m[2].str() == layer::kTint);
 }
 
+// "a:b::c" -> a, b, c (empty entries dropped), for PATH-like lists.
+std::vector<std::string> split_colons(const std::string& list) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (start <= list.size()) {
+    const std::size_t end = std::min(list.find(':', start), list.size());
+    if (end > start) out.push_back(list.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
+}
+
 bool executable(const fs::path& p) {
   std::error_code ec;
   return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
@@ -65,14 +77,9 @@ std::string resolve_program(const std::string& program, const fs::path& folder, 
     return fs::absolute(p).lexically_normal().string();
   }
   const char* path = std::getenv("PATH");
-  std::string dirs = path ? path : "/usr/local/bin:/usr/bin:/bin";
-  std::size_t start = 0;
-  while (start <= dirs.size()) {
-    const std::size_t end = std::min(dirs.find(':', start), dirs.size());
-    const std::string d = dirs.substr(start, end - start);
-    if (!d.empty() && executable(fs::path(d) / program)) return program;
-    start = end + 1;
-  }
+  const std::string dirs = path ? path : "/usr/local/bin:/usr/bin:/bin";
+  for (const std::string& d : split_colons(dirs))
+    if (executable(fs::path(d) / program)) return program;
   throw InputError(fmt::format("{}: program '{}' is not on PATH ({})", where, program, dirs));
 }
 
@@ -374,18 +381,17 @@ std::vector<fs::path> manifests_in(const fs::path& dir) {
   return out;
 }
 
-bool has_plugin_table(const fs::path& p) {
-  try {
-    return ConfigFile::load(p.string()).root().contains("plugin");
-  } catch (const InputError&) {
-    return true;  // malformed: let load_plugin_manifest report it
-  }
-}
+PluginManifest manifest_from(const ConfigFile& file, const std::string& path, const std::vector<std::string>& builtins);
 
 }  // namespace
 
 PluginManifest load_plugin_manifest(const std::string& path, const std::vector<std::string>& builtins) {
-  ConfigFile file = ConfigFile::load(path);
+  return manifest_from(ConfigFile::load(path), path, builtins);
+}
+
+namespace {
+
+PluginManifest manifest_from(const ConfigFile& file, const std::string& path, const std::vector<std::string>& builtins) {
   ConfigTable root = file.root();
   auto pl = root.table("plugin");
   if (!pl) throw InputError(fmt::format("{}: expected a [plugin] table (name, command, protocol, layers)", path));
@@ -432,6 +438,8 @@ PluginManifest load_plugin_manifest(const std::string& path, const std::vector<s
   return m;
 }
 
+}  // namespace
+
 std::string plugin_content_hash(const PluginManifest& m) {
   // Every regular file under the folder and under the helper's, by relative path and content;
   // hidden entries and Python caches are left out (they do not change what the program does).
@@ -460,15 +468,8 @@ std::string plugin_content_hash(const PluginManifest& m) {
 
 std::vector<std::string> plugin_search_dirs(const std::vector<std::string>& extra) {
   std::vector<std::string> dirs = extra;
-  if (const char* env = std::getenv("DENOISEBENCH_PLUGINS"); env && *env) {
-    std::string s = env;
-    std::size_t start = 0;
-    while (start <= s.size()) {
-      const std::size_t end = std::min(s.find(':', start), s.size());
-      if (end > start) dirs.push_back(s.substr(start, end - start));
-      start = end + 1;
-    }
-  }
+  if (const char* env = std::getenv("DENOISEBENCH_PLUGINS"))
+    for (const std::string& d : split_colons(env)) dirs.push_back(d);
   dirs.push_back(source_dir("plugins", DNB_SOURCE_PLUGINS_DIR).string());
   return dirs;
 }
@@ -489,8 +490,11 @@ std::vector<std::string> register_plugins(const std::vector<std::string>& dirs) 
       throw InputError(fmt::format("plug-in folder '{}' {}", d, fs::exists(d, ec) ? "is not a folder" : "does not exist"));
     }
     for (const fs::path& p : manifests_in(d)) {
-      if (!has_plugin_table(p)) continue;
-      PluginManifest m = load_plugin_manifest(p.string(), builtins);
+      // Any *.toml of the folder: a manifest when it has a [plugin] table (a malformed file is
+      // reported: it may be a manifest with a typo).
+      const ConfigFile file = ConfigFile::load(p.string());
+      if (!file.root().contains("plugin")) continue;
+      PluginManifest m = manifest_from(file, p.string(), builtins);
       if (registry.contains(m.name)) {
         const MethodInfo& old = registry.info(m.name);
         if (old.origin == m.path) continue;  // the same manifest, found again
