@@ -3,6 +3,7 @@
 #include <cstdlib>
 #include <exception>
 
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include "apps/commands.h"
@@ -23,6 +24,7 @@ int main(int argc, char** argv) {
   dnb::app::add_reference(app, action);
   dnb::app::add_denoise(app, action);
   dnb::app::add_metrics(app, action);
+  dnb::app::add_import(app, action);
   dnb::app::add_run(app, action);
   dnb::app::add_report(app, action);
   dnb::app::add_list(app, action);
@@ -33,6 +35,8 @@ int main(int argc, char** argv) {
     int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }
+  // The log goes to stderr: stdout is the commands' output (--json is parsed by scripts).
+  spdlog::set_default_logger(spdlog::stderr_color_mt("denoisebench"));
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
   int status = 2;

@@ -40,6 +40,11 @@ class ConfigTable {
   // Dotted path of this table inside the file ("" for the root).
   const std::string& prefix() const { return prefix_; }
   bool contains(const std::string& key) const { return table_->contains(key); }
+  // The TOML type of a present key (none when absent), for keys that accept several forms.
+  toml::node_type type_of(const std::string& key) const {
+    const toml::node* n = table_->get(key);
+    return n ? n->type() : toml::node_type::none;
+  }
 
   // Typed reads with a default; a present key of the wrong type is an InputError, and so is an
   // integer that does not fit the type read (no silent wrap-around).

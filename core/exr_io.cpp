@@ -506,4 +506,54 @@ Image read_rgb(const std::string& path) {
   return out;
 }
 
+int ExrChannels::index(const std::string& name) const {
+  for (std::size_t i = 0; i < names.size(); ++i)
+    if (names[i] == name) return int(i);
+  return -1;
+}
+
+const std::vector<float>& ExrChannels::plane(const std::string& name) const {
+  const int i = index(name);
+  if (i < 0) throw InputError(fmt::format("no channel '{}'", name));
+  return planes[std::size_t(i)];
+}
+
+ExrChannels read_exr_channels(const std::string& path, bool with_pixels) {
+  auto in = open_input(path);
+  ExrChannels out;
+  for (int part = 0; in->seek_subimage(part, 0); ++part) {
+    const OIIO::ImageSpec spec = in->spec();
+    if (spec.deep) throw InputError(fmt::format("'{}': part {} is a deep image, expected flat channels", path, part));
+    Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
+    if (part == 0) {
+      out.width = spec.width;
+      out.height = spec.height;
+    } else if (spec.width != out.width || spec.height != out.height) {
+      throw InputError(fmt::format("'{}': part {} is {}x{}, part 0 is {}x{} (parts of one frame must share a size)",
+                                   path, part, spec.width, spec.height, out.width, out.height));
+    }
+    for (const auto& a : spec.extra_attribs) out.attributes.emplace(a.name().string(), a.get_string());
+    if (!with_pixels) {
+      for (const auto& name : spec.channelnames) {
+        if (out.has(name)) throw InputError(fmt::format("'{}': channel '{}' appears in two parts", path, name));
+        out.names.push_back(name);
+      }
+      continue;
+    }
+    const std::size_t n = std::size_t(spec.width) * spec.height;
+    std::vector<float> buf(n * std::size_t(spec.nchannels));
+    if (!in->read_image(part, 0, 0, spec.nchannels, TypeDesc::FLOAT, buf.data()))
+      throw InputError(fmt::format("'{}': cannot read the pixels of part {}: {}", path, part, in->geterror()));
+    for (int c = 0; c < spec.nchannels; ++c) {
+      const std::string& name = spec.channelnames[std::size_t(c)];
+      if (out.has(name)) throw InputError(fmt::format("'{}': channel '{}' appears in two parts", path, name));
+      std::vector<float> plane(n);
+      for (std::size_t i = 0; i < n; ++i) plane[i] = buf[i * std::size_t(spec.nchannels) + std::size_t(c)];
+      out.names.push_back(name);
+      out.planes.push_back(std::move(plane));
+    }
+  }
+  return out;
+}
+
 }  // namespace dnb

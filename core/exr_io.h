@@ -3,6 +3,7 @@
 // Every write goes to a temporary name and is renamed when complete.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -47,5 +48,21 @@ void write_rgb(const Image& rgb, const std::string& path,
 // Reads the R,G,B channels of any EXR (by name); InputError naming the file and the
 // channel when one is missing.
 Image read_rgb(const std::string& path);
+
+// Every channel of a flat OpenEXR file, by name, with its header attributes: what an importer of
+// another renderer's frames reads (interop/). The parts of a multi-part file are merged (their
+// channel names are already distinct in the files Blender, pbrt and Mitsuba write; a repeated
+// name is an InputError). Planes are stored one after the other, each width x height floats.
+struct ExrChannels {
+  int width = 0, height = 0;
+  std::vector<std::string> names;                     // in the file's order
+  std::map<std::string, std::string> attributes;      // every header attribute, as text
+  std::vector<std::vector<float>> planes;             // one per name
+  bool has(const std::string& name) const { return index(name) >= 0; }
+  int index(const std::string& name) const;           // -1 when absent
+  const std::vector<float>& plane(const std::string& name) const;  // InputError naming it when absent
+};
+// `with_pixels` false: names and attributes only (planes empty), for telling formats apart.
+ExrChannels read_exr_channels(const std::string& path, bool with_pixels = true);
 
 }  // namespace dnb

@@ -7,7 +7,10 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 #include <random>
+
+#include <OpenImageIO/imageio.h>
 
 namespace dnb::test {
 namespace fs = std::filesystem;
@@ -91,6 +94,20 @@ std::string slurp(const fs::path& p) {
 void write(const fs::path& p, const std::string& text) {
   if (p.has_parent_path()) fs::create_directories(p.parent_path());
   std::ofstream(p, std::ios::binary) << text;
+}
+
+void write_exr(const std::string& path, int width, int height, const Channels& channels,
+               const std::map<std::string, std::string>& attributes) {
+  OIIO::ImageSpec spec(width, height, int(channels.size()), OIIO::TypeDesc::FLOAT);
+  spec.channelnames.clear();
+  for (const auto& [name, plane] : channels) spec.channelnames.push_back(name);
+  for (const auto& [k, v] : attributes) spec.attribute(k, v);
+  std::vector<float> buf(std::size_t(width) * height * channels.size());
+  for (std::size_t c = 0; c < channels.size(); ++c)
+    for (std::size_t i = 0; i < std::size_t(width) * height; ++i) buf[i * channels.size() + c] = channels[c].second.at(i);
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out || !out->open(path, spec) || !out->write_image(OIIO::TypeDesc::FLOAT, buf.data()) || !out->close())
+    throw std::runtime_error("write_exr: cannot write " + path);
 }
 
 }  // namespace dnb::test

@@ -3,7 +3,10 @@
 
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace dnb::test {
 
@@ -51,5 +54,11 @@ std::string error_of(const std::function<void()>& f) {
 // A whole file as a string ("" when it cannot be read), and a file written from a string.
 std::string slurp(const std::filesystem::path& p);
 void write(const std::filesystem::path& p, const std::string& text);
+
+// An OpenEXR file with exactly these channels (name -> width * height floats, in this order) and
+// string attributes, as another renderer writes one: no denoisebench metadata.
+using Channels = std::vector<std::pair<std::string, std::vector<float>>>;
+void write_exr(const std::string& path, int width, int height, const Channels& channels,
+               const std::map<std::string, std::string>& attributes = {});
 
 }  // namespace dnb::test
