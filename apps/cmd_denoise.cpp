@@ -9,6 +9,7 @@
 
 #include "apps/args.h"
 #include "apps/commands.h"
+#include "interop/import.h"
 #include "methods/denoise.h"
 #include "methods/plugins.h"
 
@@ -23,12 +24,13 @@ void add_denoise(CLI::App& app, Action& action) {
   };
   auto o = std::make_shared<Opts>();
   cmd->add_option("METHOD", o->request.method, "method name (see: denoisebench list methods)")->required();
-  cmd->add_option("FRAME", o->request.frame, "AOV frame (EXR written by denoisebench render)")->required();
+  cmd->add_option("FRAME", o->request.frame, "AOV frame (EXR written by denoisebench render, or another renderer's: --input-format)")->required();
   cmd->add_option("-o,--output", o->request.output, "output EXR (R,G,B), written atomically")->required();
   cmd->add_option("--set", o->settings, "method parameter as key=value (repeatable)");
   add_threads_option(*cmd, o->request.threads, "worker threads (0: all cores; the image does not depend on it)");
   cmd->add_option("--scene", o->request.scene,
                   "renderer-type methods: scene to render (default: the scene named in the frame's metadata)");
+  cmd->add_option("--input-format", o->request.input_format, "FRAME's format: " + interop::input_format_help());
   cmd->add_flag("--json", o->json, "print the statistics as JSON instead of text");
   auto plugins = add_plugins_option(cmd);
   cmd->callback([&action, o, plugins] {

@@ -18,6 +18,7 @@ void add_render(CLI::App& app, Action& action);
 void add_reference(CLI::App& app, Action& action);
 void add_denoise(CLI::App& app, Action& action);
 void add_metrics(CLI::App& app, Action& action);
+void add_import(CLI::App& app, Action& action);
 void add_run(CLI::App& app, Action& action);
 void add_report(CLI::App& app, Action& action);
 void add_list(CLI::App& app, Action& action);

@@ -259,8 +259,11 @@ MethodResult run_method(Method& method, const MethodInput& input) {
       throw InputError(fmt::format("{} lacks channel{} {} required by this method", frame_label(f),
                                    missing.size() > 1 ? "s" : "", fmt::join(missing, ", ")));
     // Repair non-finite samples in a copy, only when there are any (no copy in the common case).
+    std::vector<std::string> checked = required;
+    for (const auto& name : method.optional_layers())
+      if (f.has(name) && std::find(checked.begin(), checked.end(), name) == checked.end()) checked.push_back(name);
     bool any = false;
-    for (const auto& name : required) {
+    for (const auto& name : checked) {
       const Image& img = f.layer(name);
       const int want = default_channels(name);
       if (img.channels() != want || img.width() != f.width() || img.height() != f.height())
@@ -274,7 +277,7 @@ MethodResult run_method(Method& method, const MethodInput& input) {
     }
     if (any) {
       repaired = f;
-      for (const auto& name : required) {
+      for (const auto& name : checked) {
         const Image& src = f.layer(name);
         if (count_non_finite(src.view()) == 0) continue;
         repaired_samples += repair_non_finite(src, repaired.layer(name));

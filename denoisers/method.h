@@ -123,6 +123,9 @@ class Method {
   // run_method guarantees each is present with its contract channel count and only finite
   // samples before execute() is called.
   virtual std::vector<std::string> required_layers() const = 0;
+  // Layers this method uses when the frame has them and does without otherwise (recording in its
+  // stats what it did). run_method checks and repairs those present exactly like required ones.
+  virtual std::vector<std::string> optional_layers() const { return {}; }
   // Must return a 3-channel image of the frame's size (or input.width x input.height) with
   // finite samples, and give the bit-identical image for the same input whatever the thread
   // count. May throw InputError (bad input) or WorkError (failure).

@@ -27,6 +27,8 @@
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
 
+#include <spdlog/spdlog.h>
+
 #include "core/errors.h"
 #include "denoisers/adaptive_manifold.h"
 #include "denoisers/adaptive_manifold_cl.h"
@@ -72,13 +74,17 @@ class Proposed final : public Method {
     nlm_.samples = p.i("nlm_samples");
   }
 
+  // The split (D, I, T, R, E) is what the paper filters; a frame without it (another renderer's:
+  // pbrt-v4, Mitsuba 3) gets its colour filtered in NLM space instead, as filter_color = true
+  // would, recorded as illumination_split 0. One of the two must be there (execute says which).
   std::vector<std::string> required_layers() const override {
-    std::vector<std::string> l{layer::kNormal, layer::kDepth};
-    if (filter_color_) {
-      l.push_back(layer::kColor);
-    } else {
-      for (const auto& n : illumination_layers()) l.push_back(n);
-    }
+    if (filter_color_) return {layer::kNormal, layer::kDepth, layer::kColor};
+    return {layer::kNormal, layer::kDepth};
+  }
+  std::vector<std::string> optional_layers() const override {
+    if (filter_color_) return {};
+    auto l = illumination_layers();
+    l.push_back(layer::kColor);
     return l;
   }
 
@@ -87,7 +93,18 @@ class Proposed final : public Method {
     const AovFrame& f = *in.frame;
     Plan plan;
     plan_settings(f, plan, r.stats);
-    if (filter_color_) {
+    std::vector<std::string> absent;
+    for (const auto& n : illumination_layers())
+      if (!f.has(n)) absent.push_back(n);
+    if (!filter_color_ && !absent.empty() && !f.has(layer::kColor))
+      throw InputError(fmt::format("the frame has neither the illumination split (no {}) nor a colour layer (R, G, B)",
+                                   fmt::join(absent, ", ")));
+    if (!filter_color_ && !absent.empty())
+      spdlog::warn("proposed: the frame has no {} layer{}: filtering its colour instead of the direct/indirect split "
+                   "(as filter_color = true)",
+                   fmt::format("{}", fmt::join(absent, ", ")), absent.size() > 1 ? "s" : "");
+    r.stats.counters["illumination_split"] = (!filter_color_ && absent.empty()) ? 1 : 0;
+    if (filter_color_ || !absent.empty()) {
       const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
       r.image = filter_layer(f, 0, f.layer(layer::kColor), depth, plan.sigma_nlm, plan.am, r.stats, nullptr).image;
       return r;
@@ -160,6 +177,11 @@ class Proposed final : public Method {
 
   // The frame's sample count sets the NLM sigmas and eq. 11's strength.
   void plan_settings(const AovFrame& f, Plan& plan, MethodStats& stats) const {
+    // A frame of unknown sample count (another renderer's, imported without --spp) gets the
+    // settings of the 256-spp frames the defaults were tuned on; said, and recorded.
+    if (f.meta.spp <= 0)
+      spdlog::warn("proposed: the frame's sample count is unknown: using the settings for 256 spp (import it with --spp N)");
+    stats.counters["assumed_spp"] = f.meta.spp > 0 ? 0 : 256;
     plan.sigma_nlm = nlm_sigma_for(f.meta.spp);
     stats.counters["sigma_nlm"] = plan.sigma_nlm;
     // Level 0's direct layer: its own sigma when given (sigma_nlm_direct > 0).
@@ -186,6 +208,7 @@ class Proposed final : public Method {
     plan.depths.resize(n);
     plan.subs.reserve(std::size_t(plan.levels));
     plan.edges = use_edges_ && f.edges && !f.edges->pixels.empty();
+    stats.counters["edge_subpixels_used"] = plan.edges ? 1 : 0;  // a frame without them runs without
     plan.tints.resize(std::size_t(plan.levels));
     if (plan.levels > 0 && tint_radius_ > 0 && f.edges && !f.edges->pixels.empty()) {
       plan.edge_mask.assign(std::size_t(f.width()) * f.height(), 0);

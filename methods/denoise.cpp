@@ -8,6 +8,7 @@
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/version.h"
+#include "interop/import.h"
 #include "methods/inputs.h"
 #include "tracer/scene.h"
 
@@ -20,7 +21,17 @@ DenoiseOutcome denoise_file(const DenoiseRequest& q) {
   std::unique_ptr<tbb::global_control> limit;
   if (q.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, q.threads);
 
-  AovFrame frame = read_frame(q.frame, method->required_layers());
+  AovFrame frame = interop::read_frame_as(q.frame, q.input_format);
+  if (const auto missing = frame.missing_channels(method->required_layers()); !missing.empty()) {
+    std::vector<std::string> layers;
+    for (const auto& l : method->required_layers())
+      if (!frame.has(l)) layers.push_back(l);
+    const auto can = methods_for_frame(frame);
+    throw InputError(fmt::format("'{}': {} needs layer{} {} (channels {}), which the frame lacks; methods that can run on "
+                                 "it: {}",
+                                 q.frame, q.method, layers.size() > 1 ? "s" : "", fmt::join(layers, ", "),
+                                 fmt::join(missing, ", "), can.empty() ? std::string("none") : fmt::format("{}", fmt::join(can, ", "))));
+  }
   const auto scene = scene_for_method(registry.info(q.method), frame, q.scene, q.frame);
   try {
     out.result = run_method(*method, frame_input(frame, scene.get()));
@@ -33,6 +44,20 @@ DenoiseOutcome denoise_file(const DenoiseRequest& q) {
   write_rgb(out.result.image, q.output, attrs);
   out.width = frame.width();
   out.height = frame.height();
+  return out;
+}
+
+std::vector<std::string> methods_for_frame(const AovFrame& frame) {
+  std::vector<std::string> out;
+  const MethodRegistry& registry = MethodRegistry::global();
+  for (const MethodInfo* info : registry.all()) {
+    if (info->kind == MethodKind::Renderer && frame.meta.scene.empty()) continue;
+    try {
+      if (frame.missing_channels(registry.create(info->name)->required_layers()).empty()) out.push_back(info->name);
+    } catch (const std::exception&) {
+      // a method that cannot be created at its defaults here cannot run on the frame either
+    }
+  }
   return out;
 }
 
