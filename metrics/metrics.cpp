@@ -325,8 +325,8 @@ const std::vector<MetricInfo>& all_metrics() {
   auto plain = [](Plain f) { return [f](const Image& a, const Image& b, const Image*) { return f(a, b); }; };
   static const std::vector<MetricInfo> list = {
       {"mse", "mean squared error of the 8-bit sRGB images (0..255): Table 1's scale", true, plain(mse)},
-      {"mse_hdr", "mean squared error of the linear radiance", true, plain(mse_hdr_map)},
-      {"relmse", "relative MSE, (x - y)^2 / (y^2 + 0.01), linear radiance", true, plain(relmse)},
+      {"mse_hdr", "mean squared error of the linear radiance", true, plain(mse_hdr_map), true},
+      {"relmse", "relative MSE, (x - y)^2 / (y^2 + 0.01), linear radiance", true, plain(relmse), true},
       {"psnr", "peak signal-to-noise ratio of the 8-bit images, dB", false, plain(psnr)},
       {"ssim", "structural similarity (Wang et al. 2004) of the 8-bit images", false, plain(ssim)},
       {"flip", "mean LDR-FLIP (Andersson et al. 2020), 67 pixels per degree", true,
