@@ -90,55 +90,64 @@ cv::Mat filtered(const cv::Mat& in, const cv::Mat& kernel) {
   return out;
 }
 
-}  // namespace
+// LDR-FLIP in three named steps, so that HDR-FLIP runs the same code on each exposure:
+// the filters for a viewing distance, each image in FLIP's working spaces, the per-pixel error.
+// Every step works on linear RGB in [0, 1]; `to_linear` says how a pixel of the input gets there.
+struct FlipFilters {
+  cv::Mat csf[3];  // Y, Cx, Cz contrast sensitivity (section 4.1)
+  cv::Mat edge, point, edge_t, point_t;  // feature detectors in x and, transposed, in y (section 4.2)
 
-MetricResult flip(const Image& image, const Image& reference, double ppd) {
-  check_pair(image, reference);
-  const int w = image.width(), h = image.height();
+  explicit FlipFilters(double ppd) {
+    const double bmax = 0.04;  // the widest CSF term (blue-yellow b1)
+    const int radius = int(std::ceil(3 * std::sqrt(bmax / (2 * M_PI * M_PI)) * ppd));
+    csf[0] = csf_kernel(1, 0.0047, 0, 1e-5, ppd, radius);
+    csf[1] = csf_kernel(1, 0.0053, 0, 1e-5, ppd, radius);
+    csf[2] = csf_kernel(34.1, 0.04, 13.5, 0.025, ppd, radius);
+    feature_kernels(ppd, edge, point);
+    edge_t = edge.t();
+    point_t = point.t();
+  }
+};
+
+// One image as the error needs it: the CSF-filtered image in Hunt-adjusted Lab, and the edge and
+// point magnitudes of its normalised achromatic channel.
+struct Prepared { cv::Mat lab[3]; cv::Mat edge_mag, point_mag; };
+
+template <typename ToLinear>
+Prepared prepare(const Image& im, const FlipFilters& k, ToLinear to_linear) {
+  const int w = im.width(), h = im.height();
+  cv::Mat ycc[3];
+  for (auto& m : ycc) m.create(h, w, CV_64F);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      Vec3 v = xyz_to_ycxcz(rgb_to_xyz(to_linear(im.pixel(x, y))));
+      ycc[0].at<double>(y, x) = v.x; ycc[1].at<double>(y, x) = v.y; ycc[2].at<double>(y, x) = v.z;
+    }
+  Prepared out;
+  cv::Mat f[3];
+  for (int c = 0; c < 3; ++c) f[c] = filtered(ycc[c], k.csf[c]);
+  for (auto& m : out.lab) m.create(h, w, CV_64F);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      Vec3 rgb = xyz_to_rgb(ycxcz_to_xyz({f[0].at<double>(y, x), f[1].at<double>(y, x), f[2].at<double>(y, x)}));
+      rgb = {std::clamp(rgb.x, 0.0, 1.0), std::clamp(rgb.y, 0.0, 1.0), std::clamp(rgb.z, 0.0, 1.0)};
+      Vec3 lab = hunt(xyz_to_lab(rgb_to_xyz(rgb)));
+      out.lab[0].at<double>(y, x) = lab.x; out.lab[1].at<double>(y, x) = lab.y; out.lab[2].at<double>(y, x) = lab.z;
+    }
+  cv::Mat yn = (ycc[0] + 16) / 116;  // achromatic channel normalised to [0, 1]
+  cv::Mat ex = filtered(yn, k.edge), ey = filtered(yn, k.edge_t), px = filtered(yn, k.point), py = filtered(yn, k.point_t);
+  cv::magnitude(ex, ey, out.edge_mag);
+  cv::magnitude(px, py, out.point_mag);
+  return out;
+}
+
+// The per-pixel LDR-FLIP error in [0, 1] (CV_64F): the colour error raised to 1 minus the feature
+// error (section 4.3).
+cv::Mat flip_error(const Prepared& a, const Prepared& b) {
   const double qc = 0.7, qf = 0.5, pc = 0.4, pt = 0.95;
-
-  const double bmax = 0.04;  // the widest CSF term (blue-yellow b1)
-  const int radius = int(std::ceil(3 * std::sqrt(bmax / (2 * M_PI * M_PI)) * ppd));
-  const cv::Mat csf[3] = {csf_kernel(1, 0.0047, 0, 1e-5, ppd, radius), csf_kernel(1, 0.0053, 0, 1e-5, ppd, radius),
-                          csf_kernel(34.1, 0.04, 13.5, 0.025, ppd, radius)};
-  cv::Mat edge, point;
-  feature_kernels(ppd, edge, point);
-  const cv::Mat edge_t = edge.t(), point_t = point.t();
-
-  struct Prepared { cv::Mat lab[3]; cv::Mat edge_mag, point_mag; };
-  auto prepare = [&](const Image& im) {
-    // LDR input: the same display transform as the 8-bit metrics, back to linear for FLIP.
-    cv::Mat ycc[3];
-    for (auto& m : ycc) m.create(h, w, CV_64F);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const float* p = im.pixel(x, y);
-        Vec3 lin{srgb_decode(srgb_encode(p[0])), srgb_decode(srgb_encode(p[1])), srgb_decode(srgb_encode(p[2]))};
-        Vec3 v = xyz_to_ycxcz(rgb_to_xyz(lin));
-        ycc[0].at<double>(y, x) = v.x; ycc[1].at<double>(y, x) = v.y; ycc[2].at<double>(y, x) = v.z;
-      }
-    Prepared out;
-    cv::Mat f[3];
-    for (int c = 0; c < 3; ++c) f[c] = filtered(ycc[c], csf[c]);
-    for (auto& m : out.lab) m.create(h, w, CV_64F);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        Vec3 rgb = xyz_to_rgb(ycxcz_to_xyz({f[0].at<double>(y, x), f[1].at<double>(y, x), f[2].at<double>(y, x)}));
-        rgb = {std::clamp(rgb.x, 0.0, 1.0), std::clamp(rgb.y, 0.0, 1.0), std::clamp(rgb.z, 0.0, 1.0)};
-        Vec3 lab = hunt(xyz_to_lab(rgb_to_xyz(rgb)));
-        out.lab[0].at<double>(y, x) = lab.x; out.lab[1].at<double>(y, x) = lab.y; out.lab[2].at<double>(y, x) = lab.z;
-      }
-    cv::Mat yn = (ycc[0] + 16) / 116;  // achromatic channel normalised to [0, 1]
-    cv::Mat ex = filtered(yn, edge), ey = filtered(yn, edge_t), px = filtered(yn, point), py = filtered(yn, point_t);
-    cv::magnitude(ex, ey, out.edge_mag);
-    cv::magnitude(px, py, out.point_mag);
-    return out;
-  };
-  const Prepared a = prepare(image), b = prepare(reference);
-
   const double cmax = std::pow(hyab(hunt(xyz_to_lab(rgb_to_xyz({0, 1, 0}))), hunt(xyz_to_lab(rgb_to_xyz({0, 0, 1})))), qc);
-  MetricResult r{0, Image(w, h, 1)};
-  double total = 0;
+  const int w = a.edge_mag.cols, h = a.edge_mag.rows;
+  cv::Mat err(h, w, CV_64F);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       Vec3 la{a.lab[0].at<double>(y, x), a.lab[1].at<double>(y, x), a.lab[2].at<double>(y, x)};
@@ -148,12 +157,40 @@ MetricResult flip(const Image& image, const Image& reference, double ppd) {
       double df = std::max(std::abs(a.edge_mag.at<double>(y, x) - b.edge_mag.at<double>(y, x)),
                            std::abs(a.point_mag.at<double>(y, x) - b.point_mag.at<double>(y, x)));
       double ef = std::pow(df / std::sqrt(2.0), qf);
-      double e = std::pow(ec, 1 - ef);
+      err.at<double>(y, x) = std::pow(ec, 1 - ef);
+    }
+  return err;
+}
+
+template <typename ToLinear>
+cv::Mat ldr_flip_error(const Image& image, const Image& reference, const FlipFilters& k, ToLinear to_linear) {
+  return flip_error(prepare(image, k, to_linear), prepare(reference, k, to_linear));
+}
+
+// The map as a 1-channel image and its mean.
+MetricResult mean_of(const cv::Mat& err) {
+  const int w = err.cols, h = err.rows;
+  MetricResult r{0, Image(w, h, 1)};
+  double total = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double e = err.at<double>(y, x);
       r.map.at(x, y, 0) = float(e);
       total += e;
     }
   r.value = total / (double(w) * h);
   return r;
+}
+
+}  // namespace
+
+MetricResult flip(const Image& image, const Image& reference, double ppd) {
+  check_pair(image, reference);
+  // LDR input: the same display transform as the 8-bit metrics, back to linear for FLIP.
+  auto display = [](const float* p) {
+    return Vec3{srgb_decode(srgb_encode(p[0])), srgb_decode(srgb_encode(p[1])), srgb_decode(srgb_encode(p[2]))};
+  };
+  return mean_of(ldr_flip_error(image, reference, FlipFilters(ppd), display));
 }
 
 }  // namespace dnb::metrics
