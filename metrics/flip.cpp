@@ -1,10 +1,14 @@
-// FLIP, NVIDIA's perceptual error metric (the `flip` metric of metrics.h).
+// FLIP, NVIDIA's perceptual error metric: LDR-FLIP (`flip`), HDR-FLIP (`hdrflip`) and the pooled
+// statistics of FLIP's tool (metrics.h documents each).
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <vector>
 
+#include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "core/errors.h"
 #include "metrics/metrics.h"
 
 namespace dnb::metrics {
@@ -191,6 +195,109 @@ MetricResult flip(const Image& image, const Image& reference, double ppd) {
     return Vec3{srgb_decode(srgb_encode(p[0])), srgb_decode(srgb_encode(p[1])), srgb_decode(srgb_encode(p[2]))};
   };
   return mean_of(ldr_flip_error(image, reference, FlipFilters(ppd), display));
+}
+
+// ---------------------------------------------------------------------------------------------
+// HDR-FLIP (Andersson, Nilsson, Shirley, Akenine-Moller, Eurographics 2021 short paper). Constants
+// and the exposure range as NVIDIA's FLIP tool has them (checked against flip-evaluator 1.7 in
+// tests/metrics/flip_reference_test.cpp).
+namespace {
+
+// The tone curve, y(x) = (k0 x^2 + k1 x + k2) / (k3 x^2 + k4 x + k5), ACES with 0.6 pre-exposure.
+constexpr double kAces[6] = {0.6 * 0.6 * 2.51, 0.6 * 0.03, 0, 0.6 * 0.6 * 2.43, 0.6 * 0.59, 0.14};
+double aces(double x) {
+  return (kAces[0] * x * x + kAces[1] * x + kAces[2]) / (kAces[3] * x * x + kAces[4] * x + kAces[5]);
+}
+
+// The radiance the curve maps to t, the positive root of (k0 - t k3) x^2 + (k1 - t k4) x + (k2 - t k5) = 0
+// (section 3: the curve rises from y(0) = 0, so the other root is negative).
+double aces_inverse(double t) {
+  const double a = kAces[0] - t * kAces[3], b = kAces[1] - t * kAces[4], c = kAces[2] - t * kAces[5];
+  return (-b + std::sqrt(b * b - 4 * a * c)) / (2 * a);
+}
+
+// The tone-mapped value the exposure range aims the brightest (start) and median (stop) pixel at.
+constexpr double kExposureTarget = 0.85;
+
+}  // namespace
+
+HdrFlipExposures hdrflip_exposures(const Image& reference) {
+  check_pair(reference, reference, "reference", "reference");
+  std::vector<double> lum(reference.pixel_count());
+  for (std::size_t p = 0; p < lum.size(); ++p) {
+    const float* c = reference.data() + 3 * p;
+    lum[p] = 0.2126 * std::max(0.0f, c[0]) + 0.7152 * std::max(0.0f, c[1]) + 0.0722 * std::max(0.0f, c[2]);
+  }
+  HdrFlipExposures ex;
+  if (lum.empty()) return ex;
+  ex.luminance_max = *std::max_element(lum.begin(), lum.end());
+  if (ex.luminance_max <= 0) return ex;  // all black: one exposure is as good as another
+  auto median = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  ex.luminance_median = median(lum);
+  if (ex.luminance_median <= 0) {  // most of the reference black: the median of what is lit
+    lum.erase(std::remove_if(lum.begin(), lum.end(), [](double y) { return y <= 0; }), lum.end());
+    ex.luminance_median = median(lum);
+  }
+  const double x_max = aces_inverse(kExposureTarget);
+  ex.start = std::log2(x_max / ex.luminance_max);
+  ex.stop = std::log2(x_max / ex.luminance_median);
+  ex.count = int(std::max(2.0, std::ceil(ex.stop - ex.start)));
+  return ex;
+}
+
+Image hdrflip_tone_map(const Image& linear, double exposure) {
+  const double scale = std::exp2(exposure);
+  Image out(linear.width(), linear.height(), linear.channels());
+  for (std::size_t i = 0; i < linear.size(); ++i)
+    out.data()[i] = float(std::clamp(aces(scale * std::max(0.0, double(linear.data()[i]))), 0.0, 1.0));
+  return out;
+}
+
+MetricResult hdrflip(const Image& image, const Image& reference, double ppd) {
+  check_pair(image, reference);
+  const HdrFlipExposures ex = hdrflip_exposures(reference);
+  const FlipFilters filters(ppd);
+  // The tone-mapped images are already linear in [0, 1]: LDR-FLIP takes them as they are.
+  auto as_is = [](const float* p) { return Vec3{p[0], p[1], p[2]}; };
+  cv::Mat worst(image.height(), image.width(), CV_64F, cv::Scalar(0));
+  for (int i = 0; i < ex.count; ++i) {
+    const double c = ex.exposure(i);
+    worst = cv::max(worst, ldr_flip_error(hdrflip_tone_map(image, c), hdrflip_tone_map(reference, c), filters, as_is));
+  }
+  return mean_of(worst);
+}
+
+// ---------------------------------------------------------------------------------------------
+// FLIP's pooled statistics (its tool's pooling.h, getPercentile with weights).
+FlipPooled pool_flip(const Image& map) {
+  if (map.channels() != 1 || map.empty())
+    throw InputError(fmt::format("pool_flip needs a non-empty 1-channel error map, not {}x{} with {} channels",
+                                 map.width(), map.height(), map.channels()));
+  std::vector<double> v(map.data(), map.data() + map.size());
+  for (std::size_t i = 0; i < v.size(); ++i)
+    if (!std::isfinite(v[i]))
+      throw InputError(fmt::format("the error map has a non-finite value at pixel ({}, {})", i % map.width(),
+                                   i / map.width()));
+  std::sort(v.begin(), v.end());
+  double total = 0;
+  for (double e : v) total += e;
+  auto weighted = [&](double p) {
+    double running = 0;
+    for (double e : v)
+      if ((running += e) > p * total) return e;
+    return 0.0;  // no error at all
+  };
+  FlipPooled r;
+  r.mean = total / double(v.size());
+  r.weighted_median = weighted(0.5);
+  r.weighted_first_quartile = weighted(0.25);
+  r.weighted_third_quartile = weighted(0.75);
+  r.min = v.front();
+  r.max = v.back();
+  return r;
 }
 
 }  // namespace dnb::metrics
