@@ -172,153 +172,6 @@ MetricResult ssim(const Image& image, const Image& reference) {
   return res;
 }
 
-// ---------------------------------------------------------------------------------------------
-// LDR-FLIP (Andersson, Nilsson, Akenine-Moller, Oskarsson, Astrom, Fairchild: "FLIP: A Difference
-// Evaluator for Alternating Images", HPG 2020). Written here from the paper because no Debian
-// package provides it (NVIDIA's reference code is not packaged). Constants are the paper's:
-// CSFs in YCxCz, Hunt-adjusted HyAB colour distance with qc = 0.7, pc = 0.4, pt = 0.95, edge and
-// point detectors (w = 0.082 degrees) on the normalised achromatic channel with qf = 0.5.
-namespace {
-
-struct Vec3 { double x, y, z; };
-
-// Linear sRGB <-> CIE XYZ (D65).
-Vec3 rgb_to_xyz(Vec3 c) {
-  return {0.4124564 * c.x + 0.3575761 * c.y + 0.1804375 * c.z, 0.2126729 * c.x + 0.7151522 * c.y + 0.0721750 * c.z,
-          0.0193339 * c.x + 0.1191920 * c.y + 0.9503041 * c.z};
-}
-Vec3 xyz_to_rgb(Vec3 c) {
-  return {3.2404542 * c.x - 1.5371385 * c.y - 0.4985314 * c.z, -0.9692660 * c.x + 1.8760108 * c.y + 0.0415560 * c.z,
-          0.0556434 * c.x - 0.2040259 * c.y + 1.0572252 * c.z};
-}
-const Vec3 kWhite = rgb_to_xyz({1, 1, 1});
-
-Vec3 xyz_to_ycxcz(Vec3 c) {
-  double x = c.x / kWhite.x, y = c.y / kWhite.y, z = c.z / kWhite.z;
-  return {116 * y - 16, 500 * (x - y), 200 * (y - z)};
-}
-Vec3 ycxcz_to_xyz(Vec3 c) {
-  double y = (c.x + 16) / 116, x = y + c.y / 500, z = y - c.z / 200;
-  return {x * kWhite.x, y * kWhite.y, z * kWhite.z};
-}
-Vec3 xyz_to_lab(Vec3 c) {
-  auto f = [](double t) { const double d = 6.0 / 29; return t > d * d * d ? std::cbrt(t) : t / (3 * d * d) + 4.0 / 29; };
-  double fx = f(c.x / kWhite.x), fy = f(c.y / kWhite.y), fz = f(c.z / kWhite.z);
-  return {116 * fy - 16, 500 * (fx - fy), 200 * (fy - fz)};
-}
-// Hunt-adjusted Lab: chroma scaled by 0.01 L.
-Vec3 hunt(Vec3 lab) { return {lab.x, 0.01 * lab.x * lab.y, 0.01 * lab.x * lab.z}; }
-double hyab(Vec3 a, Vec3 b) { return std::abs(a.x - b.x) + std::hypot(a.y - b.y, a.z - b.z); }
-
-// The contrast sensitivity functions as spatial kernels (paper section 4.1, Table 1 constants):
-// g(x) = a1 sqrt(pi/b1) exp(-pi^2 x^2 / b1) + a2 sqrt(pi/b2) exp(-pi^2 x^2 / b2), x in degrees.
-cv::Mat csf_kernel(double a1, double b1, double a2, double b2, double ppd, int radius) {
-  cv::Mat k(2 * radius + 1, 2 * radius + 1, CV_64F);
-  const double pi2 = M_PI * M_PI;
-  double sum = 0;
-  for (int j = -radius; j <= radius; ++j)
-    for (int i = -radius; i <= radius; ++i) {
-      double d2 = (i * i + j * j) / (ppd * ppd);
-      double g = a1 * std::sqrt(M_PI / b1) * std::exp(-pi2 * d2 / b1) + a2 * std::sqrt(M_PI / b2) * std::exp(-pi2 * d2 / b2);
-      k.at<double>(j + radius, i + radius) = g;
-      sum += g;
-    }
-  return k / sum;
-}
-
-// Edge (first derivative of a Gaussian) and point (second derivative) detectors, x direction;
-// positive and negative weights normalised to sum to +1 and -1 (paper section 4.2).
-void feature_kernels(double ppd, cv::Mat& edge, cv::Mat& point) {
-  const double sd = 0.5 * 0.082 * ppd;
-  const int r = int(std::ceil(3 * sd));
-  edge.create(2 * r + 1, 2 * r + 1, CV_64F);
-  point.create(2 * r + 1, 2 * r + 1, CV_64F);
-  double ep = 0, en = 0, pp = 0, pn = 0;
-  for (int y = -r; y <= r; ++y)
-    for (int x = -r; x <= r; ++x) {
-      double g = std::exp(-(x * x + y * y) / (2 * sd * sd));
-      double e = -x * g, p = (x * x / (sd * sd) - 1) * g;
-      edge.at<double>(y + r, x + r) = e;
-      point.at<double>(y + r, x + r) = p;
-      (e > 0 ? ep : en) += e;
-      (p > 0 ? pp : pn) += p;
-    }
-  for (auto [k, pos, neg] : {std::tuple{&edge, ep, en}, std::tuple{&point, pp, pn}})
-    for (auto it = k->begin<double>(); it != k->end<double>(); ++it) *it = *it > 0 ? *it / pos : *it / -neg;
-}
-
-cv::Mat filtered(const cv::Mat& in, const cv::Mat& kernel) {
-  cv::Mat out;
-  cv::filter2D(in, out, CV_64F, kernel, cv::Point(-1, -1), 0, cv::BORDER_REPLICATE);
-  return out;
-}
-
-}  // namespace
-
-MetricResult flip(const Image& image, const Image& reference, double ppd) {
-  check_pair(image, reference);
-  const int w = image.width(), h = image.height();
-  const double qc = 0.7, qf = 0.5, pc = 0.4, pt = 0.95;
-
-  const double bmax = 0.04;  // the widest CSF term (blue-yellow b1)
-  const int radius = int(std::ceil(3 * std::sqrt(bmax / (2 * M_PI * M_PI)) * ppd));
-  const cv::Mat csf[3] = {csf_kernel(1, 0.0047, 0, 1e-5, ppd, radius), csf_kernel(1, 0.0053, 0, 1e-5, ppd, radius),
-                          csf_kernel(34.1, 0.04, 13.5, 0.025, ppd, radius)};
-  cv::Mat edge, point;
-  feature_kernels(ppd, edge, point);
-  const cv::Mat edge_t = edge.t(), point_t = point.t();
-
-  struct Prepared { cv::Mat lab[3]; cv::Mat edge_mag, point_mag; };
-  auto prepare = [&](const Image& im) {
-    // LDR input: the same display transform as the 8-bit metrics, back to linear for FLIP.
-    cv::Mat ycc[3];
-    for (auto& m : ycc) m.create(h, w, CV_64F);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const float* p = im.pixel(x, y);
-        Vec3 lin{srgb_decode(srgb_encode(p[0])), srgb_decode(srgb_encode(p[1])), srgb_decode(srgb_encode(p[2]))};
-        Vec3 v = xyz_to_ycxcz(rgb_to_xyz(lin));
-        ycc[0].at<double>(y, x) = v.x; ycc[1].at<double>(y, x) = v.y; ycc[2].at<double>(y, x) = v.z;
-      }
-    Prepared out;
-    cv::Mat f[3];
-    for (int c = 0; c < 3; ++c) f[c] = filtered(ycc[c], csf[c]);
-    for (auto& m : out.lab) m.create(h, w, CV_64F);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        Vec3 rgb = xyz_to_rgb(ycxcz_to_xyz({f[0].at<double>(y, x), f[1].at<double>(y, x), f[2].at<double>(y, x)}));
-        rgb = {std::clamp(rgb.x, 0.0, 1.0), std::clamp(rgb.y, 0.0, 1.0), std::clamp(rgb.z, 0.0, 1.0)};
-        Vec3 lab = hunt(xyz_to_lab(rgb_to_xyz(rgb)));
-        out.lab[0].at<double>(y, x) = lab.x; out.lab[1].at<double>(y, x) = lab.y; out.lab[2].at<double>(y, x) = lab.z;
-      }
-    cv::Mat yn = (ycc[0] + 16) / 116;  // achromatic channel normalised to [0, 1]
-    cv::Mat ex = filtered(yn, edge), ey = filtered(yn, edge_t), px = filtered(yn, point), py = filtered(yn, point_t);
-    cv::magnitude(ex, ey, out.edge_mag);
-    cv::magnitude(px, py, out.point_mag);
-    return out;
-  };
-  const Prepared a = prepare(image), b = prepare(reference);
-
-  const double cmax = std::pow(hyab(hunt(xyz_to_lab(rgb_to_xyz({0, 1, 0}))), hunt(xyz_to_lab(rgb_to_xyz({0, 0, 1})))), qc);
-  MetricResult r{0, Image(w, h, 1)};
-  double total = 0;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      Vec3 la{a.lab[0].at<double>(y, x), a.lab[1].at<double>(y, x), a.lab[2].at<double>(y, x)};
-      Vec3 lb{b.lab[0].at<double>(y, x), b.lab[1].at<double>(y, x), b.lab[2].at<double>(y, x)};
-      double dc = std::pow(hyab(la, lb), qc);
-      double ec = dc < pc * cmax ? pt / (pc * cmax) * dc : pt + (dc - pc * cmax) / (cmax - pc * cmax) * (1 - pt);
-      double df = std::max(std::abs(a.edge_mag.at<double>(y, x) - b.edge_mag.at<double>(y, x)),
-                           std::abs(a.point_mag.at<double>(y, x) - b.point_mag.at<double>(y, x)));
-      double ef = std::pow(df / std::sqrt(2.0), qf);
-      double e = std::pow(ec, 1 - ef);
-      r.map.at(x, y, 0) = float(e);
-      total += e;
-    }
-  r.value = total / (double(w) * h);
-  return r;
-}
-
 const std::vector<MetricInfo>& all_metrics() {
   // Metrics that do not use the reference's variance ignore it.
   using Plain = MetricResult (*)(const Image&, const Image&);
@@ -331,6 +184,10 @@ const std::vector<MetricInfo>& all_metrics() {
       {"ssim", "structural similarity (Wang et al. 2004) of the 8-bit images", false, plain(ssim)},
       {"flip", "mean LDR-FLIP (Andersson et al. 2020), 67 pixels per degree", true,
        [](const Image& a, const Image& b, const Image*) { return flip(a, b); }},
+      {"hdrflip",
+       "mean HDR-FLIP (Andersson et al. 2021) of the linear radiance: LDR-FLIP's largest error over ACES-tone-mapped "
+       "exposures, the range from the reference; 67 pixels per degree",
+       true, [](const Image& a, const Image& b, const Image*) { return hdrflip(a, b); }},
       {"mse_converged",
        "8-bit mse over the pixels whose reference has converged (relative standard error at most 1/2: "
        "more than about 4 samples carry the pixel); n/a without the reference's variance",

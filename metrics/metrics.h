@@ -8,6 +8,7 @@
 //   ssim     Wang et al. 2004: Gaussian 11x11, sigma 1.5, K1 0.01, K2 0.03, on the 8-bit image
 //            (luminance-free: mean over the R, G, B channels, 'valid' window positions)
 //   flip     mean LDR-FLIP (Andersson et al. 2020), 67 pixels per degree
+//   hdrflip  mean HDR-FLIP (Andersson et al. 2021) on the linear radiance, 67 pixels per degree
 //   mse_converged  the 8-bit mse over the pixels whose reference has converged (see
 //            unconverged_mask); needs the reference's variance, n/a without it
 //
@@ -68,6 +69,57 @@ MetricResult relmse(const Image& image, const Image& reference);
 MetricResult psnr(const Image& image, const Image& reference);
 MetricResult ssim(const Image& image, const Image& reference);
 MetricResult flip(const Image& image, const Image& reference, double pixels_per_degree = 67.0);
+
+// HDR-FLIP (Andersson, Nilsson, Shirley, Akenine-Moller: "Visualizing Errors in Rendered High
+// Dynamic Range Images", Eurographics 2021 short paper), as NVIDIA's FLIP tool computes it:
+// both images are exposed (x 2^c) and tone-mapped at `count` exposures c evenly spaced from
+// `start` to `stop`, LDR-FLIP (above, without its display transform) scores each pair, and a
+// pixel's error is its largest over the exposures. The tone mapper is the paper's ACES fit
+// (Narkowicz) with FLIP's 0.6 pre-exposure:
+//   T(x) = clamp((k0 x^2 + k1 x) / (k3 x^2 + k4 x + k5), 0, 1),
+//   k0 = 0.6^2 2.51, k1 = 0.6 0.03, k3 = 0.6^2 2.43, k4 = 0.6 0.59, k5 = 0.14,
+// per channel. The range comes from the reference (section 3): x_max is the radiance T maps to
+// 0.85, and with Y the luminance (0.2126 R + 0.7152 G + 0.0722 B)
+//   start = log2(x_max / Y_max)     the brightest pixel just below white,
+//   stop  = log2(x_max / Y_median)  the median pixel just below white,
+//   count = max(2, ceil(stop - start)).
+// Y_median is the luminance at rank n/2 of the n sorted ones (the middle one for odd n, the upper
+// middle one for even n), as in FLIP 1.7; some older FLIP releases averaged the two middle ones. Two cases FLIP leaves undefined (it divides by
+// zero): a reference whose median pixel is black takes the median of its non-black pixels, and
+// an all-black reference takes start = stop = 0. Negative samples count as 0 (black), as in
+// LDR-FLIP's clamp; FLIP itself requires non-negative input.
+struct HdrFlipExposures {
+  double start = 0;            // c_start, stops
+  double stop = 0;             // c_stop, stops (>= start)
+  int count = 2;               // exposures, >= 2, `start` and `stop` included
+  double luminance_max = 0;    // Y_max of the reference
+  double luminance_median = 0; // the Y used for `stop` (see above)
+  double exposure(int i) const { return start + i * (stop - start) / (count - 1); }
+};
+// InputError unless `reference` is a 3-channel image with only finite samples.
+HdrFlipExposures hdrflip_exposures(const Image& reference);
+// The LDR image HDR-FLIP scores at exposure c: T(2^c max(x, 0)) per channel, linear, in [0, 1].
+Image hdrflip_tone_map(const Image& linear, double exposure);
+// The map is the per-pixel HDR-FLIP (the largest LDR-FLIP over the exposures), in [0, 1].
+MetricResult hdrflip(const Image& image, const Image& reference, double pixels_per_degree = 67.0);
+
+// A FLIP error map pooled as FLIP's tool reports it (its text, CSV and histogram outputs): the mean,
+// min and max, and percentiles weighted by the error values themselves, so that a few large errors
+// are not lost among many small ones. The weighted p-percentile is the smallest error e of the
+// map, sorted ascending, at which the running sum of the errors up to and including e exceeds
+// p times their total (FLIP's pooling::getPercentile(p, weighted = true); not its 100-bucket
+// histogram). All zero for a map without error.
+struct FlipPooled {
+  double mean = 0;
+  double weighted_median = 0;          // p = 0.5
+  double weighted_first_quartile = 0;  // p = 0.25
+  double weighted_third_quartile = 0;  // p = 0.75
+  double min = 0;
+  double max = 0;
+};
+// InputError unless `map` is a non-empty 1-channel image with only finite values (a
+// MetricResult's map).
+FlipPooled pool_flip(const Image& map);
 
 // The reference's own noise. A 4096-spp reference still holds fireflies: pixels whose value is
 // carried by a handful of its samples, often several times their neighbours' brightness. No

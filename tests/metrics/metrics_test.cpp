@@ -24,7 +24,7 @@ Image pattern(int w, int h) {
 
 TEST(Metrics, RegistryListsTheContractMetrics) {
   EXPECT_EQ(metric_names(),
-            (std::vector<std::string>{"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip", "mse_converged"}));
+            (std::vector<std::string>{"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip", "hdrflip", "mse_converged"}));
   EXPECT_THROW(metric("nope"), InputError);
   EXPECT_FALSE(metric("ssim").lower_is_better);
 }
