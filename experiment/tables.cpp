@@ -124,15 +124,18 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
   for (const auto& s : res.scenes()) {
     std::vector<std::string> row{s};
     for (const auto& m : methods)
-      row.push_back(res.failure(s, m, spp) ? "failed" : format_metric(metric_of(res.find(s, m, spp), metric)));
+      row.push_back(res.failure(s, m, spp) ? "failed"
+                    : res.skip(s, m, spp)  ? "skipped"
+                                           : format_metric(metric_of(res.find(s, m, spp), metric)));
     row.push_back(format_metric(metric_of(res.find(s, "input", spp), metric)));
     if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
     t.rows.push_back(row);
   }
   if (metric == "mse_converged") t.header.push_back("reference pixels left out");
   const auto& info = metrics::metric(metric);
-  t.note = fmt::format("{}; {} is better. From results.json.{}", info.description, info.lower_is_better ? "lower" : "higher",
-                       res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).");
+  t.note = fmt::format("{}; {} is better. From results.json.{}{}", info.description, info.lower_is_better ? "lower" : "higher",
+                       res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).",
+                       res.skipped.empty() ? "" : " skipped: the method renders the scene, and that scene was read from files.");
   return t;
 }
 
