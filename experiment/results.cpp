@@ -175,22 +175,23 @@ json config_json(const RunConfig& c) {
   json methods = json::array();
   for (const auto& m : c.methods)
     methods.push_back({{"name", m.name}, {"method", m.method}, {"group", m.group}, {"params", m.params}});
-  return {{"path", c.path},
-          {"name", c.name},
-          {"width", c.width},
-          {"height", c.height},
-          {"seed", c.seed},
-          {"reference_spp", c.reference_spp},
-          {"spp", c.spp},
-          {"plain_spp", c.plain_spp},
-          {"scenes", c.scenes},
-          {"scene_files", scene_files_json(c.scene_files)},
-          {"repeats", c.repeats},
-          {"table2",
-           {{"filter_cpu", c.table2.filter_cpu},
-            {"filter_opencl", c.table2.filter_opencl},
-            {"irradiance_cache", c.table2.irradiance_cache}}},
-          {"methods", methods}};
+  json j = {{"path", c.path},
+            {"name", c.name},
+            {"width", c.width},
+            {"height", c.height},
+            {"seed", c.seed},
+            {"reference_spp", c.reference_spp},
+            {"spp", c.spp},
+            {"plain_spp", c.plain_spp},
+            {"scenes", c.scenes},
+            {"repeats", c.repeats},
+            {"table2",
+             {{"filter_cpu", c.table2.filter_cpu},
+              {"filter_opencl", c.table2.filter_opencl},
+              {"irradiance_cache", c.table2.irradiance_cache}}},
+            {"methods", methods}};
+  if (!c.scene_files.empty()) j["scene_files"] = scene_files_json(c.scene_files);  // only configs that have them
+  return j;
 }
 
 // Keys a hand-written fixture may leave out default to an empty value; present keys are typed.
