@@ -16,6 +16,7 @@
 #include "core/hash.h"
 #include "core/json_file.h"
 #include "experiment/config.h"
+#include "experiment/report.h"
 #include "experiment/runner.h"
 #include "metrics/metrics.h"
 #include "test_util.h"
@@ -175,6 +176,12 @@ label = "box"
   EXPECT_EQ(d.skipped[0].method, "irradiance_cache");
   EXPECT_THAT(d.skipped[0].reason, HasSubstr("read from files"));
   EXPECT_TRUE(d.failures.empty());
+  // Table 1 (drawn at the file scene's spp, the config having no rendered one) says so.
+  const Table t = table1(d, "mse");
+  ASSERT_EQ(t.rows.size(), 1u);
+  ASSERT_EQ(t.header, (std::vector<std::string>{"scene", "bilateral", "irradiance_cache", "input (2 spp)"}));
+  EXPECT_EQ(t.rows[0][0], "box");
+  EXPECT_EQ(t.rows[0][2], "skipped");
   EXPECT_EQ(d.config.scene_files.at("box").frame, dir.file("mine/in.exr"));
   EXPECT_EQ(sha256_file(dir.file("files/frames/box/input_2.exr")), sha256_file(dir.file("mine/in.exr")));
   EXPECT_EQ(sha256_file(dir.file("files/images/box/reference.exr")), sha256_file(dir.file("mine/ref.exr")));
