@@ -3,19 +3,19 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
-#include <utility>
 #include <tuple>
+#include <utility>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "core/exr_io.h"
+#include "core/hash.h"
 #include "core/progress.h"
 #include "core/stats.h"
 #include "core/timer.h"
 #include "core/version.h"
 #include "denoisers/method.h"
-#include "core/hash.h"
 #include "experiment/cells.h"
 #include "experiment/input_files.h"
 #include "experiment/provenance.h"
