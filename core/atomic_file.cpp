@@ -17,6 +17,7 @@
 #include <fmt/format.h>
 
 #include "core/errors.h"
+#include "core/hash.h"
 
 namespace dnb {
 namespace fs = std::filesystem;
@@ -116,6 +117,46 @@ void write_text_atomic(const std::string& path, const std::string& content) {
   AtomicOutput out(path);
   out.write(content);
   out.commit();
+}
+
+const char* to_string(Kept k) {
+  switch (k) {
+    case Kept::Linked: return "linked";
+    case Kept::Copied: return "copied";
+    case Kept::Unchanged: return "unchanged";
+  }
+  return "unchanged";
+}
+
+namespace {
+
+// Whether `a` and `b` hold the same bytes: the same inode, or the same size and SHA-256.
+bool same_bytes(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  if (!fs::is_regular_file(b, ec)) return false;
+  if (fs::equivalent(a, b, ec)) return true;
+  if (fs::file_size(a, ec) != fs::file_size(b, ec) || ec) return false;
+  return sha256_file(a) == sha256_file(b);
+}
+
+}  // namespace
+
+Kept keep_file(const std::string& source, const std::string& destination, bool allow_link) {
+  std::error_code ec;
+  if (!fs::is_regular_file(source, ec))
+    throw InputError(fmt::format("cannot keep '{}' as '{}': it is not a readable file", source, destination));
+  if (same_bytes(source, destination)) return Kept::Unchanged;
+  AtomicOutput out(destination);
+  // Not linked straight to the destination: link(2) refuses an existing name, and a rename over
+  // it is what keeps a reader from ever seeing the destination missing.
+  Kept how = Kept::Linked;
+  if (!allow_link || ::link(source.c_str(), out.temp_path().c_str()) != 0) {
+    how = Kept::Copied;
+    fs::copy_file(source, out.temp_path(), fs::copy_options::overwrite_existing, ec);
+    if (ec) throw WorkError(fmt::format("cannot copy '{}' to '{}': {}", source, destination, ec.message()));
+  }
+  out.commit();  // fsyncs the file (a link or a copy alike), renames, fsyncs the folder
+  return how;
 }
 
 std::size_t remove_stale_temporaries(const std::string& dir) {

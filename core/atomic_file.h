@@ -47,6 +47,25 @@ class AtomicOutput {
 // Writes `content` to `path` atomically and durably. Throws WorkError naming the path and the
 // system's reason on failure.
 void write_text_atomic(const std::string& path, const std::string& content);
+// How keep_file put a file in place.
+enum class Kept {
+  Linked,     // a new hard link to the source
+  Copied,     // a copy (the hard link failed: another file system, or allow_link false)
+  Unchanged,  // the destination already was the source (same inode) or held the same bytes
+};
+const char* to_string(Kept k);  // "linked", "copied", "unchanged"
+
+// Puts the exact bytes of `source` (contents, metadata, everything) at `destination`: a hard
+// link where the file system allows one, else a copy, either way atomically and durably like
+// every other write (a temporary name beside the destination, fsync, rename, fsync of the
+// folder). Nothing is written when the destination already is the source's inode or holds the
+// same bytes (size, then SHA-256), so that keeping the same file twice neither re-copies nor
+// duplicates it. A hard link shares the inode: a later in-place edit of either name shows in
+// both (the harness only ever replaces files by rename). `allow_link` false always copies (the
+// fallback, testable on one file system). InputError naming `source` when it cannot be read,
+// WorkError naming `destination` when it cannot be written.
+Kept keep_file(const std::string& source, const std::string& destination, bool allow_link = true);
+
 // Removes the temporary files AtomicOutput left in `dir` (recursively) when their writer died
 // before committing or removing them (a kill -9): names of the form ".NAME.tmp-PID-N.EXT" whose
 // process PID no longer runs. Returns how many were removed.

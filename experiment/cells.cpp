@@ -7,6 +7,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/hash.h"
@@ -44,13 +45,29 @@ std::map<std::string, std::optional<double>> score_image(const Image& image, con
   return m;
 }
 
+void keep_frame(const std::string& frame_file, const std::string& out_dir, const std::string& rel,
+                std::map<std::string, std::string>& files) {
+  const std::string dest = out_dir + "/" + rel;
+  // The edge file first: read_frame checks it against the frame's header, and a frame committed
+  // beside another frame's edge file would not read.
+  if (fs::exists(edges_path(frame_file))) {
+    keep_file(edges_path(frame_file), edges_path(dest));
+    files["frame_edges"] = edges_path(rel);
+  } else {
+    fs::remove(edges_path(dest));
+  }
+  const Kept how = keep_file(frame_file, dest);
+  spdlog::debug("input frame '{}' {} as '{}'", frame_file, to_string(how), dest);
+  files["frame"] = rel;
+}
+
 namespace {
 
 // The fields every record of the cell has, whether it is computed or not.
-CellRecord base_record(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
+CellRecord base_record(const CellPlan& plan, const SceneCells& scene) {
   CellRecord r;
   std::tie(r.scene, r.scene_hash, r.method, r.role) = std::tie(scene.scene, scene.scene_hash, plan.method, plan.role);
-  std::tie(r.spp, r.width, r.height, r.seed) = std::tuple(plan.spp, c.width, c.height, c.seed);
+  std::tie(r.spp, r.width, r.height, r.seed) = std::tuple(plan.spp, scene.width, scene.height, scene.seed);
   r.reference = scene.reference_info;
   r.base_method = plan.base_method;
   r.kind = plan.kind;
@@ -58,17 +75,22 @@ CellRecord base_record(const CellPlan& plan, const SceneCells& scene, const Cell
   return r;
 }
 
-// A finished record whose image is still in the folder.
-const CellRecord* reusable(const std::string& key, const CellContext& c) {
+// A finished record that has the plan's required files and whose every file is still in the folder.
+const CellRecord* reusable(const std::string& key, const CellPlan& plan, const CellContext& c) {
   const CellRecord* old = c.store->finished(key);
-  return old && !old->image().empty() && fs::exists(c.out_dir + "/" + old->image()) ? old : nullptr;
+  if (!old) return nullptr;
+  for (const auto& name : plan.required_files)
+    if (old->file(name).empty()) return nullptr;
+  for (const auto& [name, rel] : old->files)
+    if (!fs::exists(c.out_dir + "/" + rel)) return nullptr;
+  return old;
 }
 
 }  // namespace
 
 std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
   const std::string key = sha256_hex(plan.identity.dump());
-  if (const CellRecord* old = reusable(key, c)) {
+  if (const CellRecord* old = reusable(key, plan, c)) {
     c.store->reuse(*old);
     c.progress->add(1);
     return *old;
@@ -85,10 +107,11 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
     c.progress->add(1);
     return std::nullopt;
   }
-  CellRecord r = base_record(plan, scene, c);
+  CellRecord r = base_record(plan, scene);
   const std::string stem = scene.image_dir + "/" + plan.stem;
   write_rgb(out.image, c.out_dir + "/" + stem + ".exr");
   r.files["image"] = stem + ".exr";
+  if (!out.frame_file.empty()) keep_frame(out.frame_file, c.out_dir, scene.frame_dir + "/" + plan.stem + ".exr", r.files);
   r.metrics = score_image(out.image, *scene.reference, c.out_dir, stem, r.files);
   r.times = out.times;
   r.times.reference = scene.reference_info.seconds;

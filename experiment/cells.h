@@ -4,9 +4,12 @@
 // every cell does:
 //
 //   key      the SHA-256 of the plan's identity (everything that determines the result)
-//   reuse    a finished record with that key whose image is still there: listed again, done
+//   reuse    a finished record with that key whose files (and the plan's required ones) are
+//            still there: listed again, done
 //   compute  the plan's compute(): the image and its times
-//   write    the image as EXR under images/<scene>/<stem>.exr
+//   write    the image as EXR under images/<scene>/<stem>.exr; an input cell also keeps the
+//            AOV frame file its scene's cells read under frames/<scene>/<stem>.exr (keep_file:
+//            a hard link, else a copy), so that the folder re-scores alone
 //   score    every metric against the scene's reference, and the error maps the report shows
 //   fail     (method cells) a compute() that throws: a FailedCell, and the run goes on
 //   store    the record into results.json / results.csv / finished_cells.json (ResultsStore)
@@ -17,6 +20,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -28,11 +32,14 @@
 
 namespace dnb::experiment {
 
-// What every cell of one scene shares: the scene's identity and its reference.
+// What every cell of one scene shares: the scene's identity, size and reference.
 struct SceneCells {
   std::string scene;        // the name the config gives
-  std::string scene_hash;   // scene_content_hash
+  std::string scene_hash;   // scene_content_hash; a file scene's: its files' contents
   std::string image_dir;    // images/<scene>, relative to the results folder
+  std::string frame_dir;    // frames/<scene>: the input frames, relative to the results folder
+  int width = 0, height = 0;
+  std::optional<std::uint64_t> seed;  // the inputs' seed (none for a scene read from files)
   const Reference* reference = nullptr;
   ReferenceInfo reference_info;  // as every record of the scene carries it
 };
@@ -43,6 +50,9 @@ struct CellOutput {
   CellTimes times;  // times.reference is filled in by run_cell
   std::optional<bool> input_cache_hit;
   std::optional<std::map<std::string, double>> phases, counters;
+  // Input cells: the AOV frame file the scene's cells read (its edge file beside it, if any),
+  // kept in the folder as files.frame (and files.frame_edges).
+  std::string frame_file;
 };
 
 struct CellPlan {
@@ -57,13 +67,14 @@ struct CellPlan {
   // Method cells: a compute() that throws (a plug-in that crashed, a method that failed on this
   // frame) fails this cell only: it is recorded as a FailedCell and the run goes on.
   bool contain_failures = false;
+  // files[] names a finished record must have to be reused (besides every file it names existing):
+  // an input record of an older build, without its frame, is computed again to keep the frame.
+  std::vector<std::string> required_files = {"image"};
 };
 
-// The settings every record repeats (from the config).
+// Where every cell goes.
 struct CellContext {
   std::string out_dir;  // the results folder
-  int width = 0, height = 0;
-  std::uint64_t seed = 0;
   ResultsStore* store = nullptr;
   Progress* progress = nullptr;
 };
@@ -77,6 +88,12 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
 std::map<std::string, std::optional<double>> score_image(const Image& image, const Reference& reference,
                                                          const std::string& out_dir, const std::string& stem,
                                                          std::map<std::string, std::string>& files);
+
+// Keeps `frame_file` (and its edge file, when it has one) in the results folder `out_dir` as
+// `rel` (keep_file), naming them in files["frame"] (and files["frame_edges"]); an edge file left
+// at the destination by another frame is removed.
+void keep_frame(const std::string& frame_file, const std::string& out_dir, const std::string& rel,
+                std::map<std::string, std::string>& files);
 
 // `s` with every character other than letters, digits, '-', '_' and '.' replaced by '_'.
 std::string safe_file_name(const std::string& s);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <set>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -11,7 +12,9 @@
 #include "core/bounds.h"
 #include "core/config.h"
 #include "core/errors.h"
+#include "core/hash.h"
 #include "denoisers/method.h"
+#include "experiment/input_files.h"
 #include "methods/plugins.h"
 
 namespace fs = std::filesystem;
@@ -100,6 +103,103 @@ void read_methods(ConfigTable& root, ExperimentConfig& c) {
   }
 }
 
+// A [[scene]] path, relative to the config file's folder; InputError naming the key when the
+// file is not there.
+std::string scene_file(ConfigTable& t, const std::string& key, const fs::path& config_dir) {
+  const std::string given = t.require_string(key);
+  const fs::path p = (fs::path(given).is_absolute() ? fs::path(given) : config_dir / given).lexically_normal();
+  if (!fs::is_regular_file(p)) throw InputError(fmt::format("{}: file '{}' does not exist", t.where(key), p.string()));
+  return p.string();
+}
+
+// Reads a file of a [[scene]] through read_input_frame, naming the key that named it.
+template <class F>
+auto read_named(ConfigTable& t, const std::string& key, F read) {
+  try {
+    return read();
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", t.where(key), e.what()));
+  }
+}
+
+// A [[scene]] read from files: both read now, so that a wrong file is an error before any work.
+SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir) {
+  if (!t.contains("reference"))
+    throw InputError(fmt::format("{}: a frame needs its reference: add `reference = \"...\"` to this [[scene]]", t.where("frame")));
+  if (!t.contains("frame"))
+    throw InputError(fmt::format("{}: a reference without a frame: add `frame = \"...\"` (the input to filter) to this [[scene]]",
+                                 t.where("reference")));
+  SceneFiles f;
+  f.frame = scene_file(t, "frame", config_dir);
+  f.reference = scene_file(t, "reference", config_dir);
+  SceneSpec s{t.get("label", fs::path(f.frame).stem().string()), std::nullopt};
+  if (s.name.empty()) throw InputError(fmt::format("{}: expected a non-empty name", t.where("label")));
+  const int spp = t.contains("spp") ? t.get("spp", 0, bounds::kSpp) : 0;
+  t.finish();
+  const AovFrame frame = read_named(t, "frame", [&] { return read_input_frame(f.frame); });
+  const Reference ref = read_named(t, "reference", [&] { return file_reference(f.reference); });
+  f.width = frame.width();
+  f.height = frame.height();
+  if (ref.color.width() != f.width || ref.color.height() != f.height)
+    throw InputError(fmt::format("{}: '{}' is {}x{}, its frame '{}' is {}x{}: a reference must have its frame's size",
+                                 t.where("reference"), f.reference, ref.color.width(), ref.color.height(), f.frame, f.width,
+                                 f.height));
+  f.spp = frame.meta.spp;
+  if (spp > 0 && f.spp > 0 && spp != f.spp)
+    throw InputError(fmt::format("{}: {} spp, but '{}' records {} spp", t.where("spp"), spp, f.frame, f.spp));
+  if (f.spp <= 0) f.spp = spp;
+  if (f.spp <= 0)
+    throw InputError(fmt::format("{}: '{}' records no sample count: add `spp = N` to this [[scene]]", t.where("frame"), f.frame));
+  f.frame_hash = frame_file_hash(f.frame);
+  f.reference_hash = sha256_file(f.reference);
+  s.files = std::move(f);
+  return s;
+}
+
+// `scenes = [...]` (rendered), then every [[scene]]: `name = "..."` (rendered, as in `scenes`)
+// or `frame` and `reference` (read from files).
+void read_scenes(ConfigTable& root, ExperimentConfig& c) {
+  const fs::path config_dir = fs::absolute(c.path).parent_path();
+  const bool listed = root.contains("scenes");
+  for (const auto& n : root.get("scenes", std::vector<std::string>{})) c.scenes.push_back({n, std::nullopt});
+  for (auto& t : root.tables("scene")) {
+    const bool files = t.contains("frame") || t.contains("reference");
+    if (t.contains("name") && files)
+      throw InputError(fmt::format("{}: a [[scene]] is rendered (`name`) or read from files (`frame`, `reference`), not both",
+                                   t.where(t.contains("frame") ? "frame" : "reference")));
+    if (!t.contains("name") && !files)
+      throw InputError(fmt::format("{}: expected `name` (a scene to render) or `frame` and `reference` (files)", t.where("name")));
+    if (files) {
+      c.scenes.push_back(file_scene(t, config_dir));
+    } else {
+      c.scenes.push_back({t.require_string("name"), std::nullopt});
+      t.finish();
+    }
+  }
+  if (c.scenes.empty())
+    throw InputError(fmt::format("{}: expected a non-empty list of scene names{}", root.where("scenes"),
+                                 listed ? "" : " (or [[scene]] tables)"));
+  std::set<std::string> names;
+  for (const auto& s : c.scenes)
+    if (!names.insert(s.name).second)
+      throw InputError(fmt::format("{}: scene '{}' is named twice (a [[scene]] read from files takes `label = \"...\"`)",
+                                   root.where(listed ? "scenes" : "scene"), s.name));
+}
+
+bool any_rendered(const ExperimentConfig& c) {
+  return std::any_of(c.scenes.begin(), c.scenes.end(), [](const SceneSpec& s) { return !s.files; });
+}
+
+// Keys that only set up renders have no effect when every scene is read from files: an error,
+// not silence.
+void refuse_render_keys(const ConfigTable& root) {
+  for (const char* key : {"width", "height", "seed", "max_depth", "spp", "reference", "speedup"})
+    if (root.contains(key))
+      throw InputError(fmt::format("{}: sets up rendered scenes, and every scene of this config is read from files "
+                                   "([[scene]] frame = ...): remove it",
+                                   root.where(key)));
+}
+
 }  // namespace
 
 ExperimentConfig load_config(const std::string& path) {
@@ -116,10 +216,11 @@ ExperimentConfig load_config(const std::string& path) {
   c.seed = std::uint64_t(root.get("seed", std::int64_t(c.seed), bounds::kSeed));
   c.max_depth = root.get("max_depth", c.max_depth, bounds::kMaxDepth);
   c.threads = root.get("threads", c.threads, bounds::kThreads);
-  c.scenes = root.get("scenes", std::vector<std::string>{});
-  if (c.scenes.empty()) throw InputError(fmt::format("{}: expected a non-empty list of scene names", root.where("scenes")));
+  read_scenes(root, c);
+  if (!any_rendered(c)) refuse_render_keys(root);
   c.spp = root.get("spp", std::vector<int>{256}, bounds::kSpp);
   if (c.spp.empty()) throw InputError(fmt::format("{}: expected a non-empty list of spp", root.where("spp")));
+  if (!any_rendered(c)) c.spp.clear();
   // Plug-in folders, relative to the config file; registered before the methods are checked.
   for (const auto& d : root.get("plugins", std::vector<std::string>{})) {
     const fs::path p = fs::path(d).is_absolute() ? fs::path(d) : fs::absolute(path).parent_path() / d;
@@ -146,7 +247,17 @@ RunConfig ExperimentConfig::recorded() const {
   r.reference_spp = reference_spp;
   r.spp = spp;
   r.plain_spp = plain_spp;
-  r.scenes = scenes;
+  // The tables are drawn at the first of these: the rendered scenes' spp, then the file scenes'.
+  // A config of file scenes only records the first one's size.
+  bool rendered = false;
+  for (const auto& s : scenes) {
+    r.scenes.push_back(s.name);
+    rendered = rendered || !s.files;
+    if (!s.files) continue;
+    r.scene_files[s.name] = {s.files->frame, s.files->reference};
+    if (std::find(r.spp.begin(), r.spp.end(), s.files->spp) == r.spp.end()) r.spp.push_back(s.files->spp);
+  }
+  if (!rendered && !scenes.empty()) std::tie(r.width, r.height) = std::tuple(scenes[0].files->width, scenes[0].files->height);
   r.repeats = repeats;
   r.table2 = table2;
   for (const auto& m : methods) r.methods.push_back({m.name, m.method, m.group, m.params});

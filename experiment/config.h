@@ -3,10 +3,29 @@
 // speed-up curve. Read strictly: unknown keys, unknown methods (listing the registry's),
 // unknown method parameters and bad values are InputErrors naming the file and key, before
 // any work starts.
+//
+// Scenes are rendered (`scenes = ["cornell-box", ...]`, or `[[scene]] name = "..."`) or read
+// from files (docs/results.md, "Scenes read from files"):
+//
+//   [[scene]]
+//   frame = "frames/in.exr"       # an AOV frame (DESIGN.md), relative to the config's folder
+//   reference = "frames/ref.exr"  # its reference (R,G,B; variance.* used when present)
+//   label = "kitchen"             # optional: the scene's name in the tables (default: the
+//                                 # frame's file stem)
+//   spp = 64                      # optional: the frame's sample count, for a frame that records
+//                                 # none (one that does must agree)
+//
+// A file scene has one input (the frame, at its spp), no plain path-tracing curve, and no
+// renderer-type cells (they render the scene, which a file does not hold: skipped, with the
+// reason in results.json). Both files are read when the config is loaded: a missing file,
+// `name` with `frame`, a frame without a reference (or the reverse), and sizes that differ are
+// InputErrors naming the key and the file. When every scene is read from files, the keys that
+// only set up renders (width, height, seed, max_depth, spp, [reference], [speedup]) are errors.
 #pragma once
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,14 +43,29 @@ struct MethodSpec {
   Role role() const { return role_of_group(group, name); }  // validated by load_config
 };
 
+// A scene read from files ([[scene]] frame = ..., reference = ...), checked at load.
+struct SceneFiles {
+  std::string frame, reference;  // absolute paths
+  std::string frame_hash;        // SHA-256 of the frame's bytes and of its edge file's (if any)
+  std::string reference_hash;    // SHA-256 of the reference's bytes
+  int width = 0, height = 0;     // of both
+  int spp = 0;                   // the frame's sample count
+};
+
+// A scene of the matrix: a rendered one (a built-in scene or scene file), or one read from files.
+struct SceneSpec {
+  std::string name;                 // the row name: the scene, or a file scene's label
+  std::optional<SceneFiles> files;  // set: read from files, not rendered
+};
+
 struct ExperimentConfig {
   std::string path;
   std::string name;
   int width = 256, height = 192;
   std::uint64_t seed = 1;
   std::uint64_t reference_seed = 1000003;  // independent of the inputs' samples
-  std::vector<std::string> scenes;
-  std::vector<int> spp;               // input spp of the matrix
+  std::vector<SceneSpec> scenes;      // `scenes` then every [[scene]], config order
+  std::vector<int> spp;               // input spp of the rendered scenes (empty when there are none)
   int reference_spp = 1024;
   int reference_block_spp = 64;
   int max_depth = 8;

@@ -165,25 +165,33 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
 
 namespace {
 
+json scene_files_json(const std::map<std::string, SceneFilesEntry>& files) {
+  json o = json::object();
+  for (const auto& [name, f] : files) o[name] = {{"frame", f.frame}, {"reference", f.reference}};
+  return o;
+}
+
 json config_json(const RunConfig& c) {
   json methods = json::array();
   for (const auto& m : c.methods)
     methods.push_back({{"name", m.name}, {"method", m.method}, {"group", m.group}, {"params", m.params}});
-  return {{"path", c.path},
-          {"name", c.name},
-          {"width", c.width},
-          {"height", c.height},
-          {"seed", c.seed},
-          {"reference_spp", c.reference_spp},
-          {"spp", c.spp},
-          {"plain_spp", c.plain_spp},
-          {"scenes", c.scenes},
-          {"repeats", c.repeats},
-          {"table2",
-           {{"filter_cpu", c.table2.filter_cpu},
-            {"filter_opencl", c.table2.filter_opencl},
-            {"irradiance_cache", c.table2.irradiance_cache}}},
-          {"methods", methods}};
+  json j = {{"path", c.path},
+            {"name", c.name},
+            {"width", c.width},
+            {"height", c.height},
+            {"seed", c.seed},
+            {"reference_spp", c.reference_spp},
+            {"spp", c.spp},
+            {"plain_spp", c.plain_spp},
+            {"scenes", c.scenes},
+            {"repeats", c.repeats},
+            {"table2",
+             {{"filter_cpu", c.table2.filter_cpu},
+              {"filter_opencl", c.table2.filter_opencl},
+              {"irradiance_cache", c.table2.irradiance_cache}}},
+            {"methods", methods}};
+  if (!c.scene_files.empty()) j["scene_files"] = scene_files_json(c.scene_files);  // only configs that have them
+  return j;
 }
 
 // Keys a hand-written fixture may leave out default to an empty value; present keys are typed.
@@ -199,6 +207,11 @@ RunConfig config_from_json(const json& j, const std::string& where) {
   c.spp = jf::get_or<std::vector<int>>(j, "spp", {}, where);
   c.plain_spp = jf::get_or<std::vector<int>>(j, "plain_spp", {}, where);
   c.scenes = jf::get_or<std::vector<std::string>>(j, "scenes", {}, where);
+  const json files = object_or_empty(j, "scene_files", where);
+  for (const auto& [name, f] : files.items()) {
+    const std::string fw = where + ": scene_files: " + name;
+    c.scene_files[name] = {jf::get<std::string>(f, "frame", fw), jf::get<std::string>(f, "reference", fw)};
+  }
   c.repeats = jf::get_or<int>(j, "repeats", 0, where);
   const json t2 = object_or_empty(j, "table2", where);
   const std::string tw = where + ": table2";
@@ -259,6 +272,20 @@ FailedCell FailedCell::from_json(const json& j, const std::string& where) {
   return f;
 }
 
+json SkippedCell::to_json() const { return {{"scene", scene}, {"method", method}, {"spp", spp}, {"reason", reason}}; }
+
+SkippedCell SkippedCell::from_json(const json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected an object", where));
+  return {jf::get<std::string>(j, "scene", where), jf::get<std::string>(j, "method", where), jf::get<int>(j, "spp", where),
+          jf::get<std::string>(j, "reason", where)};
+}
+
+const SkippedCell* ResultsDocument::skip(const std::string& scene, const std::string& method, int spp) const {
+  for (const auto& s : skipped)
+    if (s.scene == scene && s.method == method && s.spp == spp) return &s;
+  return nullptr;
+}
+
 const FailedCell* ResultsDocument::failure(const std::string& scene, const std::string& method, int spp) const {
   for (const auto& f : failures)
     if (f.scene == scene && f.method == method && f.spp == spp) return &f;
@@ -286,6 +313,9 @@ json ResultsDocument::to_json() const {
   json fails = json::array();
   for (const auto& f : failures) fails.push_back(f.to_json());
   j["failures"] = std::move(fails);
+  json skips = json::array();
+  for (const auto& k : skipped) skips.push_back(k.to_json());
+  j["skipped"] = std::move(skips);
   return j;
 }
 
@@ -317,6 +347,10 @@ ResultsDocument ResultsDocument::from_json(const json& j, const std::string& whe
   if (!failures.is_array()) throw InputError(fmt::format("{}: key 'failures': expected an array", where));
   for (std::size_t i = 0; i < failures.size(); ++i)
     d.failures.push_back(FailedCell::from_json(failures[i], fmt::format("{}: failures[{}]", where, i)));
+  const json skipped = jf::get_or<json>(j, "skipped", json::array(), where);
+  if (!skipped.is_array()) throw InputError(fmt::format("{}: key 'skipped': expected an array", where));
+  for (std::size_t i = 0; i < skipped.size(); ++i)
+    d.skipped.push_back(SkippedCell::from_json(skipped[i], fmt::format("{}: skipped[{}]", where, i)));
   return d;
 }
 

@@ -12,6 +12,8 @@
 //                                      itself, and the plain path-tracing curve
 //     "failures": [ FailedCell, ... ]  cells of this run that failed (a plug-in that crashed,
 //                                      timed out or wrote a bad image): no record, a reason
+//     "skipped": [ SkippedCell, ... ]  cells that cannot exist (a renderer-type method on a
+//                                      scene read from files): no record, a reason, not a failure
 //   }
 //
 // A CellRecord's keys (absent keys are optional ones that the cell's role does not have):
@@ -19,14 +21,20 @@
 //   spp, width, height, seed, cell_key (the hash of everything that determines the cell),
 //   metrics {name: value | null for a non-finite value}, times {input_render, filter, total,
 //   reference[, filter_runs, setup_seconds]}, reference {spp, seed, seconds, cache_hit, image,
-//   unconverged_share, unconverged_rse}, files {image, error_flip, error_relmse},
-//   input_cache_hit; method cells also base_method, kind, params, phases, counters.
+//   unconverged_share, unconverged_rse}, files {image, error_flip, error_relmse; input cells
+//   also frame and, when the frame has one, frame_edges}, input_cache_hit; method cells also
+//   base_method, kind, params, phases, counters. reference.image is the reference file itself
+//   (R,G,B, variance.*, metadata); files.frame is the AOV frame file every cell of that scene
+//   and spp read, byte for byte (frame_edges its edge file): with them the folder re-scores
+//   alone. Records of a scene read from files ([[scene]] frame = ...) have no seed.
 //
 // Reading is strict: a file of another format, of an older schema_version, or with a missing
 // or mistyped key is an InputError naming the file and the key (the record's index too).
 // Version history: 1 (format "denoisebench-results-1", no schema_version); 2 (this header:
 // the same records, the schema named and versioned); 3 (failures; times.setup_seconds of
-// worker plug-ins). Version 2 files are read as version 3 without failures.
+// worker plug-ins); 4 (files.frame and files.frame_edges of input cells, reference.image with
+// its variance layers and metadata, config.scene_files, skipped). Version 2 and 3 files are
+// read as version 4 without what they lack.
 #pragma once
 
 #include <cstdint>
@@ -41,7 +49,7 @@
 namespace dnb::experiment {
 
 inline constexpr const char* kResultsFormat = "denoisebench-results";
-inline constexpr int kResultsSchemaVersion = 3;
+inline constexpr int kResultsSchemaVersion = 4;
 inline constexpr int kOldestResultsSchemaVersion = 2;  // still read
 
 // What a record is a measurement of.
@@ -70,6 +78,12 @@ struct MethodEntry {  // a configured method or variant, as recorded
   std::map<std::string, std::string> params;
 };
 
+// A scene read from files instead of rendered, as recorded: the files the config named (absolute).
+struct SceneFilesEntry {
+  std::string frame, reference;
+  bool operator==(const SceneFilesEntry&) const = default;
+};
+
 // The config as the results record it (experiment/config.h is the config file itself).
 struct RunConfig {
   std::string path, name;
@@ -77,7 +91,8 @@ struct RunConfig {
   std::uint64_t seed = 0;
   int reference_spp = 0;
   std::vector<int> spp, plain_spp;
-  std::vector<std::string> scenes;
+  std::vector<std::string> scenes;  // every scene's name, config order (file scenes by label)
+  std::map<std::string, SceneFilesEntry> scene_files;  // the scenes read from files, by name
   int repeats = 0;
   Table2Columns table2;
   std::vector<MethodEntry> methods;
@@ -137,6 +152,17 @@ struct FailedCell {
   static FailedCell from_json(const nlohmann::json& j, const std::string& where);
 };
 
+// A cell of the config that cannot be computed on its scene (a renderer-type method, which
+// renders the scene itself, on a scene read from files): listed with the reason, not a failure.
+struct SkippedCell {
+  std::string scene, method;
+  int spp = 0;
+  std::string reason;
+
+  nlohmann::json to_json() const;
+  static SkippedCell from_json(const nlohmann::json& j, const std::string& where);
+};
+
 struct ResultsDocument {
   RunConfig config;
   nlohmann::json machine = nlohmann::json::object();  // provenance, kept as written
@@ -145,6 +171,7 @@ struct ResultsDocument {
   std::optional<std::int64_t> written;
   std::vector<CellRecord> records;
   std::vector<FailedCell> failures;
+  std::vector<SkippedCell> skipped;
 
   // Queries the tables and gates are written in.
   std::vector<std::string> scenes() const;  // the config's, else in record order
@@ -152,6 +179,7 @@ struct ResultsDocument {
   std::vector<std::string> methods(Role role) const;  // names in record order
   const CellRecord* find(const std::string& scene, const std::string& method, int spp) const;
   const FailedCell* failure(const std::string& scene, const std::string& method, int spp) const;
+  const SkippedCell* skip(const std::string& scene, const std::string& method, int spp) const;
 
   nlohmann::json to_json() const;
   static ResultsDocument from_json(const nlohmann::json& j, const std::string& where);

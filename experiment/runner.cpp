@@ -1,18 +1,23 @@
 #include "experiment/runner.h"
 
 #include <filesystem>
+#include <functional>
+#include <optional>
 #include <tuple>
+#include <utility>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "core/exr_io.h"
+#include "core/hash.h"
 #include "core/progress.h"
 #include "core/stats.h"
 #include "core/timer.h"
 #include "core/version.h"
 #include "denoisers/method.h"
 #include "experiment/cells.h"
+#include "experiment/input_files.h"
 #include "experiment/provenance.h"
 #include "experiment/store.h"
 #include "metrics/metrics.h"
@@ -48,31 +53,25 @@ RenderSettings input_settings(const ExperimentConfig& c, int spp) {
   return s;
 }
 
-// The reference of one scene (cached and checkpointed by tracer/reference.h), copied into the
-// results folder, and what every record of the scene says about it.
-SceneCells scene_cells(const ExperimentConfig& c, const RunOptions& opt, const Cache& cache, const Scene& scene,
-                       const std::string& name, Reference& ref) {
-  const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = c.reference_spp, .seed = c.reference_seed,
-                             .max_depth = c.max_depth, .block_spp = c.reference_block_spp, .threads = c.threads};
-  ReferenceOptions ro;
-  ro.cache_dir = cache.dir();
-  ro.use_cache = opt.use_cache;
-  spdlog::info("{}: reference {} spp at {}x{}", name, rs.spp, rs.width, rs.height);
-  ref = reference_image(scene, rs, ro);
-
+// What every cell of a scene shares, with `ref` kept in the results folder as
+// images/<scene>/reference.exr: the reference file itself (R,G,B, variance.*, metadata), hard
+// linked or copied (keep_file), so that `metrics IMAGE reference.exr` scores as the run did.
+SceneCells scene_cells(const std::string& out_dir, const std::string& name, const Reference& ref) {
   SceneCells s;
   s.scene = name;
-  s.scene_hash = scene_content_hash(scene);
   s.image_dir = "images/" + safe_file_name(name);
+  s.frame_dir = "frames/" + safe_file_name(name);
+  s.width = ref.color.width();
+  s.height = ref.color.height();
   s.reference = &ref;
-  fs::create_directories(opt.out_dir + "/" + s.image_dir);
+  fs::create_directories(out_dir + "/" + s.image_dir);
   ReferenceInfo& info = s.reference_info;
-  info.spp = c.reference_spp;
-  info.seed = c.reference_seed;
-  info.seconds = ref.convergence.empty() ? ref.render_seconds : ref.convergence.back().seconds;
-  info.cache_hit = ref.cache_hit;
   info.image = s.image_dir + "/reference.exr";
-  if (!fs::exists(opt.out_dir + "/" + info.image)) write_rgb(ref.color, opt.out_dir + "/" + info.image);
+  const std::string dest = out_dir + "/" + info.image;
+  if (!ref.path.empty())
+    keep_file(ref.path, dest);
+  else
+    write_reference(ref, dest, "");
   // The reference's own unconverged pixels (fireflies carried by a few samples): mse_converged
   // leaves them out; the report names their share beside it.
   if (!ref.variance.empty()) info.unconverged_share = metrics::unconverged_share(ref.color, ref.variance);
@@ -80,30 +79,84 @@ SceneCells scene_cells(const ExperimentConfig& c, const RunOptions& opt, const C
   return s;
 }
 
-// The input frame at one spp, rendered or read from the render cache on first use only: a
-// scene whose cells are all finished reads no frame.
+// The reference of a rendered scene (cached and checkpointed by tracer/reference.h) and what
+// every record of the scene says about it.
+SceneCells rendered_scene_cells(const ExperimentConfig& c, const RunOptions& opt, const Cache& cache, const Scene& scene,
+                                const std::string& name, Reference& ref) {
+  const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = c.reference_spp, .seed = c.reference_seed,
+                             .max_depth = c.max_depth, .block_spp = c.reference_block_spp, .threads = c.threads};
+  ReferenceOptions ro;
+  ro.cache_dir = cache.dir();
+  ro.use_cache = opt.use_cache;
+  spdlog::info("{}: reference {} spp at {}x{}", name, rs.spp, rs.width, rs.height);
+  ref = reference_image(scene, rs, ro);
+  SceneCells s = scene_cells(opt.out_dir, name, ref);
+  s.scene_hash = scene_content_hash(scene);
+  s.seed = c.seed;
+  ReferenceInfo& info = s.reference_info;
+  info.spp = c.reference_spp;
+  info.seed = c.reference_seed;
+  info.seconds = ref.convergence.empty() ? ref.render_seconds : ref.convergence.back().seconds;
+  info.cache_hit = ref.cache_hit;
+  return s;
+}
+
+// The reference of a scene read from files, as its file says: its spp and render time where it
+// records them (0 otherwise), no seed, no cache.
+SceneCells file_scene_cells(const RunOptions& opt, const SceneSpec& spec, Reference& ref) {
+  spdlog::info("{}: frame '{}', reference '{}'", spec.name, spec.files->frame, spec.files->reference);
+  ref = file_reference(spec.files->reference);
+  SceneCells s = scene_cells(opt.out_dir, spec.name, ref);
+  s.scene_hash = sha256_hex("frame=" + spec.files->frame_hash + "\nreference=" + spec.files->reference_hash + "\n");
+  s.reference_info.spp = ref.meta.spp;
+  s.reference_info.seconds = ref.meta.render_seconds;
+  return s;
+}
+
+// The input frame of a scene at one spp, read on first use only (a scene whose cells are all
+// finished reads no frame): rendered, through the render cache, or read from the file a
+// [[scene]] names (read_input_frame). `identity` is what its cells are keyed by; `path` the file
+// it was read from, which the input cell keeps in the folder.
 class InputFrame {
  public:
-  InputFrame(Cache& cache, const Scene& scene, RenderSettings settings, bool use_cache)
-      : cache_(cache), scene_(scene), settings_(settings), key_(frame_cache_key(scene, settings)), use_cache_(use_cache) {}
-  const CacheKey& key() const { return key_; }
+  // A rendered frame: keyed by its cache key's digest and the reference's spp, as since schema 2.
+  InputFrame(Cache& cache, const Scene& scene, RenderSettings settings, bool use_cache, int reference_spp) {
+    const CacheKey key = frame_cache_key(scene, settings);
+    identity_ = {{"input", key.digest()}, {"ref", reference_spp}};
+    load_ = [&cache, &scene, settings, use_cache, key](bool* hit) {
+      if (!use_cache) cache.remove(key);
+      AovFrame f = cached_frame(cache, key, [&] { return render_frame(scene, settings); }, hit);
+      return std::pair(std::move(f), cache.entry_dir(key) + "/frame.exr");
+    };
+  }
+  // A frame read from a file: keyed by the contents of both files and the scene's name.
+  explicit InputFrame(const SceneSpec& spec)
+      : identity_{{"input_file", spec.files->frame_hash}, {"reference_file", spec.files->reference_hash}, {"scene", spec.name}},
+        from_file_(true) {
+    load_ = [path = spec.files->frame](bool*) { return std::pair(read_input_frame(path), path); };
+  }
+  const json& identity() const { return identity_; }
   const AovFrame& get() {
     if (!frame_) {
-      if (!use_cache_) cache_.remove(key_);
-      frame_ = cached_frame(cache_, key_, [&] { return render_frame(scene_, settings_); }, &hit_);
+      auto [frame, path] = load_(&hit_);
+      frame_ = std::move(frame);
+      path_ = std::move(path);
     }
     return *frame_;
   }
-  bool cache_hit() const { return hit_; }
+  const std::string& path() {
+    get();
+    return path_;
+  }
+  std::optional<bool> cache_hit() const { return from_file_ ? std::nullopt : std::optional<bool>(hit_); }
 
  private:
-  Cache& cache_;
-  const Scene& scene_;
-  RenderSettings settings_;
-  CacheKey key_;
-  bool use_cache_;
+  json identity_;
+  bool from_file_ = false;
+  std::function<std::pair<AovFrame, std::string>(bool* hit)> load_;
   bool hit_ = false;
   std::optional<AovFrame> frame_;
+  std::string path_;
 };
 
 CellPlan plain_cell(const ExperimentConfig& c, const Scene& scene, const std::string& scene_hash, int spp) {
@@ -125,25 +178,29 @@ CellPlan plain_cell(const ExperimentConfig& c, const Scene& scene, const std::st
   return p;
 }
 
-CellPlan input_cell(const ExperimentConfig& c, InputFrame& frame, int spp) {
+CellPlan input_cell(InputFrame& frame, int spp) {
   CellPlan p;
   p.role = Role::Input;
   p.method = "input";
   p.spp = spp;
-  p.identity = {{"input", frame.key().digest()}, {"ref", c.reference_spp}, {"build", build_id()}};
+  p.identity = frame.identity();
+  p.identity["build"] = build_id();
   p.stem = "input_" + std::to_string(spp);
+  p.required_files = {"image", "frame"};
   p.compute = [&frame] {
     CellOutput out;
     out.image = frame.get().layer(layer::kColor);
     const double t = frame.get().meta.render_seconds;
     out.times.input_render = out.times.total = t;
     out.input_cache_hit = frame.cache_hit();
+    out.frame_file = frame.path();
     return out;
   };
   return p;
 }
 
-CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene& scene, InputFrame& frame, int spp) {
+// `scene` is null for a scene read from files (renderer-type methods are skipped there).
+CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene* scene, InputFrame& frame, int spp) {
   const MethodRegistry& registry = MethodRegistry::global();
   const MethodInfo& info = registry.info(m.method);
   CellPlan p;
@@ -153,16 +210,16 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
   p.base_method = m.method;
   p.kind = to_string(info.kind);
   p.params = registry.parse_params(m.method, m.params).as_strings();
-  p.identity = {{"method", m.method}, {"params", *p.params}, {"input", frame.key().digest()},
-                {"ref", c.reference_spp}, {"repeats", c.repeats}, {"repeat_below", c.repeat_below_seconds},
-                {"build", build_id()}};
+  p.identity = frame.identity();
+  p.identity.update({{"method", m.method}, {"params", *p.params}, {"repeats", c.repeats},
+                     {"repeat_below", c.repeat_below_seconds}, {"build", build_id()}});
   // A plug-in's code is not in the build: its folder's hash is (built-in cells keep their keys).
   if (!info.content_hash.empty()) p.identity["method_content"] = info.content_hash;
   p.contain_failures = true;
   p.stem = safe_file_name(m.name) + "_" + std::to_string(spp);
-  p.compute = [&c, &m, &info, &scene, &frame] {
+  p.compute = [&c, &m, &info, scene, &frame] {
     auto method = MethodRegistry::global().create(m.method, m.params);
-    const MethodInput in = frame_input(frame.get(), &scene);
+    const MethodInput in = frame_input(frame.get(), scene);
     MethodResult first;
     const std::vector<double> runs = time_method(*method, in, c.repeats, c.repeat_below_seconds, first);
     // Renderer-type methods render the scene themselves: their total is their own time.
@@ -193,26 +250,63 @@ ResultsDocument results_header(const ExperimentConfig& c) {
   return d;
 }
 
+// Every cell of a rendered scene: the plain path-tracing curve, then per input spp the input
+// and every method on it.
+void run_rendered_scene(const ExperimentConfig& c, const RunOptions& opt, Cache& cache, const std::string& name,
+                        const CellContext& context) {
+  const auto scene = load_scene(name);
+  Reference ref;
+  const SceneCells cells = rendered_scene_cells(c, opt, cache, *scene, name, ref);
+  for (int spp : c.plain_spp) run_cell(plain_cell(c, *scene, cells.scene_hash, spp), cells, context);
+  for (int spp : c.spp) {
+    InputFrame frame(cache, *scene, input_settings(c, spp), opt.use_cache, c.reference_spp);
+    run_cell(input_cell(frame, spp), cells, context);
+    for (const auto& m : c.methods) run_cell(method_cell(c, m, scene.get(), frame, spp), cells, context);
+  }
+}
+
+// Every cell of a scene read from files: the input (the frame, at its spp) and every filter on
+// it. A renderer-type method renders the scene, which the files do not hold: skipped, with the
+// reason recorded (results.json "skipped"); it is no failure of the run.
+void run_file_scene(const ExperimentConfig& c, const RunOptions& opt, const SceneSpec& spec, const CellContext& context) {
+  Reference ref;
+  const SceneCells cells = file_scene_cells(opt, spec, ref);
+  const int spp = spec.files->spp;
+  InputFrame frame(spec);
+  run_cell(input_cell(frame, spp), cells, context);
+  for (const auto& m : c.methods) {
+    if (MethodRegistry::global().info(m.method).kind == MethodKind::Renderer) {
+      SkippedCell skip{spec.name, m.name, spp,
+                       fmt::format("'{}' renders the scene itself, and scene '{}' is read from files ('{}', '{}'): there is "
+                                   "no scene to render",
+                                   m.method, spec.name, spec.files->frame, spec.files->reference)};
+      spdlog::warn("cell {} / {} / {} spp skipped: {}", spec.name, m.name, spp, skip.reason);
+      context.store->skip(std::move(skip));
+      context.progress->add(1);
+      continue;
+    }
+    run_cell(method_cell(c, m, nullptr, frame, spp), cells, context);
+  }
+}
+
 }  // namespace
 
 ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt) {
   fs::create_directories(opt.out_dir + "/images");
   Cache cache(opt.cache_dir.empty() ? Cache::default_dir() : opt.cache_dir);
   ResultsStore store(opt.out_dir, results_header(c));
-  const std::int64_t per_scene = std::int64_t(c.spp.size()) * (std::int64_t(c.methods.size()) + 1) + std::int64_t(c.plain_spp.size());
-  Progress progress("experiment " + c.name, std::int64_t(c.scenes.size()) * per_scene, "cells", 0.0);
-  const CellContext context{opt.out_dir, c.width, c.height, c.seed, &store, &progress};
+  const std::int64_t methods = std::int64_t(c.methods.size());
+  std::int64_t cells = 0;
+  for (const auto& s : c.scenes)
+    cells += s.files ? methods + 1 : std::int64_t(c.spp.size()) * (methods + 1) + std::int64_t(c.plain_spp.size());
+  Progress progress("experiment " + c.name, cells, "cells", 0.0);
+  const CellContext context{opt.out_dir, &store, &progress};
 
-  for (const auto& scene_name : c.scenes) {
-    const auto scene = load_scene(scene_name);
-    Reference ref;
-    const SceneCells cells = scene_cells(c, opt, cache, *scene, scene_name, ref);
-    for (int spp : c.plain_spp) run_cell(plain_cell(c, *scene, cells.scene_hash, spp), cells, context);
-    for (int spp : c.spp) {
-      InputFrame frame(cache, *scene, input_settings(c, spp), opt.use_cache);
-      run_cell(input_cell(c, frame, spp), cells, context);
-      for (const auto& m : c.methods) run_cell(method_cell(c, m, *scene, frame, spp), cells, context);
-    }
+  for (const auto& s : c.scenes) {
+    if (s.files)
+      run_file_scene(c, opt, s, context);
+    else
+      run_rendered_scene(c, opt, cache, s.name, context);
   }
   progress.finish();
   store.write();

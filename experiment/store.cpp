@@ -41,6 +41,8 @@ ResultsStore::ResultsStore(std::string dir, ResultsDocument header)
       }),
       doc_(std::move(header)) {
   doc_.records.clear();
+  doc_.failures.clear();
+  doc_.skipped.clear();
   if (const std::size_t n = remove_stale_temporaries(dir_))
     spdlog::info("removed {} temporary files of runs that died in '{}'", n, dir_);
   for (const char* name : {"finished_cells.json", "results.json"}) {
@@ -70,6 +72,11 @@ void ResultsStore::reuse(const CellRecord& record) { doc_.records.push_back(reco
 
 void ResultsStore::fail(FailedCell failure) {
   doc_.failures.push_back(std::move(failure));
+  write();
+}
+
+void ResultsStore::skip(SkippedCell skipped) {
+  doc_.skipped.push_back(std::move(skipped));
   write();
 }
 

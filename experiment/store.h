@@ -35,6 +35,8 @@ class ResultsStore {
   // A cell of this run that failed: listed in results.json's failures, not kept as finished (the
   // next run tries it again); every file rewritten.
   void fail(FailedCell failure);
+  // A cell of this run's config that cannot be computed (results.json's skipped); every file rewritten.
+  void skip(SkippedCell skipped);
   void write();
   const ResultsDocument& document() const { return doc_; }
 

@@ -111,12 +111,15 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
   const int spp = res.table_spp();
   // Methods whose cells failed in this run are columns too: their cells say "failed", not n/a.
   auto methods = res.methods(Role::Method);
-  for (const auto& f : res.failures) {
+  // So are methods skipped on every scene (a renderer-type method, every scene read from files).
+  auto add_column = [&](const std::string& method, int cell_spp) {
     const bool ablation = std::any_of(res.config.methods.begin(), res.config.methods.end(),
-                                      [&](const MethodEntry& e) { return e.name == f.method && !e.group.empty(); });
-    if (f.spp == spp && !ablation && std::find(methods.begin(), methods.end(), f.method) == methods.end())
-      methods.push_back(f.method);
-  }
+                                      [&](const MethodEntry& e) { return e.name == method && !e.group.empty(); });
+    if (cell_spp == spp && !ablation && std::find(methods.begin(), methods.end(), method) == methods.end())
+      methods.push_back(method);
+  };
+  for (const auto& f : res.failures) add_column(f.method, f.spp);
+  for (const auto& k : res.skipped) add_column(k.method, k.spp);
   t.title = fmt::format("Table 1: {} at {} spp input", metric, spp);
   t.header = {"scene"};
   for (const auto& m : methods) t.header.push_back(m);
@@ -124,15 +127,18 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
   for (const auto& s : res.scenes()) {
     std::vector<std::string> row{s};
     for (const auto& m : methods)
-      row.push_back(res.failure(s, m, spp) ? "failed" : format_metric(metric_of(res.find(s, m, spp), metric)));
+      row.push_back(res.failure(s, m, spp) ? "failed"
+                    : res.skip(s, m, spp)  ? "skipped"
+                                           : format_metric(metric_of(res.find(s, m, spp), metric)));
     row.push_back(format_metric(metric_of(res.find(s, "input", spp), metric)));
     if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
     t.rows.push_back(row);
   }
   if (metric == "mse_converged") t.header.push_back("reference pixels left out");
   const auto& info = metrics::metric(metric);
-  t.note = fmt::format("{}; {} is better. From results.json.{}", info.description, info.lower_is_better ? "lower" : "higher",
-                       res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).");
+  t.note = fmt::format("{}; {} is better. From results.json.{}{}", info.description, info.lower_is_better ? "lower" : "higher",
+                       res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).",
+                       res.skipped.empty() ? "" : " skipped: the method renders the scene, and that scene was read from files.");
   return t;
 }
 

@@ -155,8 +155,8 @@ TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
     auto m = test::run_denoisebench_stdout("metrics '" + image + "' '" + ref + "' --json");
     ASSERT_EQ(m.exit_code, 0) << m.errors;
     const auto again = nlohmann::json::parse(m.output);
-    // mse_converged needs the reference's variance, which the copied reference.exr does not hold.
-    for (const char* name : {"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip"}) {
+    // mse_converged too: the folder's reference.exr is the reference file itself, variance kept.
+    for (const char* name : {"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip", "mse_converged"}) {
       ASSERT_TRUE(rec["metrics"][name].is_number()) << rec["method"] << " " << name;
       const double stored = rec["metrics"][name].get<double>(), recomputed = again[name].get<double>();
       // The run scores the image in memory, the command reads the written EXR: float32 both, so
@@ -170,6 +170,50 @@ TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
   ASSERT_GT(input_mse, 0);
   ASSERT_EQ(method_mse.size(), 2u);
   for (double m : method_mse) EXPECT_LT(m, input_mse);
+}
+
+// A results folder re-scores alone: a config naming the folder's own input frame and reference
+// by file (`[[scene]] frame = ..., reference = ...`) runs with exit 0, gives the rendered run's
+// bilateral score, and `metrics` on the files it wrote agrees; a [[scene]] naming a missing
+// file exits 2 naming the key and the file, before any work.
+TEST(RunCommand, ASceneReadFromTheFolderOfAnotherRunGivesItsScores) {
+  test::TempDir dir;
+  write(dir.path() / "tiny.toml", kTinyConfig);
+  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto res = nlohmann::json::parse(slurp(dir.file("out/results.json")));
+  EXPECT_EQ(res["schema_version"], 4);
+  nlohmann::json input, bilateral;
+  for (const auto& rec : res["records"]) {
+    if (rec["method"] == "input") input = rec;
+    if (rec["method"] == "bilateral") bilateral = rec;
+  }
+  ASSERT_TRUE(input["files"].contains("frame")) << input.dump();
+  write(dir.path() / "files.toml", "name = \"files\"\nmethods = [\"bilateral\"]\n[[scene]]\nframe = \"out/" +
+                                       input["files"]["frame"].get<std::string>() + "\"\nreference = \"out/" +
+                                       input["reference"]["image"].get<std::string>() + "\"\nlabel = \"again\"\n");
+  r = run_in(dir, "run " + dir.file("files.toml") + " -o " + dir.file("again"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto again = nlohmann::json::parse(slurp(dir.file("again/results.json")));
+  ASSERT_EQ(again["records"].size(), 2u);
+  const auto& rec = again["records"][1];
+  ASSERT_EQ(rec["method"], "bilateral");
+  EXPECT_EQ(rec["scene"], "again");
+  const double mse = rec["metrics"]["mse"].get<double>(), was = bilateral["metrics"]["mse"].get<double>();
+  EXPECT_NEAR(mse, was, 1e-9 * was);
+  auto m = test::run_denoisebench_stdout("metrics '" + dir.file("again/" + rec["files"]["image"].get<std::string>()) + "' '" +
+                                         dir.file("again/" + rec["reference"]["image"].get<std::string>()) + "' --json");
+  ASSERT_EQ(m.exit_code, 0) << m.errors;
+  EXPECT_NEAR(nlohmann::json::parse(m.output)["mse_converged"].get<double>(), rec["metrics"]["mse_converged"].get<double>(),
+              1e-9 * std::max(1.0, rec["metrics"]["mse_converged"].get<double>()));
+
+  write(dir.path() / "missing.toml", "name = \"m\"\nmethods = [\"bilateral\"]\n[[scene]]\nframe = \"no/such.exr\"\n"
+                                         "reference = \"out/" + input["reference"]["image"].get<std::string>() + "\"\n");
+  r = run_in(dir, "run " + dir.file("missing.toml") + " -o " + dir.file("o3"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("missing.toml:4: key 'scene[0].frame'"));
+  EXPECT_THAT(r.output, HasSubstr(dir.file("no/such.exr")));
+  EXPECT_FALSE(fs::exists(dir.file("o3") + "/results.json"));
 }
 
 TEST(RunCommand, RefusesUnknownMethodsAndKeys) {

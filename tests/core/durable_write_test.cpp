@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <sys/mount.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -105,6 +107,65 @@ TEST_F(FullDisk, AFrameAndItsEdgeFileAreCommittedTogetherOrNotAtAll) {
   const std::string what = error_of([&] { write_frame(frame, path("f.exr")); });
   EXPECT_THAT(what, HasSubstr(std::strerror(ENOSPC)));
   EXPECT_TRUE(left_behind().empty()) << left_behind().front();
+}
+
+ino_t inode_of(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 ? st.st_ino : 0;
+}
+
+// Every file of `dir` (temporary names included): keep_file leaves nothing but the destination.
+std::vector<std::string> files_in(const fs::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator(dir)) out.push_back(e.path().filename().string());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// keep_file (the results folder's input frames and references): a hard link when it can, the
+// same bytes either way, and nothing done the second time.
+TEST(KeepFile, LinksOnceThenLeavesTheSameFileAlone) {
+  test::TempDir dir;
+  test::write(dir.file("src.exr"), "frame bytes");
+  fs::create_directories(dir.path() / "out");
+  const std::string dst = dir.file("out/kept.exr");
+  EXPECT_EQ(keep_file(dir.file("src.exr"), dst), Kept::Linked);
+  EXPECT_EQ(inode_of(dst), inode_of(dir.file("src.exr")));
+  EXPECT_EQ(keep_file(dir.file("src.exr"), dst), Kept::Unchanged);
+  EXPECT_EQ(files_in(dir.path() / "out"), std::vector<std::string>{"kept.exr"});
+  // Another file under the destination's name is replaced, by rename (no temporary left).
+  test::write(dir.file("other.exr"), "other bytes, longer");
+  EXPECT_EQ(keep_file(dir.file("other.exr"), dst), Kept::Linked);
+  EXPECT_EQ(test::slurp(dst), "other bytes, longer");
+  EXPECT_EQ(test::slurp(dir.file("src.exr")), "frame bytes") << "replacing a link must not write through it";
+  EXPECT_EQ(files_in(dir.path() / "out"), std::vector<std::string>{"kept.exr"});
+}
+
+TEST(KeepFile, ACopyIsKeptAsItIsWhenTheBytesAreTheSame) {
+  test::TempDir dir;
+  test::write(dir.file("src.exr"), "frame bytes");
+  const std::string dst = dir.file("kept.exr");
+  EXPECT_EQ(keep_file(dir.file("src.exr"), dst, /*allow_link=*/false), Kept::Copied);
+  EXPECT_NE(inode_of(dst), inode_of(dir.file("src.exr")));
+  EXPECT_EQ(test::slurp(dst), "frame bytes");
+  const ino_t copied = inode_of(dst);
+  EXPECT_EQ(keep_file(dir.file("src.exr"), dst, false), Kept::Unchanged);
+  EXPECT_EQ(keep_file(dir.file("src.exr"), dst), Kept::Unchanged) << "same bytes: no link made over the copy";
+  EXPECT_EQ(inode_of(dst), copied);
+  // Same size, other bytes: copied again.
+  test::write(dir.file("src.exr"), "frame BYTES");
+  EXPECT_EQ(keep_file(dir.file("src.exr"), dst, false), Kept::Copied);
+  EXPECT_EQ(test::slurp(dst), "frame BYTES");
+  EXPECT_THAT(test::error_of<InputError>([&] { keep_file(dir.file("missing.exr"), dst); }), HasSubstr("missing.exr"));
+}
+
+// Across file systems link(2) fails (EXDEV): the file is copied instead.
+TEST_F(FullDisk, KeepFileCopiesAcrossFileSystems) {
+  test::write(tmp_.file("src.exr"), "frame bytes");
+  EXPECT_EQ(keep_file(tmp_.file("src.exr"), path("kept.exr")), Kept::Copied);
+  EXPECT_EQ(test::slurp(path("kept.exr")), "frame bytes");
+  EXPECT_EQ(left_behind(), std::vector<std::string>{"kept.exr"});
+  EXPECT_EQ(keep_file(tmp_.file("src.exr"), path("kept.exr")), Kept::Unchanged);
 }
 
 TEST(DurableWrite, AFrameIsNeverPairedWithAnotherRendersEdgeFile) {

@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <tuple>
 
 #include "core/errors.h"
+#include "core/exr_io.h"
+#include "core/hash.h"
 #include "experiment/config.h"
 #include "test_util.h"
 
@@ -86,6 +89,95 @@ TEST(ExperimentConfig, TheRepositorysConfigsLoad) {
       ++loaded;
     }
   EXPECT_GE(loaded, 3);
+}
+
+// [[scene]] frame/reference: files beside the config (frames/in.exr, frames/ref.exr), written here.
+void write_test_frame(const std::string& path, int w, int h, int spp, float value = 0.5f) {
+  AovFrame f(w, h);
+  Image c(w, h, 3);
+  for (std::size_t i = 0; i < c.size(); ++i) c.data()[i] = value;
+  f.set(layer::kColor, c);
+  f.meta.spp = spp;
+  write_frame(f, path);
+}
+
+const char* kFileScene = "[[scene]]\nframe = \"frames/in.exr\"\nreference = \"frames/ref.exr\"\n";
+
+std::string file_config(const std::string& scene = kFileScene, const std::string& root = "") {
+  return "name = \"f\"\nmethods = [\"bilateral\"]\n" + root + scene;
+}
+
+TEST(ExperimentConfig, ASceneReadFromFilesHasItsFramesSizeSppAndContentHashes) {
+  test::TempDir dir;
+  std::filesystem::create_directories(dir.path() / "frames");
+  write_test_frame(dir.file("frames/in.exr"), 32, 24, 4);
+  write_test_frame(dir.file("frames/ref.exr"), 32, 24, 64);
+  test::write(dir.file("exp.toml"), file_config());
+  const ExperimentConfig c = load_config(dir.file("exp.toml"));
+  ASSERT_EQ(c.scenes.size(), 1u);
+  ASSERT_TRUE(c.scenes[0].files);
+  const SceneFiles& f = *c.scenes[0].files;
+  EXPECT_EQ(c.scenes[0].name, "in");  // the frame's stem when no label is given
+  EXPECT_EQ(f.frame, dir.file("frames/in.exr"));
+  EXPECT_EQ(f.reference, dir.file("frames/ref.exr"));
+  EXPECT_EQ(std::tuple(f.width, f.height, f.spp), std::tuple(32, 24, 4));
+  EXPECT_EQ(f.reference_hash, sha256_file(dir.file("frames/ref.exr")));
+  EXPECT_TRUE(c.spp.empty()) << "no rendered scene: no rendered spp";
+  const RunConfig r = c.recorded();
+  EXPECT_EQ(r.spp, std::vector<int>{4});  // the tables are drawn at the file scene's spp
+  EXPECT_EQ(r.scenes, std::vector<std::string>{"in"});
+  EXPECT_EQ(r.scene_files.at("in").frame, f.frame);
+  EXPECT_EQ(std::tuple(r.width, r.height), std::tuple(32, 24));
+  // Another frame's bytes: another hash (the cells are keyed by it).
+  const std::string before = f.frame_hash;
+  write_test_frame(dir.file("frames/in.exr"), 32, 24, 4, 0.25f);
+  EXPECT_NE(load_config(dir.file("exp.toml")).scenes[0].files->frame_hash, before);
+  // Rendered and file scenes together, with a label; spp given for a frame that records it agrees.
+  test::write(dir.file("exp.toml"), "name = \"m\"\nscenes = [\"cornell-box\"]\nspp = [8]\nmethods = [\"bilateral\"]\n" +
+                                        std::string(kFileScene) + "label = \"mine\"\nspp = 4\n[[scene]]\nname = \"conference\"\n");
+  const ExperimentConfig m = load_config(dir.file("exp.toml"));
+  ASSERT_EQ(m.scenes.size(), 3u);
+  EXPECT_EQ(m.scenes[1].name, "mine");
+  EXPECT_FALSE(m.scenes[2].files);
+  EXPECT_EQ(m.recorded().spp, (std::vector<int>{8, 4}));
+  EXPECT_EQ(m.recorded().scenes, (std::vector<std::string>{"cornell-box", "mine", "conference"}));
+}
+
+TEST(ExperimentConfig, SceneFileErrorsNameTheKeyAndTheFile) {
+  test::TempDir dir;
+  std::filesystem::create_directories(dir.path() / "frames");
+  write_test_frame(dir.file("frames/in.exr"), 32, 24, 4);
+  write_test_frame(dir.file("frames/ref.exr"), 32, 24, 64);
+  write_test_frame(dir.file("frames/small.exr"), 16, 12, 64);
+  write_test_frame(dir.file("frames/nospp.exr"), 32, 24, 0);
+  const std::string file = dir.file("exp.toml");
+  struct Case {
+    std::string text, where, what;
+  };
+  const Case cases[] = {
+      {file_config("[[scene]]\nframe = \"frames/gone.exr\"\nreference = \"frames/ref.exr\"\n"), ":4: key 'scene[0].frame'",
+       dir.file("frames/gone.exr") + "' does not exist"},
+      {file_config("[[scene]]\nframe = \"frames/in.exr\"\nreference = \"frames/gone.exr\"\n"),
+       ":5: key 'scene[0].reference'", dir.file("frames/gone.exr")},
+      {file_config("[[scene]]\nname = \"cornell-box\"\nframe = \"frames/in.exr\"\n"), ":5: key 'scene[0].frame'", "not both"},
+      {file_config("[[scene]]\nframe = \"frames/in.exr\"\n"), ":4: key 'scene[0].frame'", "reference"},
+      {file_config("[[scene]]\nreference = \"frames/ref.exr\"\n"), ":4: key 'scene[0].reference'", "without a frame"},
+      {file_config("[[scene]]\nframe = \"frames/in.exr\"\nreference = \"frames/small.exr\"\n"),
+       ":5: key 'scene[0].reference'", dir.file("frames/small.exr") + "' is 16x12, its frame '" + dir.file("frames/in.exr") + "' is 32x24"},
+      {file_config("[[scene]]\nframe = \"frames/nospp.exr\"\nreference = \"frames/ref.exr\"\n"), ":4: key 'scene[0].frame'",
+       "records no sample count"},
+      {file_config(std::string(kFileScene) + "spp = 8\n"), ":6: key 'scene[0].spp'", dir.file("frames/in.exr") + "' records 4 spp"},
+      {file_config(std::string(kFileScene) + "colour = 1\n"), ":6: unknown key 'scene[0].colour'", "valid keys"},
+      {file_config(kFileScene, "width = 64\n"), ":3: key 'width'", "read from files"},
+      {file_config(kFileScene, "[speedup]\nspp = [1]\n"), ":3: key 'speedup'", "read from files"},
+      {file_config(std::string(kFileScene) + kFileScene), "", "scene 'in' is named twice"},
+      {file_config("[[scene]]\nlabel = \"x\"\n"), ":3: key 'scene[0].name'", "expected `name`"},
+  };
+  for (const Case& c : cases) {
+    const std::string msg = load_error(dir, c.text);
+    EXPECT_TRUE(names(msg, file + c.where)) << c.text << " -> '" << msg << "'";
+    EXPECT_TRUE(names(msg, c.what)) << c.text << " -> '" << msg << "'";
+  }
 }
 
 }  // namespace

@@ -72,7 +72,11 @@ ResultsDocument document() {
   input.role = Role::Input;
   input.spp = 16;
   input.metrics = {{"mse", 90.0}};
+  input.files = {{"image", "images/c/input_16.exr"}, {"frame", "frames/c/input_16.exr"},
+                 {"frame_edges", "frames/c/input_16.edges.exr"}};
   d.records = {input, method_record()};
+  d.config.scene_files = {{"mine", {"/data/in.exr", "/data/ref.exr"}}};
+  d.skipped = {{"mine", "irradiance_cache", 16, "renders the scene itself; 'mine' is read from files"}};
   d.failures = {{"cornell-box", "plug", 16, "k2", "plug-in 'plug' (p.toml): the program exited with status 1", {"Traceback", "E"}}};
   return d;
 }
@@ -80,7 +84,7 @@ ResultsDocument document() {
 TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   const json j = document().to_json();
   EXPECT_EQ(j.at("format"), "denoisebench-results");
-  EXPECT_EQ(j.at("schema_version"), 3);
+  EXPECT_EQ(j.at("schema_version"), 4);
   EXPECT_TRUE(j.at("records")[1].at("metrics").at("psnr").is_null());  // non-finite as null
   const ResultsDocument back = ResultsDocument::from_json(json::parse(j.dump()), "results.json");
   EXPECT_EQ(back.to_json(), j);
@@ -97,11 +101,27 @@ TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   EXPECT_EQ(back.failures[0].log_tail, (std::vector<std::string>{"Traceback", "E"}));
   EXPECT_NE(back.failure("cornell-box", "plug", 16), nullptr);
   EXPECT_EQ(back.failure("cornell-box", "plug", 4), nullptr);
-  // A version 2 file (no failures, no setup_seconds) is still read.
+  EXPECT_EQ(back.records[0].file("frame"), "frames/c/input_16.exr");
+  EXPECT_EQ(back.records[0].file("frame_edges"), "frames/c/input_16.edges.exr");
+  EXPECT_EQ(back.config.scene_files.at("mine"), (SceneFilesEntry{"/data/in.exr", "/data/ref.exr"}));
+  ASSERT_NE(back.skip("mine", "irradiance_cache", 16), nullptr);
+  EXPECT_EQ(back.skip("mine", "irradiance_cache", 4), nullptr);
+  // A version 2 file (no failures, no setup_seconds) and a version 3 one (no frames, no
+  // scene_files, no skipped) are still read.
   json v2 = j;
   v2["schema_version"] = 2;
   v2.erase("failures");
   EXPECT_TRUE(ResultsDocument::from_json(v2, "results.json").failures.empty());
+  json v3 = j;
+  v3["schema_version"] = 3;
+  v3.erase("skipped");
+  v3["config"].erase("scene_files");
+  v3["records"][0]["files"].erase("frame");
+  v3["records"][0]["files"].erase("frame_edges");
+  const ResultsDocument old = ResultsDocument::from_json(v3, "results.json");
+  EXPECT_TRUE(old.skipped.empty());
+  EXPECT_TRUE(old.config.scene_files.empty());
+  EXPECT_EQ(old.records[0].file("frame"), "");
   json v9 = j;
   v9["schema_version"] = 9;
   EXPECT_THROW(ResultsDocument::from_json(v9, "results.json"), InputError);

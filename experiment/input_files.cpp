@@ -1,0 +1,32 @@
+#include "experiment/input_files.h"
+
+#include <filesystem>
+
+#include "core/exr_io.h"
+#include "core/hash.h"
+
+namespace fs = std::filesystem;
+
+namespace dnb::experiment {
+
+AovFrame read_input_frame(const std::string& path) { return read_frame(path, {layer::kColor}); }
+
+std::string frame_file_hash(const std::string& path) {
+  const std::string edges = edges_path(path);
+  std::string parts = "frame=" + sha256_file(path) + "\n";
+  if (fs::exists(edges)) parts += "edges=" + sha256_file(edges) + "\n";
+  return sha256_hex(parts);
+}
+
+Reference file_reference(const std::string& path) {
+  AovFrame f = read_input_frame(path);
+  Reference ref;
+  ref.color = f.layer(layer::kColor);
+  if (f.has(layer::kVariance)) ref.variance = f.layer(layer::kVariance);
+  ref.meta = f.meta;
+  ref.path = path;
+  ref.render_seconds = f.meta.render_seconds;
+  return ref;
+}
+
+}  // namespace dnb::experiment
