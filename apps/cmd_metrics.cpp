@@ -74,6 +74,15 @@ void add_metrics(CLI::App& app, Action& action) {
           for (const auto& [name, v] : row.values) j[name] = std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
           if (out.reference_has_variance) j["reference_unconverged_share"] = out.reference_unconverged_share;
           if (!row.maps.empty()) j["error_maps"] = row.maps;
+          for (const auto& [name, p] : row.pooled)
+            j[name + "_pooled"] = {{"mean", p.mean},           {"weighted_median", p.weighted_median},
+                                   {"weighted_first_quartile", p.weighted_first_quartile},
+                                   {"weighted_third_quartile", p.weighted_third_quartile},
+                                   {"min", p.min},             {"max", p.max}};
+          if (out.hdrflip_exposures)
+            j["hdrflip_exposures"] = {{"start", out.hdrflip_exposures->start},
+                                      {"stop", out.hdrflip_exposures->stop},
+                                      {"count", out.hdrflip_exposures->count}};
           fmt::print("{}\n", j.dump());
           continue;
         }
@@ -82,6 +91,12 @@ void add_metrics(CLI::App& app, Action& action) {
           if (name == "mse_converged" && !out.reference_has_variance)
             fmt::print("{:<14} n/a ('{}' has no variance.R/G/B channels)\n", name, q.reference);
           else fmt::print("{:<14} {:.9g}\n", name, v);
+          if (auto p = row.pooled.find(name); p != row.pooled.end())
+            fmt::print("{:<14} weighted median {:.6g}, quartiles {:.6g} .. {:.6g}, min {:.6g}, max {:.6g}\n", "", p->second.weighted_median,
+                       p->second.weighted_first_quartile, p->second.weighted_third_quartile, p->second.min, p->second.max);
+          if (name == "hdrflip" && out.hdrflip_exposures)
+            fmt::print("{:<14} exposures {:.4g} .. {:.4g} stops, {} of them (from the reference)\n", "",
+                       out.hdrflip_exposures->start, out.hdrflip_exposures->stop, out.hdrflip_exposures->count);
         }
       }
       for (const auto& f : failed) fmt::print(stderr, "threshold failed: {}\n", f);

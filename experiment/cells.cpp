@@ -33,7 +33,7 @@ std::map<std::string, std::optional<double>> score_image(const Image& image, con
   for (const auto& info : metrics::all_metrics()) {
     metrics::MetricResult r = info.compute(image, reference.color, variance);
     m[info.name] = std::isfinite(r.value) ? std::optional<double>(r.value) : std::nullopt;
-    if (info.name == "flip" || info.name == "relmse") {
+    if (info.name == "flip" || info.name == "hdrflip" || info.name == "relmse") {
       Image rgb(r.map.width(), r.map.height(), 3);
       for (std::size_t p = 0; p < r.map.pixel_count(); ++p)
         for (int c = 0; c < 3; ++c) rgb.data()[3 * p + c] = r.map.data()[p];

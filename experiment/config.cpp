@@ -11,6 +11,7 @@
 
 #include "core/bounds.h"
 #include "core/config.h"
+#include "interop/import.h"
 #include "core/errors.h"
 #include "core/hash.h"
 #include "denoisers/method.h"
@@ -123,7 +124,7 @@ auto read_named(ConfigTable& t, const std::string& key, F read) {
 }
 
 // A [[scene]] read from files: both read now, so that a wrong file is an error before any work.
-SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir) {
+SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir, const std::string& input_format) {
   if (!t.contains("reference"))
     throw InputError(fmt::format("{}: a frame needs its reference: add `reference = \"...\"` to this [[scene]]", t.where("frame")));
   if (!t.contains("frame"))
@@ -135,9 +136,10 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir) {
   SceneSpec s{t.get("label", fs::path(f.frame).stem().string()), std::nullopt};
   if (s.name.empty()) throw InputError(fmt::format("{}: expected a non-empty name", t.where("label")));
   const int spp = t.contains("spp") ? t.get("spp", 0, bounds::kSpp) : 0;
+  f.input_format = t.get("input_format", input_format);
   t.finish();
-  const AovFrame frame = read_named(t, "frame", [&] { return read_input_frame(f.frame); });
-  const Reference ref = read_named(t, "reference", [&] { return file_reference(f.reference); });
+  const AovFrame frame = read_named(t, "frame", [&] { return read_input_frame(f.frame, f.input_format, spp); });
+  const Reference ref = read_named(t, "reference", [&] { return file_reference(f.reference, f.input_format); });
   f.width = frame.width();
   f.height = frame.height();
   if (ref.color.width() != f.width || ref.color.height() != f.height)
@@ -150,7 +152,10 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir) {
   if (f.spp <= 0) f.spp = spp;
   if (f.spp <= 0)
     throw InputError(fmt::format("{}: '{}' records no sample count: add `spp = N` to this [[scene]]", t.where("frame"), f.frame));
-  f.frame_hash = frame_file_hash(f.frame);
+  // The format is part of what the cells are keyed by: the same bytes read another way are
+  // another frame.
+  f.frame_hash = f.input_format == "auto" ? frame_file_hash(f.frame)
+                                          : sha256_hex(frame_file_hash(f.frame) + "\ninput_format=" + f.input_format);
   f.reference_hash = sha256_file(f.reference);
   s.files = std::move(f);
   return s;
@@ -162,6 +167,9 @@ void read_scenes(ConfigTable& root, ExperimentConfig& c) {
   const fs::path config_dir = fs::absolute(c.path).parent_path();
   const bool listed = root.contains("scenes");
   for (const auto& n : root.get("scenes", std::vector<std::string>{})) c.scenes.push_back({n, std::nullopt});
+  const std::string input_format = root.get("input_format", std::string("auto"));
+  if (input_format != "auto" && input_format != "native")
+    read_named(root, "input_format", [&] { return interop::mapping_for(input_format).name; });  // a typo fails here
   for (auto& t : root.tables("scene")) {
     const bool files = t.contains("frame") || t.contains("reference");
     if (t.contains("name") && files)
@@ -170,7 +178,7 @@ void read_scenes(ConfigTable& root, ExperimentConfig& c) {
     if (!t.contains("name") && !files)
       throw InputError(fmt::format("{}: expected `name` (a scene to render) or `frame` and `reference` (files)", t.where("name")));
     if (files) {
-      c.scenes.push_back(file_scene(t, config_dir));
+      c.scenes.push_back(file_scene(t, config_dir, input_format));
     } else {
       c.scenes.push_back({t.require_string("name"), std::nullopt});
       t.finish();

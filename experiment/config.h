@@ -14,6 +14,8 @@
 //                                 # frame's file stem)
 //   spp = 64                      # optional: the frame's sample count, for a frame that records
 //                                 # none (one that does must agree)
+//   input_format = "cycles"       # optional: another renderer's files (interop/import.h; the
+//                                 # config's top-level `input_format`, else "auto")
 //
 // A file scene has one input (the frame, at its spp), no plain path-tracing curve, and no
 // renderer-type cells (they render the scene, which a file does not hold: skipped, with the
@@ -50,6 +52,7 @@ struct SceneFiles {
   std::string reference_hash;    // SHA-256 of the reference's bytes
   int width = 0, height = 0;     // of both
   int spp = 0;                   // the frame's sample count
+  std::string input_format = "auto";  // how both files are read (interop/import.h; `input_format`)
 };
 
 // A scene of the matrix: a rendered one (a built-in scene or scene file), or one read from files.

@@ -4,12 +4,15 @@
 
 #include "core/exr_io.h"
 #include "core/hash.h"
+#include "interop/import.h"
 
 namespace fs = std::filesystem;
 
 namespace dnb::experiment {
 
-AovFrame read_input_frame(const std::string& path) { return read_frame(path, {layer::kColor}); }
+AovFrame read_input_frame(const std::string& path, const std::string& format, int spp) {
+  return interop::read_frame_as(path, format, {.spp = spp}, {layer::kColor});
+}
 
 std::string frame_file_hash(const std::string& path) {
   const std::string edges = edges_path(path);
@@ -18,8 +21,8 @@ std::string frame_file_hash(const std::string& path) {
   return sha256_hex(parts);
 }
 
-Reference file_reference(const std::string& path) {
-  AovFrame f = read_input_frame(path);
+Reference file_reference(const std::string& path, const std::string& format) {
+  AovFrame f = read_input_frame(path, format);
   Reference ref;
   ref.color = f.layer(layer::kColor);
   if (f.has(layer::kVariance)) ref.variance = f.layer(layer::kVariance);

@@ -13,11 +13,11 @@
 namespace dnb::experiment {
 
 // THE hook where the experiment reads an input frame (or a reference) from a file a config
-// names: the config check, the input cells and the method cells all read through it. Today it
-// reads the harness's own AOV frame file (read_frame, DESIGN.md "AOV frame file"; its edge file
-// when the header names one). Other renderers' files (`input_format = "cycles" | "pbrt" | ...`,
-// issue 26) are converted here, and nowhere else. InputError naming the file.
-AovFrame read_input_frame(const std::string& path);
+// names: the config check, the input cells and the method cells all read through it. `format` is
+// interop/import.h's --input-format (`input_format` in the config: "auto" reads the harness's own
+// frames natively and recognises Cycles, pbrt-v4 and Mitsuba 3 files; a preset; map:FILE.toml);
+// `spp` > 0 is the frame's sample count over any the file records. InputError naming the file.
+AovFrame read_input_frame(const std::string& path, const std::string& format = "auto", int spp = 0);
 
 // What the cells of a file scene are keyed by (core/hash.h): the SHA-256 of the frame's bytes,
 // and of its edge file's bytes when it has one (edges_path), so that editing either reruns them.
@@ -25,6 +25,6 @@ std::string frame_file_hash(const std::string& path);
 
 // A reference read from a file through read_input_frame: R,G,B, the variance of the mean when
 // the file has variance.R/G/B (empty otherwise: mse_converged is then n/a), metadata, and `path`.
-Reference file_reference(const std::string& path);
+Reference file_reference(const std::string& path, const std::string& format = "auto");
 
 }  // namespace dnb::experiment

@@ -105,7 +105,7 @@ SceneCells rendered_scene_cells(const ExperimentConfig& c, const RunOptions& opt
 // records them (0 otherwise), no seed, no cache.
 SceneCells file_scene_cells(const RunOptions& opt, const SceneSpec& spec, Reference& ref) {
   spdlog::info("{}: frame '{}', reference '{}'", spec.name, spec.files->frame, spec.files->reference);
-  ref = file_reference(spec.files->reference);
+  ref = file_reference(spec.files->reference, spec.files->input_format);
   SceneCells s = scene_cells(opt.out_dir, spec.name, ref);
   s.scene_hash = sha256_hex("frame=" + spec.files->frame_hash + "\nreference=" + spec.files->reference_hash + "\n");
   s.reference_info.spp = ref.meta.spp;
@@ -133,7 +133,9 @@ class InputFrame {
   explicit InputFrame(const SceneSpec& spec)
       : identity_{{"input_file", spec.files->frame_hash}, {"reference_file", spec.files->reference_hash}, {"scene", spec.name}},
         from_file_(true) {
-    load_ = [path = spec.files->frame](bool*) { return std::pair(read_input_frame(path), path); };
+    load_ = [files = *spec.files](bool*) {
+      return std::pair(read_input_frame(files.frame, files.input_format, files.spp), files.frame);
+    };
   }
   const json& identity() const { return identity_; }
   const AovFrame& get() {

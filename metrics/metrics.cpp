@@ -187,7 +187,7 @@ const std::vector<MetricInfo>& all_metrics() {
       {"hdrflip",
        "mean HDR-FLIP (Andersson et al. 2021) of the linear radiance: LDR-FLIP's largest error over ACES-tone-mapped "
        "exposures, the range from the reference; 67 pixels per degree",
-       true, [](const Image& a, const Image& b, const Image*) { return hdrflip(a, b); }},
+       true, [](const Image& a, const Image& b, const Image*) { return hdrflip(a, b); }, true},
       {"mse_converged",
        "8-bit mse over the pixels whose reference has converged (relative standard error at most 1/2: "
        "more than about 4 samples carry the pixel); n/a without the reference's variance",

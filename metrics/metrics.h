@@ -36,7 +36,7 @@ struct MetricInfo {
   // `reference_variance`: the reference's per-pixel variance of the mean (3 channels), or null
   // where it is not known; only mse_converged uses it (its value is NaN without it).
   std::function<MetricResult(const Image& image, const Image& reference, const Image* reference_variance)> fn;
-  // True for the metrics of linear radiance (mse_hdr, relmse): an 8-bit file (PNG, JPEG) holds
+  // True for the metrics of linear radiance (mse_hdr, relmse, hdrflip): an 8-bit file (PNG, JPEG) holds
   // display values clipped to [0, 1], so those metrics would measure the clipping, not the image.
   bool needs_linear = false;
 

@@ -156,6 +156,8 @@ ScoreOutcome score(const ScoreRequest& q) {
       throw InputError(fmt::format("'{}': {}", q.reference, e.what()));
     }
   }
+  if (std::find(out.metrics.begin(), out.metrics.end(), "hdrflip") != out.metrics.end())
+    out.hdrflip_exposures = hdrflip_exposures(ref.rgb);
   // Error-map file names: the image's stem, numbered when two images share one.
   std::map<std::string, int> stem_count;
   for (const auto& p : q.images) ++stem_count[fs::path(p).stem().string()];
@@ -171,6 +173,7 @@ ScoreOutcome score(const ScoreRequest& q) {
       const MetricInfo& m = metric(name);
       MetricResult r = m.compute(im.rgb, ref.rgb, variance);
       row.values.emplace_back(name, r.value);
+      if (name == "flip" || name == "hdrflip") row.pooled[name] = pool_flip(r.map);
       if (q.error_maps_dir.empty() || r.map.empty()) continue;
       const std::string base = (fs::path(q.error_maps_dir) / (stem + "." + name)).string();
       Image grey(r.map.width(), r.map.height(), 3);

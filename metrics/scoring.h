@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "metrics/metrics.h"
 
 namespace dnb::metrics {
 
@@ -45,6 +46,7 @@ struct ImageScore {
   std::string image;
   std::vector<std::pair<std::string, double>> values;  // the chosen metrics in order; NaN: n/a
   std::vector<std::string> maps;                       // files written under error_maps_dir
+  std::map<std::string, FlipPooled> pooled;            // flip, hdrflip: FLIP's tool's pooled statistics
 };
 
 struct ScoreOutcome {
@@ -53,6 +55,7 @@ struct ScoreOutcome {
   bool reference_has_variance = false;
   double reference_unconverged_share = 0;
   std::vector<std::string> notes;    // what the user should know (8-bit inputs, metrics left out)
+  std::optional<HdrFlipExposures> hdrflip_exposures;  // when hdrflip is scored: the reference's range
 };
 
 // InputError (exit 2) for an unknown metric, a linear metric on an 8-bit input without

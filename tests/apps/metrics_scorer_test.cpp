@@ -166,5 +166,26 @@ TEST(MetricsScorer, ErrorMapsAsExrAndFalseColourPngAndLayerPicksAPrefix) {
   EXPECT_THAT(bad.output, HasSubstr("denoised"));
 }
 
+TEST(MetricsScorer, FlipsPooledStatisticsAndHdrFlipsExposureRange) {
+  test::TempDir dir;
+  write_rgb(gradient(16, 12, 4.0f), dir.file("ref.exr"));  // HDR: values up to 4
+  write_rgb(gradient(16, 12, 3.0f), dir.file("a.exr"));
+  auto r = test::run_denoisebench_stdout("metrics --json " + dir.file("a.exr") + " --ref " + dir.file("ref.exr") +
+                                         " --metric flip --metric hdrflip");
+  ASSERT_EQ(r.exit_code, 0) << r.errors;
+  const auto j = nlohmann::json::parse(r.output);
+  for (const char* m : {"flip", "hdrflip"}) {
+    const auto& p = j[std::string(m) + "_pooled"];
+    // The pooled mean is the score, to the float rounding of the map it is pooled from.
+    EXPECT_NEAR(p["mean"].get<double>(), j[m].get<double>(), 1e-6 * j[m].get<double>()) << m;
+    EXPECT_LE(p["min"].get<double>(), p["weighted_first_quartile"].get<double>()) << m;
+    EXPECT_LE(p["weighted_first_quartile"].get<double>(), p["weighted_median"].get<double>()) << m;
+    EXPECT_LE(p["weighted_median"].get<double>(), p["weighted_third_quartile"].get<double>()) << m;
+    EXPECT_LE(p["weighted_third_quartile"].get<double>(), p["max"].get<double>()) << m;
+  }
+  EXPECT_GE(j["hdrflip_exposures"]["count"].get<int>(), 2);
+  EXPECT_LT(j["hdrflip_exposures"]["start"].get<double>(), j["hdrflip_exposures"]["stop"].get<double>());
+}
+
 }  // namespace
 }  // namespace dnb

@@ -371,3 +371,39 @@ TEST(MitsubaImport, ARealAovRenderImportsAndDenoises) {
 
 }  // namespace
 }  // namespace dnb
+
+namespace dnb {
+namespace {
+
+// A whole table from another renderer's renders: a Cycles frame and a Cycles reference named in
+// an experiment config, read through the preset.
+TEST(ImportCommand, AnExperimentConfigScoresCyclesFilesAgainstACyclesReference) {
+  test::TempDir dir;
+  test::write_exr(dir.file("in.exr"), kW, kH, cycles_channels("ViewLayer", false), {{"cycles.ViewLayer.samples", "32"}});
+  // The reference: the same passes, another "seed" (other values), far more samples.
+  auto ref = cycles_channels("ViewLayer", true);
+  test::write_exr(dir.file("ref.exr"), kW, kH, ref, {{"cycles.ViewLayer.samples", "4096"}});
+  test::write(dir.file("exp.toml"),
+              "input_format = \"cycles\"\nmethods = [\"bilateral\", \"proposed\"]\n[[scene]]\nframe = \"in.exr\"\n"
+              "reference = \"ref.exr\"\nlabel = \"cycles-box\"\n");
+  auto r = test::run_denoisebench("run " + dir.file("exp.toml") + " -o " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto doc = nlohmann::json::parse(test::slurp(dir.file("out/results.json")));
+  int methods = 0;
+  for (const auto& rec : doc["records"]) {
+    EXPECT_EQ(rec["scene"], "cycles-box");
+    EXPECT_EQ(rec["spp"], 32);  // cycles.ViewLayer.samples
+    if (rec["role"] != "method") continue;
+    ++methods;
+    EXPECT_TRUE(rec["metrics"]["mse"].is_number()) << rec.dump();
+  }
+  EXPECT_EQ(methods, 2);
+  // A format that does not exist is refused naming the key.
+  test::write(dir.file("bad.toml"), "input_format = \"blender\"\nmethods = [\"bilateral\"]\n[[scene]]\nframe = \"in.exr\"\nreference = \"ref.exr\"\n");
+  r = test::run_denoisebench("run " + dir.file("bad.toml") + " -o " + dir.file("out2"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("input_format"));
+}
+
+}  // namespace
+}  // namespace dnb
