@@ -61,7 +61,9 @@ void add_import(CLI::App& app, Action& action) {
       for (const auto& [l, how] : r.kept) fmt::print("  kept      {:<18} <- {}\n", l, how);
       for (const auto& [l, why] : r.left_out) fmt::print("  left out  {:<18} {}\n", l, why);
       if (!r.unmapped.empty()) fmt::print("  unused channels   {}\n", fmt::join(r.unmapped, ", "));
-      fmt::print("  spp       {}\n", r.spp > 0 ? fmt::format("{} (from {})", r.spp, r.spp_source) : std::string("unknown (give --spp N)"));
+      fmt::print("  spp       {}\n", r.spp > 0 ? fmt::format("{} (from {})", r.spp, r.spp_source)
+                                       : std::string("unknown (give --spp N: methods whose settings follow the sample count "
+                                                     "would use their 256-spp defaults, and say so)"));
       if (r.composition_rel_rms)
         fmt::print("  check     (D + I) * T + R + E = colour to {:.3g} relative RMS\n", *r.composition_rel_rms);
       for (const auto& w : r.warnings) fmt::print("  warning   {}\n", w);

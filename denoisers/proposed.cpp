@@ -99,24 +99,59 @@ class Proposed final : public Method {
     if (!filter_color_ && !absent.empty() && !f.has(layer::kColor))
       throw InputError(fmt::format("the frame has neither the illumination split (no {}) nor a colour layer (R, G, B)",
                                    fmt::join(absent, ", ")));
-    if (!filter_color_ && !absent.empty())
-      spdlog::warn("proposed: the frame has no {} layer{}: filtering its colour instead of the direct/indirect split "
-                   "(as filter_color = true)",
-                   fmt::format("{}", fmt::join(absent, ", ")), absent.size() > 1 ? "s" : "");
     r.stats.counters["illumination_split"] = (!filter_color_ && absent.empty()) ? 1 : 0;
-    if (filter_color_ || !absent.empty()) {
+    r.stats.counters["albedo_demodulated"] = 0;
+    AovFrame demodulated;
+    const AovFrame* frame = &f;
+    if (!filter_color_ && !absent.empty()) {
+      if (!f.has(layer::kAlbedo)) {
+        spdlog::warn("proposed: the frame has no {} layer{} and no albedo: filtering its colour (as filter_color = true)",
+                     fmt::format("{}", fmt::join(absent, ", ")), absent.size() > 1 ? "s" : "");
+      } else {
+        // Another renderer's frame with an albedo but no direct/indirect split (pbrt-v4, Mitsuba 3):
+        // the untextured light is the colour over the albedo, F = L * T, filtered as the paper
+        // filters D + I; what no albedo carries (emitters, the background) stays as R, unfiltered.
+        spdlog::warn("proposed: the frame has no {} layer{}: filtering the colour demodulated by the albedo (F / T)",
+                     fmt::format("{}", fmt::join(absent, ", ")), absent.size() > 1 ? "s" : "");
+        demodulated = demodulate(f);
+        frame = &demodulated;
+        r.stats.counters["albedo_demodulated"] = 1;
+      }
+    }
+    if (filter_color_ || (!absent.empty() && frame == &f)) {
       const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
       r.image = filter_layer(f, 0, f.layer(layer::kColor), depth, plan.sigma_nlm, plan.am, r.stats, nullptr).image;
       return r;
     }
-    plan_levels(f, plan, r.stats);
+    const AovFrame& fs = *frame;
+    plan_levels(fs, plan, r.stats);
     plan.jobs.insert(plan.jobs.begin(), plan.tint_jobs.begin(), plan.tint_jobs.end());
     run_jobs(r.stats, plan.jobs);
-    r.image = compose_levels(f, plan, r.stats);
+    r.image = compose_levels(fs, plan, r.stats);
     return r;
   }
 
  private:
+  // F = (D + I) * T + R + E for a frame that has only F and T: I = F / T where the albedo is
+  // at least kMinAlbedo, D = E = 0, and R the rest (F where the albedo is below it).
+  static constexpr float kMinAlbedo = 1e-3f;
+  static AovFrame demodulate(const AovFrame& f) {
+    AovFrame d(f.width(), f.height());
+    d.meta = f.meta;
+    for (const char* l : {layer::kColor, layer::kAlbedo, layer::kNormal, layer::kDepth}) d.set(l, f.layer(l));
+    const Image& c = f.layer(layer::kColor);
+    const Image& t = f.layer(layer::kAlbedo);
+    Image& ind = d.add(layer::kIndirect, 3);
+    Image& refl = d.add(layer::kReflection, 3);
+    d.add(layer::kDirect, 3);
+    d.add(layer::kEmission, 3);
+    for (std::size_t k = 0; k < c.size(); ++k) {
+      if (t.data()[k] >= kMinAlbedo) ind.data()[k] = c.data()[k] / t.data()[k];
+      else refl.data()[k] = c.data()[k];
+    }
+    return d;
+  }
+
   // smooth_tint's same-surface test: unit normals within 0.1 (about 6 degrees) and depths
   // within 1% of the median depth. A coated surface's expected tint (its Fresnel term) changes
   // slowly within such a neighbourhood; across a crease or a silhouette the test fails.

@@ -294,9 +294,6 @@ Imported import_channels(const ExrChannels& ch, const std::string& path, const I
           "mapped pass carries (volume, background or unlisted passes); methods that filter the split will miss it",
           *rep.composition_rel_rms));
   }
-  if (rep.spp <= 0)
-    rep.warnings.push_back("the frame's sample count is unknown (no --spp and no sample-count attribute): methods whose "
-                           "settings follow the sample count will use their 256-spp defaults and say so");
   frame.meta.spp = rep.spp;
   frame.meta.scene = "";
   frame.meta.extra["import.format"] = m.name;
