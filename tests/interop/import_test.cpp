@@ -121,6 +121,25 @@ TEST(CyclesImport, WithoutGlossTheSplitDoesNotAddUpAndSaysSo) {
   EXPECT_THAT(im.report.warnings[0], HasSubstr("differs from the colour"));
 }
 
+// A Cycles file without light passes but with the denoising data: Combined, and the denoiser's
+// albedo, camera-space normal and mean depth stand in.
+TEST(CyclesImport, WithoutLightPassesTheDenoisingDataServe) {
+  test::TempDir dir;
+  test::Channels ch;
+  for (const char* c : {"R", "G", "B"}) ch.emplace_back(std::string("ViewLayer.Combined.") + c, plane(7));
+  for (const char* c : {"R", "G", "B"}) ch.emplace_back(std::string("ViewLayer.Denoising Albedo.") + c, plane(8));
+  for (const char* c : {"X", "Y", "Z"}) ch.emplace_back(std::string("ViewLayer.Denoising Normal.") + c, plane(9, -1, 1));
+  ch.emplace_back("ViewLayer.Denoising Depth.Z", plane(10, 1, 3));
+  test::write_exr(dir.file("c.exr"), kW, kH, ch);
+  const auto im = interop::import_frame(dir.file("c.exr"), interop::preset("cycles"), {.spp = 16});
+  EXPECT_EQ(im.frame.layer("albedo").data()[4], channel(ch, "ViewLayer.Denoising Albedo.G")[1]);
+  EXPECT_EQ(im.frame.meta.extra.at("import.normal_space"), "camera");
+  EXPECT_EQ(im.frame.layer("depth").data()[2], channel(ch, "ViewLayer.Denoising Depth.Z")[2]);
+  std::vector<std::string> left;
+  for (const auto& [l, why] : im.report.left_out) left.push_back(l);
+  EXPECT_THAT(left, ::testing::ElementsAre("direct", "emission", "indirect", "reflection"));
+}
+
 TEST(CyclesImport, TwoViewLayersNeedAChoice) {
   test::TempDir dir;
   auto ch = cycles_channels("A", false);
