@@ -18,4 +18,20 @@ double relative_std(const std::vector<double>& v);
 // values or a minimum that is not positive.
 double max_over_min_minus_one(const std::vector<double>& v);
 
+// A two-sided confidence interval for the mean of independent values (one per input seed):
+// Student's t-interval, mean +- t_{1 - a/2, n - 1} s / sqrt(n) with the sample standard
+// deviation s. `half_width` is NaN for fewer than two values (no interval from one seed).
+struct Interval {
+  double mean = 0;
+  double half_width = 0;
+  int n = 0;
+};
+Interval t_interval(const std::vector<double>& v, double confidence = 0.95);
+
+// The two-sided p-value of the paired t-test that a and b (one pair per seed, same order) have
+// the same mean: t = mean(d) / (s_d / sqrt(n)) for d = a - b, n - 1 degrees of freedom. NaN for
+// fewer than two pairs or unequal lengths; 0 when every difference is the same non-zero value
+// (no spread: the difference is certain), 1 when every difference is zero.
+double paired_t_test_p(const std::vector<double>& a, const std::vector<double>& b);
+
 }  // namespace dnb::stats

@@ -67,7 +67,7 @@ namespace {
 CellRecord base_record(const CellPlan& plan, const SceneCells& scene) {
   CellRecord r;
   std::tie(r.scene, r.scene_hash, r.method, r.role) = std::tie(scene.scene, scene.scene_hash, plan.method, plan.role);
-  std::tie(r.spp, r.width, r.height, r.seed) = std::tuple(plan.spp, scene.width, scene.height, scene.seed);
+  std::tie(r.spp, r.width, r.height, r.seed) = std::tuple(plan.spp, scene.width, scene.height, plan.seed ? plan.seed : scene.seed);
   r.reference = scene.reference_info;
   r.base_method = plan.base_method;
   r.kind = plan.kind;

@@ -70,6 +70,8 @@ struct CellPlan {
   // files[] names a finished record must have to be reused (besides every file it names existing):
   // an input record of an older build, without its frame, is computed again to keep the frame.
   std::vector<std::string> required_files = {"image"};
+  // The inputs' seed of this cell, when the run has several (else the scene's).
+  std::optional<std::uint64_t> seed;
 };
 
 // Where every cell goes.

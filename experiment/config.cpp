@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <set>
 #include <tuple>
 
@@ -201,7 +202,7 @@ bool any_rendered(const ExperimentConfig& c) {
 // Keys that only set up renders have no effect when every scene is read from files: an error,
 // not silence.
 void refuse_render_keys(const ConfigTable& root) {
-  for (const char* key : {"width", "height", "seed", "max_depth", "spp", "reference", "speedup"})
+  for (const char* key : {"width", "height", "seed", "seeds", "max_depth", "spp", "reference", "speedup"})
     if (root.contains(key))
       throw InputError(fmt::format("{}: sets up rendered scenes, and every scene of this config is read from files "
                                    "([[scene]] frame = ...): remove it",
@@ -221,7 +222,19 @@ ExperimentConfig load_config(const std::string& path) {
   if (std::int64_t(c.width) * c.height > bounds::kMaxPixels)
     throw InputError(fmt::format("{}: {}x{} is more than {} pixels ({})", root.where("height"), c.width, c.height,
                                  bounds::kMaxPixels, bounds::kSide.why));
+  if (root.contains("seed") && root.contains("seeds"))
+    throw InputError(fmt::format("{}: give `seed` or `seeds`, not both", root.where("seeds")));
   c.seed = std::uint64_t(root.get("seed", std::int64_t(c.seed), bounds::kSeed));
+  c.seeds = {c.seed};
+  if (root.contains("seeds")) {
+    const auto list = root.get("seeds", std::vector<int>{}, Bound{0, std::numeric_limits<int>::max(), "seeds are non-negative"});
+    if (list.empty()) throw InputError(fmt::format("{}: expected a non-empty list of seeds", root.where("seeds")));
+    c.seeds.assign(list.begin(), list.end());
+    std::set<std::uint64_t> seen;
+    for (auto s : c.seeds)
+      if (!seen.insert(s).second) throw InputError(fmt::format("{}: seed {} is listed twice", root.where("seeds"), s));
+    c.seed = c.seeds.front();
+  }
   c.max_depth = root.get("max_depth", c.max_depth, bounds::kMaxDepth);
   c.threads = root.get("threads", c.threads, bounds::kThreads);
   read_scenes(root, c);
@@ -238,6 +251,11 @@ ExperimentConfig load_config(const std::string& path) {
   }
   load_plugins(c.plugins);
   read_sections(root, c);
+  // The reference's samples must be independent of every input's.
+  if (std::find(c.seeds.begin(), c.seeds.end(), c.reference_seed) != c.seeds.end())
+    throw InputError(fmt::format("{}: the reference's seed {} is also an input seed: a reference must not share an input's "
+                                 "samples (choose another [reference] seed)",
+                                 path, c.reference_seed));
   read_methods(root, c);
   root.finish();
   // Validate every method's parameters now, not an hour into the run.
@@ -252,6 +270,7 @@ RunConfig ExperimentConfig::recorded() const {
   r.width = width;
   r.height = height;
   r.seed = seed;
+  r.seeds = seeds;
   r.reference_spp = reference_spp;
   r.spp = spp;
   r.plain_spp = plain_spp;

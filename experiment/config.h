@@ -65,7 +65,8 @@ struct ExperimentConfig {
   std::string path;
   std::string name;
   int width = 256, height = 192;
-  std::uint64_t seed = 1;
+  std::uint64_t seed = 1;                  // the first of `seeds` (the plain path-tracing curve's)
+  std::vector<std::uint64_t> seeds = {1};  // input seeds: every input and method cell once per seed
   std::uint64_t reference_seed = 1000003;  // independent of the inputs' samples
   std::vector<SceneSpec> scenes;      // `scenes` then every [[scene]], config order
   std::vector<int> spp;               // input spp of the rendered scenes (empty when there are none)

@@ -17,6 +17,8 @@
 #pragma once
 
 #include <optional>
+#include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -45,6 +47,11 @@ PowerFit fit_power_law(const std::vector<double>& x, const std::vector<double>& 
 
 // The tables of a results document (pure: used by the report and by the tests).
 Table table1(const ResultsDocument& results, const std::string& metric);
+// Of a row's cells (each: input seed -> value), the index of the best by its mean when it is
+// significantly better than the runner-up's by a paired t-test over the seeds both have
+// (two-sided p < alpha); -1 when no cell has two seeds, the two tie, or the test does not say so.
+int significantly_best(const std::vector<std::map<std::uint64_t, double>>& cells, bool lower_is_better,
+                       double alpha = 0.05);
 Table table2(const ResultsDocument& results);
 // The run's failed cells with their reasons (no rows when none failed).
 Table failures_table(const ResultsDocument& results);

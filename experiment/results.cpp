@@ -191,6 +191,7 @@ json config_json(const RunConfig& c) {
               {"irradiance_cache", c.table2.irradiance_cache}}},
             {"methods", methods}};
   if (!c.scene_files.empty()) j["scene_files"] = scene_files_json(c.scene_files);  // only configs that have them
+  if (c.seeds.size() > 1) j["seeds"] = c.seeds;  // only configs of several seeds: one-seed files read as before
   return j;
 }
 
@@ -203,6 +204,7 @@ RunConfig config_from_json(const json& j, const std::string& where) {
   c.width = jf::get_or<int>(j, "width", 0, where);
   c.height = jf::get_or<int>(j, "height", 0, where);
   c.seed = jf::get_or<std::uint64_t>(j, "seed", 0, where);
+  c.seeds = jf::get_or<std::vector<std::uint64_t>>(j, "seeds", {c.seed}, where);
   c.reference_spp = jf::get_or<int>(j, "reference_spp", 0, where);
   c.spp = jf::get_or<std::vector<int>>(j, "spp", {}, where);
   c.plain_spp = jf::get_or<std::vector<int>>(j, "plain_spp", {}, where);
@@ -290,6 +292,14 @@ const FailedCell* ResultsDocument::failure(const std::string& scene, const std::
   for (const auto& f : failures)
     if (f.scene == scene && f.method == method && f.spp == spp) return &f;
   return nullptr;
+}
+
+std::vector<const CellRecord*> ResultsDocument::find_all(const std::string& scene, const std::string& method, int spp) const {
+  std::vector<const CellRecord*> out;
+  for (const auto& r : records)
+    if (r.scene == scene && r.method == method && r.spp == spp) out.push_back(&r);
+  std::stable_sort(out.begin(), out.end(), [](const CellRecord* a, const CellRecord* b) { return a->seed < b->seed; });
+  return out;
 }
 
 const CellRecord* ResultsDocument::find(const std::string& scene, const std::string& method, int spp) const {

@@ -89,6 +89,7 @@ struct RunConfig {
   std::string path, name;
   int width = 0, height = 0;
   std::uint64_t seed = 0;
+  std::vector<std::uint64_t> seeds;  // the inputs' seeds (several: Table 1 gives intervals); [seed] when one
   int reference_spp = 0;
   std::vector<int> spp, plain_spp;
   std::vector<std::string> scenes;  // every scene's name, config order (file scenes by label)
@@ -178,6 +179,8 @@ struct ResultsDocument {
   int table_spp() const;                    // the input spp the tables are drawn for: the first
   std::vector<std::string> methods(Role role) const;  // names in record order
   const CellRecord* find(const std::string& scene, const std::string& method, int spp) const;
+  // Every seed's record of the cell, in seed order of the records (one per input seed).
+  std::vector<const CellRecord*> find_all(const std::string& scene, const std::string& method, int spp) const;
   const FailedCell* failure(const std::string& scene, const std::string& method, int spp) const;
   const SkippedCell* skip(const std::string& scene, const std::string& method, int spp) const;
 

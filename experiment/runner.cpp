@@ -46,10 +46,10 @@ std::vector<double> time_method(Method& method, const MethodInput& input, int re
 
 namespace {
 
-RenderSettings input_settings(const ExperimentConfig& c, int spp) {
+RenderSettings input_settings(const ExperimentConfig& c, int spp, std::uint64_t seed) {
   RenderSettings s;
   std::tie(s.width, s.height, s.spp, s.seed, s.threads, s.max_depth) =
-      std::tuple(c.width, c.height, spp, c.seed, c.threads, c.max_depth);
+      std::tuple(c.width, c.height, spp, seed, c.threads, c.max_depth);
   return s;
 }
 
@@ -172,7 +172,7 @@ CellPlan plain_cell(const ExperimentConfig& c, const Scene& scene, const std::st
   p.compute = [&c, &scene, spp] {
     Stopwatch w;
     CellOutput out;
-    out.image = render_color_sums(scene, input_settings(c, spp), 0, spp).mean();
+    out.image = render_color_sums(scene, input_settings(c, spp, c.seed), 0, spp).mean();
     const double t = w.seconds();
     out.times.input_render = out.times.total = t;
     return out;
@@ -260,11 +260,20 @@ void run_rendered_scene(const ExperimentConfig& c, const RunOptions& opt, Cache&
   Reference ref;
   const SceneCells cells = rendered_scene_cells(c, opt, cache, *scene, name, ref);
   for (int spp : c.plain_spp) run_cell(plain_cell(c, *scene, cells.scene_hash, spp), cells, context);
-  for (int spp : c.spp) {
-    InputFrame frame(cache, *scene, input_settings(c, spp), opt.use_cache, c.reference_spp);
-    run_cell(input_cell(frame, spp), cells, context);
-    for (const auto& m : c.methods) run_cell(method_cell(c, m, scene.get(), frame, spp), cells, context);
-  }
+  // Every input seed gives its own input and method cells (Table 1's intervals are over them).
+  // With one seed the stems are the same as before seeds existed; with several, "_s<seed>" is added.
+  for (int spp : c.spp)
+    for (std::uint64_t seed : c.seeds) {
+      InputFrame frame(cache, *scene, input_settings(c, spp, seed), opt.use_cache, c.reference_spp);
+      const std::string suffix = c.seeds.size() > 1 ? fmt::format("_s{}", seed) : "";
+      auto seeded = [&](CellPlan p) {
+        p.seed = seed;
+        p.stem += suffix;
+        return p;
+      };
+      run_cell(seeded(input_cell(frame, spp)), cells, context);
+      for (const auto& m : c.methods) run_cell(seeded(method_cell(c, m, scene.get(), frame, spp)), cells, context);
+    }
 }
 
 // Every cell of a scene read from files: the input (the frame, at its spp) and every filter on
@@ -300,7 +309,8 @@ ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt)
   const std::int64_t methods = std::int64_t(c.methods.size());
   std::int64_t cells = 0;
   for (const auto& s : c.scenes)
-    cells += s.files ? methods + 1 : std::int64_t(c.spp.size()) * (methods + 1) + std::int64_t(c.plain_spp.size());
+    cells += s.files ? methods + 1
+                     : std::int64_t(c.spp.size() * c.seeds.size()) * (methods + 1) + std::int64_t(c.plain_spp.size());
   Progress progress("experiment " + c.name, cells, "cells", 0.0);
   const CellContext context{opt.out_dir, &store, &progress};
 

@@ -3,11 +3,13 @@
 // the document.
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <set>
 
 #include <fmt/format.h>
 
 #include "core/csv.h"
+#include "core/stats.h"
 #include "experiment/report.h"
 #include "metrics/metrics.h"
 
@@ -44,6 +46,10 @@ std::string Table::latex() const {
     for (char ch : s) {
       if (ch == '_' || ch == '%' || ch == '&' || ch == '#') o += '\\';
       o += ch;
+    }
+    for (std::size_t at = 0; (at = o.find("±", at)) != std::string::npos;) {
+      o.replace(at, std::string("±").size(), "$\\pm$");
+      at += 5;
     }
     return o;
   };
@@ -96,6 +102,51 @@ std::optional<double> metric_of(const CellRecord* r, const std::string& metric) 
   return r ? r->metric(metric) : std::nullopt;
 }
 
+// A cell's metric over its seeds: seed -> value (the seeds whose record has the metric).
+std::map<std::uint64_t, double> seed_values(const ResultsDocument& res, const std::string& scene, const std::string& method,
+                                            int spp, const std::string& metric) {
+  std::map<std::uint64_t, double> out;
+  for (const CellRecord* r : res.find_all(scene, method, spp))
+    if (auto v = r->metric(metric)) out[r->seed.value_or(0)] = *v;
+  return out;
+}
+
+std::vector<double> values_of(const std::map<std::uint64_t, double>& m) {
+  std::vector<double> v;
+  for (const auto& [seed, x] : m) v.push_back(x);
+  return v;
+}
+
+// One seed: the value; several: the mean and its 95% t-interval's half width.
+std::string format_interval(const std::map<std::uint64_t, double>& m) {
+  if (m.empty()) return "n/a";
+  if (m.size() == 1) return format_metric(m.begin()->second);
+  const stats::Interval i = stats::t_interval(values_of(m));
+  return fmt::format("{:.4g} ± {:.2g}", i.mean, i.half_width);
+}
+
+}  // namespace
+
+int significantly_best(const std::vector<std::map<std::uint64_t, double>>& cells, bool lower_is_better, double alpha) {
+  // Rank the cells of at least two seeds by their mean.
+  std::vector<std::pair<double, int>> ranked;
+  for (std::size_t k = 0; k < cells.size(); ++k)
+    if (cells[k].size() >= 2) ranked.emplace_back(stats::mean(values_of(cells[k])), int(k));
+  if (ranked.size() < 2) return -1;
+  std::sort(ranked.begin(), ranked.end());
+  if (!lower_is_better) std::reverse(ranked.begin(), ranked.end());
+  const auto& best = cells[std::size_t(ranked[0].second)];
+  const auto& next = cells[std::size_t(ranked[1].second)];
+  // Paired over the seeds both have.
+  std::vector<double> a, b;
+  for (const auto& [seed, v] : best)
+    if (auto it = next.find(seed); it != next.end()) a.push_back(v), b.push_back(it->second);
+  const double p = stats::paired_t_test_p(a, b);
+  return std::isfinite(p) && p < alpha && ranked[0].first != ranked[1].first ? ranked[0].second : -1;
+}
+
+namespace {
+
 // The share of the scene's reference pixels mse_converged leaves out, as the run recorded it.
 std::string unconverged_cell(const ResultsDocument& res, const std::string& scene) {
   for (const auto& r : res.records)
@@ -124,19 +175,28 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
   t.header = {"scene"};
   for (const auto& m : methods) t.header.push_back(m);
   t.header.push_back(fmt::format("input ({} spp)", spp));
+  const auto& info = metrics::metric(metric);
+  bool several = false;
   for (const auto& s : res.scenes()) {
     std::vector<std::string> row{s};
-    for (const auto& m : methods)
-      row.push_back(res.failure(s, m, spp) ? "failed"
-                    : res.skip(s, m, spp)  ? "skipped"
-                                           : format_metric(metric_of(res.find(s, m, spp), metric)));
-    row.push_back(format_metric(metric_of(res.find(s, "input", spp), metric)));
+    std::vector<std::map<std::uint64_t, double>> vals;
+    for (const auto& m : methods) {
+      vals.push_back(seed_values(res, s, m, spp, metric));
+      several = several || vals.back().size() > 1;
+      row.push_back(res.failure(s, m, spp) ? "failed" : res.skip(s, m, spp) ? "skipped" : format_interval(vals.back()));
+    }
+    if (const int best = significantly_best(vals, info.lower_is_better); best >= 0) row[std::size_t(best) + 1] += " *";
+    row.push_back(format_interval(seed_values(res, s, "input", spp, metric)));
     if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
     t.rows.push_back(row);
   }
   if (metric == "mse_converged") t.header.push_back("reference pixels left out");
-  const auto& info = metrics::metric(metric);
-  t.note = fmt::format("{}; {} is better. From results.json.{}{}", info.description, info.lower_is_better ? "lower" : "higher",
+  t.note = fmt::format("{}; {} is better. From results.json.{}{}{}", info.description, info.lower_is_better ? "lower" : "higher",
+                       several ? fmt::format(" Several input seeds: mean ± the half width of its 95% t-interval over the seeds; "
+                                            "*: the best method of the row, {} than the runner-up by a paired t-test over the "
+                                            "seeds (two-sided, p < 0.05); no * where the difference is not significant.",
+                                            info.lower_is_better ? "significantly lower" : "significantly higher")
+                               : std::string(),
                        res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).",
                        res.skipped.empty() ? "" : " skipped: the method renders the scene, and that scene was read from files.");
   return t;
@@ -164,18 +224,27 @@ Table ratio_table(const ResultsDocument& res, const std::string& method) {
   t.header = {"scene", "metric"};
   for (const auto& m : others) t.header.push_back(m);
   for (const auto& s : res.scenes()) {
-    const CellRecord* p = res.find(s, method, spp);
     for (const char* metric : {"mse", "mse_converged"}) {
       std::vector<std::string> row{s, metric};
+      const auto a = seed_values(res, s, method, spp, metric);
       for (const auto& m : others) {
-        const auto a = metric_of(p, metric), b = metric_of(res.find(s, m, spp), metric);
-        row.push_back(a && b && *b > 0 ? fmt::format("{:.2f}", *a / *b) : "n/a");
+        // The ratio per seed (both on the same input frame), then its mean and interval.
+        std::vector<double> ratios;
+        for (const auto& [seed, v] : seed_values(res, s, m, spp, metric))
+          if (auto it = a.find(seed); it != a.end() && v > 0) ratios.push_back(it->second / v);
+        if (ratios.empty()) row.push_back("n/a");
+        else if (ratios.size() == 1) row.push_back(fmt::format("{:.2f}", ratios[0]));
+        else {
+          const stats::Interval i = stats::t_interval(ratios);
+          row.push_back(fmt::format("{:.2f} ± {:.2f}", i.mean, i.half_width));
+        }
       }
       t.rows.push_back(row);
     }
   }
   t.note = fmt::format("Below 1: {} has the lower error. mse_converged leaves out the reference's unconverged "
-                       "pixels (Table 1, mse_converged). From results.json.",
+                       "pixels (Table 1, mse_converged). With several input seeds: the mean of the per-seed ratios ± "
+                       "the half width of their 95% t-interval. From results.json.",
                        method);
   return t;
 }
