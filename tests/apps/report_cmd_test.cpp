@@ -3,9 +3,15 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "test_util.h"
 
@@ -66,6 +72,75 @@ TEST_F(ReportTables, RatiosAndTheConvergedMseComeFromTheResults) {
   EXPECT_THAT(t1, HasSubstr("| cornell-box | 4 | 40 | 90 | 1.250% |"));
   EXPECT_THAT(t1, HasSubstr("| bedroom | n/a | n/a | n/a | n/a |"));
   EXPECT_THAT(slurp(dir.path() / "index.html"), HasSubstr("Ratios: proposed"));
+}
+
+// Every metric table puts each record's own number in its own cell (issue 28, point 6). The
+// fixture's metrics repeat across rows and columns (ssim is 0.9 everywhere), so a swap goes
+// unseen there; here every metric of every record gets a value of its own, 0.KSM (K the
+// metric's position, S the scene's, M the method's: three digits, printed exactly by the
+// tables' 4 significant digits), and every cell of every table1_<metric>.md is checked against
+// the record of its row's scene and its column's method.
+TEST(ReportCommand, EveryMetricTableCellIsItsRecordsValue) {
+  test::TempDir dir;
+  auto res = nlohmann::json::parse(slurp(fs::path(test::source_dir()) / "tests/apps/data/report_results.json"));
+  const std::vector<std::string> metrics = {"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip", "hdrflip", "mse_converged"};
+  const std::vector<std::string> scenes = {"cornell-box", "bedroom"};
+  const std::vector<std::string> methods = {"path_tracing", "input", "proposed", "bilateral", "proposed-no-nlm"};
+  auto index_of = [](const std::vector<std::string>& v, const std::string& x) {
+    return int(std::find(v.begin(), v.end(), x) - v.begin());
+  };
+  auto value = [&](int k, int s, int m) { return double((k + 1) * 100 + (s + 1) * 10 + (m + 1)) / 1000.0; };
+  auto printed = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.4g", v);
+    return std::string(b);
+  };
+  for (auto& rec : res["records"]) {
+    const int s = index_of(scenes, rec["scene"]), m = index_of(methods, rec["method"]);
+    ASSERT_LT(s, int(scenes.size())) << rec["scene"];
+    ASSERT_LT(m, int(methods.size())) << rec["method"];
+    for (std::size_t k = 0; k < metrics.size(); ++k) rec["metrics"][metrics[k]] = value(int(k), s, m);
+  }
+  test::write(dir.path() / "results.json", res.dump());
+  auto r = test::run_denoisebench("report --no-plots --no-images " + dir.path().string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+
+  // "| a | b |" -> {"a", "b"}
+  auto cells = [](const std::string& line) {
+    std::vector<std::string> out;
+    std::stringstream ss(line.substr(1));
+    for (std::string c; std::getline(ss, c, '|');) out.push_back(c.substr(1, c.size() - 2));
+    return out;
+  };
+  for (std::size_t k = 0; k < metrics.size(); ++k) {
+    SCOPED_TRACE("table1_" + metrics[k] + ".md");
+    std::stringstream md(slurp(dir.path() / ("table1_" + metrics[k] + ".md")));
+    std::vector<std::string> header;
+    int checked = 0;
+    std::set<std::string> rows;
+    for (std::string line; std::getline(md, line);) {
+      if (line.rfind("| scene |", 0) == 0) {
+        header = cells(line);
+        continue;
+      }
+      if (line.empty() || line[0] != '|' || line.rfind("|---", 0) == 0) continue;
+      const auto row = cells(line);
+      ASSERT_EQ(row.size(), header.size()) << line;
+      const int s = index_of(scenes, row[0]);
+      ASSERT_LT(s, int(scenes.size())) << line;
+      rows.insert(row[0]);
+      for (std::size_t c = 1; c < header.size(); ++c) {
+        if (header[c] == "reference pixels left out") continue;  // mse_converged's reference column
+        const std::string method = header[c].rfind("input (", 0) == 0 ? "input" : header[c];
+        const int m = index_of(methods, method);
+        ASSERT_LT(m, int(methods.size())) << header[c];
+        EXPECT_EQ(row[c], printed(value(int(k), s, m))) << row[0] << " / " << header[c];
+        ++checked;
+      }
+    }
+    EXPECT_EQ(rows, std::set<std::string>(scenes.begin(), scenes.end()));
+    EXPECT_EQ(checked, 6) << "2 scenes x (proposed, bilateral, input)";
+  }
 }
 
 TEST(ReportCommand, RefusesAFolderWithoutResults) {

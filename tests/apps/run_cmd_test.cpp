@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/exr_io.h"
 #include "test_util.h"
 
 namespace dnb {
@@ -170,6 +171,56 @@ TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
   ASSERT_GT(input_mse, 0);
   ASSERT_EQ(method_mse.size(), 2u);
   for (double m : method_mse) EXPECT_LT(m, input_mse);
+}
+
+// The reference's samples are independent of the input's (issue 28, point 3): the run records a
+// reference seed other than the inputs' seed, and the reference in the folder is the one that
+// seed renders, not the one the inputs' seed renders. (Rendering it with the inputs' seed would
+// reuse the inputs' random numbers for its first samples: each input's error would then be
+// partly the reference's, and every score too low.) Likewise the kept input frame is the render
+// of the inputs' seed.
+TEST(RunCommand, ReferenceIsRenderedWithItsOwnSeedAndTheInputWithTheInputsSeed) {
+  test::TempDir dir;
+  write(dir.path() / "tiny.toml", kTinyConfig);
+  const std::string out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto res = nlohmann::json::parse(slurp(out + "/results.json"));
+  nlohmann::json input;
+  for (const auto& rec : res["records"])
+    if (rec["role"] == "input") input = rec;
+  ASSERT_TRUE(input.is_object()) << res.dump();
+  const auto input_seed = input["seed"].get<std::uint64_t>(), ref_seed = input["reference"]["seed"].get<std::uint64_t>();
+  ASSERT_NE(input_seed, ref_seed);
+
+  const Image in_run = read_rgb(out + "/" + input["reference"]["image"].get<std::string>());
+  ASSERT_EQ(in_run.width(), 32);
+  // The reference command with the config's reference settings (kTinyConfig: 32x24, 16 spp in
+  // blocks of 8) and either seed; its own cache, so it renders.
+  auto reference_with = [&](std::uint64_t seed) {
+    const std::string file = dir.file("ref_" + std::to_string(seed) + ".exr");
+    auto c = test::run_denoisebench("reference cornell-box --size 32x24 --spp 16 --block-spp 8 --seed " +
+                                    std::to_string(seed) + " --cache-dir '" + dir.file("refcache") + "' -o '" + file + "'");
+    EXPECT_EQ(c.exit_code, 0) << c.output;
+    return read_rgb(file);
+  };
+  // Bit for bit: a reference depends only on (scene, settings, block_spp) (tracer/reference.h).
+  EXPECT_TRUE(in_run == reference_with(ref_seed)) << "the folder's reference is not the render of its recorded seed";
+  const Image with_input_seed = reference_with(input_seed);
+  ASSERT_EQ(with_input_seed.size(), in_run.size());
+  std::size_t same = 0;
+  for (std::size_t i = 0; i < in_run.size(); ++i) same += in_run.data()[i] == with_input_seed.data()[i];
+  // Background and light pixels may agree whatever the seed; a reference drawn with the inputs'
+  // seed agrees everywhere.
+  EXPECT_LT(same, in_run.size() / 2) << "the folder's reference is the render of the inputs' seed";
+
+  // The kept input frame is the 2 spp render of the inputs' seed.
+  const std::string frame = out + "/" + input["files"]["frame"].get<std::string>();
+  auto c = test::run_denoisebench("render cornell-box --size 32x24 --spp 2 --seed " + std::to_string(input_seed) + " -o '" +
+                                  dir.file("input.exr") + "'");
+  ASSERT_EQ(c.exit_code, 0) << c.output;
+  EXPECT_TRUE(read_rgb(frame) == read_rgb(dir.file("input.exr")));
+  EXPECT_TRUE(read_rgb(frame) == read_rgb(out + "/" + input["files"]["image"].get<std::string>()));
 }
 
 // A results folder re-scores alone: a config naming the folder's own input frame and reference

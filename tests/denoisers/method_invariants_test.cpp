@@ -57,10 +57,22 @@ TEST_P(FilterInvariants, ConstantImageStaysConstant) {
 
 TEST_P(FilterInvariants, KeepsSizeAndChannels) {
   for (auto [w, h] : {std::pair{37, 23}, std::pair{5, 3}, std::pair{1, 1}, std::pair{64, 1}}) {
-    MethodResult r = run(test::planes_frame(w, h, 0.2f));
+    const AovFrame f = test::planes_frame(w, h, 0.2f);
+    MethodResult r = run(f);
     EXPECT_EQ(r.image.width(), w);
     EXPECT_EQ(r.image.height(), h);
     EXPECT_EQ(r.image.channels(), 3);
+    // And the image is the frame's, not a black or blank one of the right shape (issue 28,
+    // point 9): its mean brightness is the input colour's within 10%. A filter averages nearby
+    // pixels, which keeps the mean but for the weights at the crease and the borders (measured
+    // at most 2.5%, am at 5x3); a black, halved or doubled image is far outside. Not at 1x1:
+    // there atrous and guided return 17% of the pixel and proposed 3% (a defect, reported with
+    // issue 28, not pinned here).
+    if (w * h == 1) continue;
+    double in = 0, out = 0;
+    for (std::size_t k = 0; k < r.image.size(); ++k) in += f.layer(layer::kColor).data()[k], out += r.image.data()[k];
+    ASSERT_GT(in, 0.0);
+    EXPECT_NEAR(out / in, 1.0, 0.1) << w << "x" << h << ": mean " << out / r.image.size() << ", input's " << in / r.image.size();
   }
 }
 
