@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -321,6 +322,39 @@ TEST(ReportPage, LoadsInHeadlessChromiumWithEveryImage) {
   EXPECT_THAT(c.output, ::testing::Not(HasSubstr("ERR_FILE_NOT_FOUND"))) << c.output;
   ASSERT_TRUE(fs::exists(shot));
   EXPECT_GT(fs::file_size(shot), 10000u);
+}
+
+}  // namespace
+}  // namespace dnb
+
+namespace dnb {
+namespace {
+
+// Several input seeds: every input and method cell once per seed, each record with its seed and
+// its own image, the inputs different from one another, and Table 1 with intervals.
+TEST(RunCommand, SeveralSeedsGiveACellPerSeedAndTable1Intervals) {
+  test::TempDir dir;
+  std::string config = kTinyConfig;
+  config.replace(config.find("spp = [2]"), 9, "spp = [2]\nseeds = [3, 4, 5]");
+  write(dir.file("exp.toml"), config);
+  auto r = run_in(dir, "run " + dir.file("exp.toml") + " -o " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto doc = nlohmann::json::parse(slurp(dir.file("out/results.json")));
+  std::map<std::string, std::set<std::uint64_t>> seeds;
+  std::set<std::string> images;
+  for (const auto& rec : doc["records"]) {
+    if (rec["role"] == "plain") continue;
+    seeds[rec["method"].get<std::string>()].insert(rec["seed"].get<std::uint64_t>());
+    images.insert(rec["files"]["image"].get<std::string>());
+  }
+  for (const char* m : {"input", "bilateral", "bilateral-wide"})
+    EXPECT_EQ(seeds[m], (std::set<std::uint64_t>{3, 4, 5})) << m;
+  EXPECT_EQ(images.size(), 9u);  // a file per seed, none overwritten
+  const Image a = read_rgb(dir.file("out/images/cornell-box/input_2_s3.exr"));
+  const Image b = read_rgb(dir.file("out/images/cornell-box/input_2_s4.exr"));
+  EXPECT_FALSE(std::equal(a.data(), a.data() + a.size(), b.data())) << "two seeds gave the same input";
+  ASSERT_EQ(run_in(dir, "report " + dir.file("out")).exit_code, 0);
+  EXPECT_THAT(slurp(dir.file("out/table1_mse.md")), HasSubstr(" ± "));
 }
 
 }  // namespace
