@@ -113,6 +113,10 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
   r.files["image"] = stem + ".exr";
   if (!out.frame_file.empty()) keep_frame(out.frame_file, c.out_dir, scene.frame_dir + "/" + plan.stem + ".exr", r.files);
   r.metrics = score_image(out.image, *scene.reference, c.out_dir, stem, r.files);
+  if (out.baseline) {
+    const metrics::WorseBlocks b = metrics::worse_blocks(out.image, *out.baseline, scene.reference->color);
+    r.blocks = {{"block", b.block}, {"count", b.count}, {"worse", b.worse}, {"worse_twice", b.worse_twice}};
+  }
   r.times = out.times;
   r.times.reference = scene.reference_info.seconds;
   r.input_cache_hit = out.input_cache_hit;

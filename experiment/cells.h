@@ -53,6 +53,8 @@ struct CellOutput {
   // Input cells: the AOV frame file the scene's cells read (its edge file beside it, if any),
   // kept in the folder as files.frame (and files.frame_edges).
   std::string frame_file;
+  // Method cells: the colour of the input frame the method ran on, for metrics::worse_blocks.
+  std::optional<Image> baseline;
 };
 
 struct CellPlan {

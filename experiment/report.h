@@ -59,6 +59,9 @@ Table speedup_table(const ResultsDocument& results, const std::string& metric = 
 Table ablation_table(const ResultsDocument& results, const std::string& metric = "mse");
 // `method`'s mse and mse_converged over every other method's, per scene (Table 1's methods).
 Table ratio_table(const ResultsDocument& results, const std::string& method);
+// Per scene and method: the share of 16x16 tiles whose 8-bit mse is above the input frame's,
+// and above twice it (records' `blocks`; the mean over the seeds when there are several).
+Table worse_blocks_table(const ResultsDocument& results);
 // A metric's value as the tables print it ("n/a" when absent or non-finite).
 std::string format_metric(std::optional<double> value);
 

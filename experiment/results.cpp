@@ -111,6 +111,7 @@ json CellRecord::to_json() const {
   if (params) r["params"] = *params;
   if (phases) r["phases"] = numbers_json(*phases);
   if (counters) r["counters"] = numbers_json(*counters);
+  if (blocks) r["blocks"] = numbers_json(*blocks);
   return r;
 }
 
@@ -157,6 +158,7 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   r.params = optional_value<std::map<std::string, std::string>>(j, "params", where);
   if (j.contains("phases")) r.phases = number_map(object_or_empty(j, "phases", where), where + ": phases");
   if (j.contains("counters")) r.counters = number_map(object_or_empty(j, "counters", where), where + ": counters");
+  if (j.contains("blocks")) r.blocks = number_map(object_or_empty(j, "blocks", where), where + ": blocks");
   return r;
 }
 

@@ -131,6 +131,9 @@ struct CellRecord {
   std::string base_method, kind;
   std::optional<std::map<std::string, std::string>> params;
   std::optional<std::map<std::string, double>> phases, counters;
+  // Method cells: metrics::worse_blocks against the input frame ("block", "count", "worse",
+  // "worse_twice": shares of tiles whose 8-bit mse is above the input's, and above twice it).
+  std::optional<std::map<std::string, double>> blocks;
 
   // The metric's value, or nullopt when it is absent or non-finite.
   std::optional<double> metric(const std::string& name) const;

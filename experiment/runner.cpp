@@ -238,6 +238,7 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
     for (const auto& [name, sec] : first.stats.phases) (*out.phases)[name] = sec;
     out.counters = first.stats.counters;
     out.input_cache_hit = frame.cache_hit();
+    out.baseline = frame.get().layer(layer::kColor);
     return out;
   };
   return p;

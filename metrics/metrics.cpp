@@ -210,4 +210,32 @@ const MetricInfo& metric(const std::string& name) {
   throw InputError(fmt::format("unknown metric '{}': valid metrics are {}", name, valid));
 }
 
+WorseBlocks worse_blocks(const Image& image, const Image& baseline, const Image& reference, int block) {
+  check_pair(image, reference);
+  check_pair(baseline, reference, "baseline");
+  if (block < 1) throw InputError(fmt::format("worse_blocks: block size {} is not positive", block));
+  const Image a = to_srgb8(image), b = to_srgb8(baseline), r = to_srgb8(reference);
+  const int w = image.width(), h = image.height();
+  WorseBlocks out;
+  out.block = block;
+  int worse = 0, twice = 0;
+  for (int y0 = 0; y0 < h; y0 += block)
+    for (int x0 = 0; x0 < w; x0 += block) {
+      double ea = 0, eb = 0;
+      for (int y = y0; y < std::min(h, y0 + block); ++y)
+        for (int x = x0; x < std::min(w, x0 + block); ++x)
+          for (int c = 0; c < 3; ++c) {
+            const double da = a.at(x, y, c) - r.at(x, y, c), db = b.at(x, y, c) - r.at(x, y, c);
+            ea += da * da;
+            eb += db * db;
+          }
+      ++out.count;
+      worse += ea > eb;  // the same pixel count on both sides: sums compare as means
+      twice += ea > 2 * eb;
+    }
+  out.worse = double(worse) / out.count;
+  out.worse_twice = double(twice) / out.count;
+  return out;
+}
+
 }  // namespace dnb::metrics

@@ -121,6 +121,20 @@ struct FlipPooled {
 // MetricResult's map).
 FlipPooled pool_flip(const Image& map);
 
+// Where a method makes things worse, not only how much on average: the image and the baseline it
+// was made from (a method's input frame) cut into `block` x `block` tiles (the last row and
+// column of tiles take what is left), each tile's 8-bit mse against the reference, and the share
+// of tiles where the image's is above the baseline's, and above twice it. A method that erases
+// thin features can have the lowest mean error and still be worse than its input in places.
+struct WorseBlocks {
+  int block = 16;
+  int count = 0;                 // tiles
+  double worse = 0;              // share of tiles with mse(image) > mse(baseline)
+  double worse_twice = 0;        // share with mse(image) > 2 mse(baseline)
+};
+// InputError unless the three are 3-channel images of one size with finite samples.
+WorseBlocks worse_blocks(const Image& image, const Image& baseline, const Image& reference, int block = 16);
+
 // The reference's own noise. A 4096-spp reference still holds fireflies: pixels whose value is
 // carried by a handful of its samples, often several times their neighbours' brightness. No
 // unbiased method can match them, and in a scene like sponza they hold most of every method's

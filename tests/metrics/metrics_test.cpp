@@ -206,3 +206,35 @@ TEST(Metrics, MseConvergedRefusesABadVariance) {
 
 }  // namespace
 }  // namespace dnb::metrics
+
+namespace dnb::metrics {
+namespace {
+
+// worse_blocks on a hand-made case: a 32x16 image of 2x1 tiles of 16x16; the input is off by 0.1
+// everywhere; the image is exact on the left tile and off by 0.2 on the right one (four times
+// the input's squared error there).
+TEST(WorseBlocks, CountsTilesAboveTheInputsErrorAndAboveTwiceIt) {
+  const Image ref(32, 16, 3, 0.5f);
+  Image input(32, 16, 3, 0.6f), image(32, 16, 3, 0.5f);
+  for (int y = 0; y < 16; ++y)
+    for (int x = 16; x < 32; ++x)
+      for (int c = 0; c < 3; ++c) image.at(x, y, c) = 0.7f;
+  WorseBlocks b = worse_blocks(image, input, ref);
+  EXPECT_EQ(b.count, 2);
+  EXPECT_DOUBLE_EQ(b.worse, 0.5);
+  EXPECT_DOUBLE_EQ(b.worse_twice, 0.5);
+  // Off by 0.12 on the right instead: worse than the input there, but not twice (in 8-bit sRGB:
+  // 0.5 -> 188, 0.6 -> 203, 0.62 -> 206: 18^2 = 324 against 15^2 = 225, less than 450).
+  for (int y = 0; y < 16; ++y)
+    for (int x = 16; x < 32; ++x)
+      for (int c = 0; c < 3; ++c) image.at(x, y, c) = 0.62f;
+  b = worse_blocks(image, input, ref);
+  EXPECT_DOUBLE_EQ(b.worse, 0.5);
+  EXPECT_DOUBLE_EQ(b.worse_twice, 0.0);
+  // Partial tiles at the borders count as tiles: 33x17 is 3x2 of them.
+  EXPECT_EQ(worse_blocks(Image(33, 17, 3, 0.5f), Image(33, 17, 3, 0.5f), Image(33, 17, 3, 0.5f)).count, 6);
+  EXPECT_THROW(worse_blocks(image, Image(8, 8, 3), ref), InputError);
+}
+
+}  // namespace
+}  // namespace dnb::metrics
