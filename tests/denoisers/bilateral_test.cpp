@@ -1,6 +1,8 @@
 // bilateral: it is OpenCV's bilateralFilter, run in the documented range-compressed domain.
 #include <gtest/gtest.h>
 
+#include <utility>
+
 #include <opencv2/imgproc.hpp>
 
 #include "denoisers/hdr_mapping.h"
@@ -18,13 +20,17 @@ MethodResult run_bilateral(const AovFrame& f, const std::map<std::string, std::s
 // The method is exactly compress -> cv::bilateralFilter -> expand, bit for bit.
 TEST(Bilateral, IsOpenCvBilateralInTheCompressedDomain) {
   AovFrame f = test::planes_frame(50, 40, 0.3f);
-  for (const char* map : {"linear", "log", "reinhard"}) {
+  // The maps are named here, not parsed: parse_range_map is what is under test too (a swap of
+  // two names would otherwise change both sides alike).
+  const std::pair<const char*, RangeMap> maps[] = {
+      {"linear", RangeMap::Linear}, {"log", RangeMap::Log}, {"reinhard", RangeMap::Reinhard}};
+  for (const auto& [map, range_map] : maps) {
     Image y = f.layer(layer::kColor);
-    compress(parse_range_map(map), y);
+    compress(range_map, y);
     cv::Mat dst;
     cv::bilateralFilter(as_mat(y), dst, 7, 0.2, 2.5, cv::BORDER_REFLECT);
     Image expected = from_mat(dst);
-    expand(parse_range_map(map), expected);
+    expand(range_map, expected);
     MethodResult r = run_bilateral(
         f, {{"range_map", map}, {"diameter", "7"}, {"sigma_color", "0.2"}, {"sigma_space", "2.5"}});
     EXPECT_TRUE(r.image == expected) << map;

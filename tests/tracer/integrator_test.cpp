@@ -1,5 +1,6 @@
-// The path tracer against analytic answers (white furnace, a plane under a square light), the
-// paper's decomposition per sample and per pixel, and determinism over thread counts.
+// The path tracer against analytic answers (white and mirror furnaces, a mirror floor and a
+// coated plane under a sky, a plane under a square light), the paper's decomposition per sample
+// and per pixel, and determinism over thread counts.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -56,6 +57,153 @@ TEST(WhiteFurnace, ClosedSphereRadianceIsAnalytic) {
     EXPECT_NEAR(mean, expected, 5 * se + 1e-5 * expected) << "max depth " << depth;
     EXPECT_EQ(f.meta.dropped_samples, 0);
   }
+}
+
+TEST(MirrorFurnace, ClosedMirrorSphereRadianceIsAnalytic) {
+  // A closed mirror sphere (flat-shaded) of tint t emitting Le inwards, the camera at its
+  // centre: every mirror bounce lands on the sphere again and multiplies by t, so a path of at
+  // most D segments brings Le * (1 + t + ... + t^(D-1)) = Le * (1 - t^D) / (1 - t) per channel,
+  // the white furnace's identity with the mirror's tint for the albedo. A mirror draws no random
+  // number, and Russian roulette starts only after rr_depth = 3 vertices: up to D = 4 every
+  // sample has exactly that value (noise zero), so every pixel is compared, up to float rounding
+  // of a sum of at most 4 terms (1e-5 relative is ~100 units of float's 2^-24). D = 8 has
+  // roulette: its image mean is compared within 5 standard errors (as the white furnace).
+  // The tint differs per channel, so a channel mix-up or a dropped tint shows.
+  test::TempDir dir;
+  const double t[3] = {0.9, 0.6, 0.3}, le = 0.7;
+  std::string text =
+      "[camera]\neye = [0, 0, 0]\nlook_at = [0, 0, -1]\nvfov = 70\n"
+      "[materials.wall]\ntype = \"mirror\"\ntint = [0.9, 0.6, 0.3]\nemission = [0.7, 0.7, 0.7]\n"
+      "[[objects]]\ntype = \"sphere\"\nmaterial = \"wall\"\nradius = 1.0\ninward = true\nsmooth = false\n"
+      "segments = 24\n";
+  auto scene = load_scene(test::write_text(dir.file("mirror_furnace.toml"), text));
+  for (int depth : {1, 2, 4, 8}) {
+    RenderSettings s;
+    s.width = 16;
+    s.height = 12;
+    s.spp = depth < 8 ? 4 : 64;
+    s.max_depth = depth;
+    AovFrame f = render_frame(*scene, s);
+    const Image& F = f.layer(layer::kColor);
+    for (int c = 0; c < 3; ++c) {
+      const double expected = le * (1 - std::pow(t[c], depth)) / (1 - t[c]);
+      if (depth <= 4) {
+        for (int y = 0; y < s.height; ++y)
+          for (int x = 0; x < s.width; ++x)
+            ASSERT_NEAR(F.at(x, y, c), expected, 1e-5 * expected) << "max depth " << depth << " pixel " << x << ","
+                                                                 << y << " channel " << c;
+      } else {
+        double mean, se;
+        image_mean(F, f.layer(layer::kVariance), c, mean, se);
+        EXPECT_NEAR(mean, expected, 5 * se + 1e-5 * expected) << "max depth " << depth << " channel " << c;
+      }
+    }
+    EXPECT_EQ(f.meta.dropped_samples, 0);
+  }
+}
+
+TEST(Mirror, FloorReflectsTheGradientSkyAboveIt) {
+  // A mirror floor (tint t, facing +y) under a gradient sky of zenith Z and horizon H (ground
+  // black), seen from above at 6 to 46 degrees below the horizon. A camera ray d is reflected to
+  // d' = (d.x, -d.y, d.z), which escapes upwards with c = dot(d', up) = -d.y, so the pixel is
+  //   t * (H (1 - sqrt(c)) + Z sqrt(c))            (Sky::radiance's blend above the horizon)
+  // averaged over the pixel (the film samples are uniform in it): here by the midpoint rule on
+  // a 16 x 16 sub-grid, whose error (~1e-5 relative) is far below the tolerance. A ray reflected
+  // downwards, or not at all, would see the black ground. Only the film position is random, so
+  // each row mean is compared within 5 of its standard errors (from the renderer's per-pixel
+  // variance): 12 rows, a false failure below 1e-5.
+  test::TempDir dir;
+  const double tint[3] = {0.9, 0.7, 0.5}, Z[3] = {0.2, 0.4, 1.0}, H[3] = {1.0, 0.8, 0.6};
+  std::string text =
+      "[camera]\neye = [0.0, 1.0, 0.0]\nlook_at = [0.0, 0.0, -2.0]\nvfov = 40\n"
+      "[sky]\ntype = \"gradient\"\nzenith = [0.2, 0.4, 1.0]\nhorizon = [1.0, 0.8, 0.6]\nground = [0, 0, 0]\n"
+      "[materials.floor]\ntype = \"mirror\"\ntint = [0.9, 0.7, 0.5]\n"
+      "[[objects]]\ntype = \"quad\"\nmaterial = \"floor\"\nsize = [1000.0, 1000.0]\n";
+  auto scene = load_scene(test::write_text(dir.file("mirror_floor.toml"), text));
+  RenderSettings s;
+  s.width = 12;
+  s.height = 12;
+  s.spp = 64;
+  AovFrame f = render_frame(*scene, s);
+  const Image& F = f.layer(layer::kColor);
+  const Image& var = f.layer(layer::kVariance);
+  const int sub = 16;
+  for (int y = 0; y < s.height; ++y)
+    for (int c = 0; c < 3; ++c) {
+      double sum = 0, v = 0, expected = 0;
+      for (int x = 0; x < s.width; ++x) {
+        sum += F.at(x, y, c);
+        v += var.at(x, y, c);
+        for (int j = 0; j < sub; ++j)
+          for (int i = 0; i < sub; ++i) {
+            const rt::Ray r = scene->camera.generate_ray(x + (i + 0.5f) / sub, y + (j + 0.5f) / sub, s.width, s.height);
+            ASSERT_LT(r.dir.y, 0.0f);  // every ray hits the floor
+            const double w = std::sqrt(-double(r.dir.y));
+            expected += tint[c] * (H[c] * (1 - w) + Z[c] * w) / (sub * sub);
+          }
+      }
+      EXPECT_NEAR(sum / s.width, expected / s.width, 5 * std::sqrt(v) / s.width + 1e-5 * expected / s.width)
+          << "row " << y << " channel " << c;
+    }
+}
+
+// Schlick's approximation of the dielectric Fresnel reflectance, written out again here (the
+// coat's Fr, tracer/scene.h), so that a change of the tracer's formula shows.
+double schlick(double cos_theta, double ior) {
+  const double r0 = (ior - 1) * (ior - 1) / ((ior + 1) * (ior + 1));
+  return r0 + (1 - r0) * std::pow(1 - cos_theta, 5);
+}
+
+TEST(CoatedPlane, UnderUniformSkyMatchesFresnelBlend) {
+  // A coated plane (base albedo A, coat tint t, index n) under a constant sky L, seen at an angle
+  // theta from its normal. The coat reflects Fr(cos theta) of the sky as a mirror, times t; the
+  // base receives 1 - Fr and, being Lambertian under a sky that fills its whole hemisphere,
+  // returns A L of it (as the SunAndSky test's D = L); nothing else is in the scene, so
+  //   F = L * (t Fr(cos theta) + (1 - Fr(cos theta)) A),   Fr = Schlick's, as the tracer's coat.
+  // The rows span cos theta = 0.11 .. 0.73 (6 to 47 degrees below the horizon), so Fr runs from
+  // 0.60 to 0.08 (n = 1.8, r0 = 0.08). The expectation is averaged over each pixel on a 16 x 16
+  // sub-grid (as above). The noise is the lobe choice (coat with probability clamp(Fr, 0.2,
+  // 0.8)) and the base's light and BSDF samples; each row mean is compared within 5 of its
+  // standard errors from the per-pixel variance (12 rows x 3 channels: a false failure below
+  // 2e-5). Rows compare each angle on its own: a wrong Fresnel curve that is too high at some
+  // angles and too low at others (exact Fresnel against Schlick) would cancel in an image mean.
+  test::TempDir dir;
+  const double L = 1.5, ior = 1.8, A[3] = {0.1, 0.2, 0.3}, tint[3] = {1.0, 0.9, 0.8};
+  std::string text =
+      "[camera]\neye = [0.0, 1.0, 0.0]\nlook_at = [0.0, 0.0, -2.0]\nvfov = 40\n"
+      "[sky]\ntype = \"constant\"\ncolor = [1.5, 1.5, 1.5]\n"
+      "[materials.plane]\ntype = \"coated\"\nalbedo = [0.1, 0.2, 0.3]\ntint = [1.0, 0.9, 0.8]\nior = 1.8\n"
+      "[[objects]]\ntype = \"quad\"\nmaterial = \"plane\"\nsize = [1000.0, 1000.0]\n";
+  auto scene = load_scene(test::write_text(dir.file("coated.toml"), text));
+  RenderSettings s;
+  s.width = 12;
+  s.height = 12;
+  // Enough samples that Fresnel's exact formula, 0.02 off Schlick's at these angles, is ~10
+  // standard errors off in the rows where they differ most.
+  s.spp = 4096;
+  AovFrame f = render_frame(*scene, s);
+  const Image& F = f.layer(layer::kColor);
+  const Image& var = f.layer(layer::kVariance);
+  const int sub = 16;
+  for (int y = 0; y < s.height; ++y)
+    for (int c = 0; c < 3; ++c) {
+      double sum = 0, v = 0, expected = 0;
+      for (int x = 0; x < s.width; ++x) {
+        sum += F.at(x, y, c);
+        v += var.at(x, y, c);
+        for (int j = 0; j < sub; ++j)
+          for (int i = 0; i < sub; ++i) {
+            const rt::Ray r = scene->camera.generate_ray(x + (i + 0.5f) / sub, y + (j + 0.5f) / sub, s.width, s.height);
+            ASSERT_LT(r.dir.y, 0.0f);  // every ray hits the plane
+            const double fr = schlick(-double(r.dir.y), ior);
+            expected += L * (tint[c] * fr + (1 - fr) * A[c]) / (sub * sub);
+          }
+      }
+      ASSERT_GT(v, 0.0);  // the tolerance below is not vacuous: the variance is reported
+      EXPECT_NEAR(sum / s.width, expected / s.width, 5 * std::sqrt(v) / s.width + 1e-5 * expected / s.width)
+          << "row " << y << " channel " << c;
+    }
+  EXPECT_EQ(f.meta.dropped_samples, 0);
 }
 
 // Irradiance at the origin from a Lambertian rectangle [x1, x2] x [z1, z2] of radiance L at
