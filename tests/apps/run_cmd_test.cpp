@@ -355,6 +355,14 @@ TEST(RunCommand, SeveralSeedsGiveACellPerSeedAndTable1Intervals) {
   EXPECT_FALSE(std::equal(a.data(), a.data() + a.size(), b.data())) << "two seeds gave the same input";
   ASSERT_EQ(run_in(dir, "report " + dir.file("out")).exit_code, 0);
   EXPECT_THAT(slurp(dir.file("out/table1_mse.md")), HasSubstr(" ± "));
+  // Each method record says where it is worse than its input, and the report's table shows it.
+  for (const auto& rec : doc["records"])
+    if (rec["role"] == "method") {
+      ASSERT_TRUE(rec.contains("blocks")) << rec.dump();
+      EXPECT_EQ(rec["blocks"]["count"].get<int>(), 2 * 2);  // 32x24 in 16x16 tiles
+      EXPECT_GE(rec["blocks"]["worse"].get<double>(), rec["blocks"]["worse_twice"].get<double>());
+    }
+  EXPECT_THAT(slurp(dir.file("out/worse_blocks.md")), ::testing::ContainsRegex("[0-9.]+% \\([0-9.]+%\\)"));
 }
 
 }  // namespace
