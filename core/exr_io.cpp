@@ -533,23 +533,18 @@ ExrChannels read_exr_channels(const std::string& path, bool with_pixels) {
                                    path, part, spec.width, spec.height, out.width, out.height));
     }
     for (const auto& a : spec.extra_attribs) out.attributes.emplace(a.name().string(), a.get_string());
-    if (!with_pixels) {
-      for (const auto& name : spec.channelnames) {
-        if (out.has(name)) throw InputError(fmt::format("'{}': channel '{}' appears in two parts", path, name));
-        out.names.push_back(name);
-      }
-      continue;
+    for (const auto& name : spec.channelnames) {
+      if (out.has(name)) throw InputError(fmt::format("'{}': channel '{}' appears in two parts", path, name));
+      out.names.push_back(name);
     }
+    if (!with_pixels) continue;
     const std::size_t n = std::size_t(spec.width) * spec.height;
     std::vector<float> buf(n * std::size_t(spec.nchannels));
     if (!in->read_image(part, 0, 0, spec.nchannels, TypeDesc::FLOAT, buf.data()))
       throw InputError(fmt::format("'{}': cannot read the pixels of part {}: {}", path, part, in->geterror()));
     for (int c = 0; c < spec.nchannels; ++c) {
-      const std::string& name = spec.channelnames[std::size_t(c)];
-      if (out.has(name)) throw InputError(fmt::format("'{}': channel '{}' appears in two parts", path, name));
       std::vector<float> plane(n);
       for (std::size_t i = 0; i < n; ++i) plane[i] = buf[i * std::size_t(spec.nchannels) + std::size_t(c)];
-      out.names.push_back(name);
       out.planes.push_back(std::move(plane));
     }
   }

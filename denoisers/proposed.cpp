@@ -99,31 +99,25 @@ class Proposed final : public Method {
     if (!filter_color_ && !absent.empty() && !f.has(layer::kColor))
       throw InputError(fmt::format("the frame has neither the illumination split (no {}) nor a colour layer (R, G, B)",
                                    fmt::join(absent, ", ")));
+    // Three ways to run: the paper's split; another renderer's frame with an albedo but no split
+    // (pbrt-v4, Mitsuba 3): the untextured light is the colour over the albedo, F = L * T, filtered
+    // as the paper filters D + I, and what no albedo carries (emitters, the background) stays as R,
+    // unfiltered; or the colour itself (filter_color, or a frame with neither split nor albedo).
+    const bool demodulated = !filter_color_ && !absent.empty() && f.has(layer::kAlbedo);
+    const bool colour_only = filter_color_ || (!absent.empty() && !demodulated);
     r.stats.counters["illumination_split"] = (!filter_color_ && absent.empty()) ? 1 : 0;
-    r.stats.counters["albedo_demodulated"] = 0;
-    AovFrame demodulated;
-    const AovFrame* frame = &f;
-    if (!filter_color_ && !absent.empty()) {
-      if (!f.has(layer::kAlbedo)) {
-        spdlog::warn("proposed: the frame has no {} layer{} and no albedo: filtering its colour (as filter_color = true)",
-                     fmt::format("{}", fmt::join(absent, ", ")), absent.size() > 1 ? "s" : "");
-      } else {
-        // Another renderer's frame with an albedo but no direct/indirect split (pbrt-v4, Mitsuba 3):
-        // the untextured light is the colour over the albedo, F = L * T, filtered as the paper
-        // filters D + I; what no albedo carries (emitters, the background) stays as R, unfiltered.
-        spdlog::warn("proposed: the frame has no {} layer{}: filtering the colour demodulated by the albedo (F / T)",
-                     fmt::format("{}", fmt::join(absent, ", ")), absent.size() > 1 ? "s" : "");
-        demodulated = demodulate(f);
-        frame = &demodulated;
-        r.stats.counters["albedo_demodulated"] = 1;
-      }
-    }
-    if (filter_color_ || (!absent.empty() && frame == &f)) {
+    r.stats.counters["albedo_demodulated"] = demodulated ? 1 : 0;
+    if (!filter_color_ && !absent.empty())
+      spdlog::warn("proposed: the frame has no {} layer{}: filtering {}", fmt::format("{}", fmt::join(absent, ", ")),
+                   absent.size() > 1 ? "s" : "",
+                   demodulated ? "the colour demodulated by the albedo (F / T)" : "its colour (no albedo either; as filter_color = true)");
+    if (colour_only) {
       const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
       r.image = filter_layer(f, 0, f.layer(layer::kColor), depth, plan.sigma_nlm, plan.am, r.stats, nullptr).image;
       return r;
     }
-    const AovFrame& fs = *frame;
+    const AovFrame split = demodulated ? demodulate(f) : AovFrame();
+    const AovFrame& fs = demodulated ? split : f;
     plan_levels(fs, plan, r.stats);
     plan.jobs.insert(plan.jobs.begin(), plan.tint_jobs.begin(), plan.tint_jobs.end());
     run_jobs(r.stats, plan.jobs);
