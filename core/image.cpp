@@ -27,13 +27,6 @@ Image::Image(int width, int height, int channels, float fill) {
   data_.assign(std::size_t(width) * height * channels, fill);
 }
 
-Image Image::channels_range(int first, int count) const {
-  Image out(width_, height_, count);
-  for (std::size_t i = 0; i < pixel_count(); ++i)
-    for (int c = 0; c < count; ++c) out.data_[i * count + c] = data_[i * channels_ + first + c];
-  return out;
-}
-
 Image to_image(ConstImageView v) {
   Image out(v.width, v.height, v.channels);
   for (int y = 0; y < v.height; ++y) {

@@ -73,8 +73,6 @@ class Image {
   }
   ConstImageView cview() const { return view(); }
 
-  // Copies channels [first, first + count) into a new image.
-  Image channels_range(int first, int count) const;
   bool same_shape(const Image& o) const {
     return width_ == o.width_ && height_ == o.height_ && channels_ == o.channels_;
   }

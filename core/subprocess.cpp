@@ -266,11 +266,4 @@ ExitStatus Subprocess::kill_group() {
   return status_ ? *status_ : ExitStatus{};
 }
 
-std::string Subprocess::log_tail_text(const std::string& indent) const {
-  std::string s;
-  for (const auto& l : tail_) s += indent + l + "\n";
-  if (!s.empty()) s.pop_back();
-  return s;
-}
-
 }  // namespace dnb

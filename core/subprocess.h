@@ -72,7 +72,6 @@ class Subprocess {
 
   // The last log lines (stderr, and stdout when not piped), oldest first.
   const std::deque<std::string>& log_tail() const { return tail_; }
-  std::string log_tail_text(const std::string& indent = "  ") const;
 
  private:
   // Polls the open pipes and the process for at most `timeout_ms` (-1: no limit); reads what is

@@ -349,7 +349,7 @@ Table speedup_table(const ResultsDocument& res, const std::string& metric) {
       if (!r || !r->metric(metric)) continue;
       const double e = *r->metric(metric), total = r->times.total;
       const double t_need = err_t.inverse(e);
-      const double spp_need = t_spp.a > 0 ? std::pow(t_need / t_spp.a, -1.0 / t_spp.b) : NAN;
+      const double spp_need = t_spp.a > 0 ? t_spp.inverse(t_need) : NAN;
       t.rows.push_back({s, m, format_metric(e), fmt_time(total), std::isfinite(spp_need) ? fmt::format("{:.0f}", spp_need) : "n/a",
                         fmt::format("{:.3g}{}", t_need, t_need > tmax ? " (extrapolated)" : ""),
                         fmt::format("{:.1f}x", t_need / total)});

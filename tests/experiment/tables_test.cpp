@@ -1,0 +1,90 @@
+// experiment/report.h: the power-law fits and the speed-up table built on them, checked against
+// numbers worked out by hand from an exact power law (so a wrong sign, a swapped fit or a
+// time/spp mix-up in the table shows as a wrong figure, not only as a wrong shape).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "experiment/report.h"
+#include "experiment/results.h"
+
+namespace dnb::experiment {
+namespace {
+
+TEST(PowerFit, RecoversAnExactPowerLawAndInvertsIt) {
+  // err = 3 * t^-0.5 sampled at four times: least squares in log-log is exact here, so the only
+  // error is double rounding in logs and exps (1e-12 relative is ~1e4 ulps, far above it).
+  std::vector<double> t = {0.5, 1, 4, 16}, e;
+  for (double x : t) e.push_back(3 * std::pow(x, -0.5));
+  const PowerFit f = fit_power_law(t, e);
+  ASSERT_TRUE(f.ok);
+  EXPECT_NEAR(f.a, 3.0, 3e-12);
+  EXPECT_NEAR(f.b, 0.5, 1e-12);
+  EXPECT_NEAR(f.at(9), 1.0, 1e-12);        // 3 / sqrt(9)
+  EXPECT_NEAR(f.inverse(0.75), 16.0, 1e-10);  // 3 / sqrt(16)
+  for (double x : {0.1, 2.0, 100.0}) EXPECT_NEAR(f.inverse(f.at(x)) / x, 1.0, 1e-12);
+}
+
+TEST(PowerFit, IgnoresNonPositivePointsAndRefusesTooFewOrRisingErrors) {
+  // A zero time or error (a failed or instant cell) has no logarithm: left out of the fit.
+  const PowerFit f = fit_power_law({0, 1, 4, -2}, {5, 2, 1, 7});
+  ASSERT_TRUE(f.ok);
+  EXPECT_NEAR(f.b, 0.5, 1e-12);  // only (1, 2) and (4, 1) remain
+  EXPECT_NEAR(f.a, 2.0, 1e-12);
+  EXPECT_FALSE(fit_power_law({1}, {2}).ok);            // one point: no slope
+  EXPECT_FALSE(fit_power_law({2, 2}, {1, 3}).ok);      // one abscissa: no slope
+  EXPECT_FALSE(fit_power_law({1, 4}, {1, 2}).ok);      // error rising with time: no speed-up law
+}
+
+CellRecord record(const std::string& method, Role role, int spp, double mse, double total) {
+  CellRecord r;
+  r.scene = "box";
+  r.method = method;
+  r.role = role;
+  r.spp = spp;
+  r.metrics["mse"] = mse;
+  r.times.total = total;
+  return r;
+}
+
+TEST(SpeedupTable, IsTheTimePlainPathTracingNeedsOverTheMethodsTime) {
+  // Plain path tracing at 4..64 spp: time = 0.01 s * spp, mse = 0.16 / spp = 0.0016 / time.
+  ResultsDocument d;
+  d.config.scenes = {"box"};
+  d.config.spp = {4};
+  for (int spp : {4, 16, 64}) d.records.push_back(record("path_tracing", Role::Plain, spp, 0.16 / spp, 0.01 * spp));
+  d.records.push_back(record("input", Role::Input, 4, 0.04, 0.04));
+  // The method reaches mse 0.0005 (what 320 spp give, in 3.2 s) in 0.1 s: 32x.
+  d.records.push_back(record("fast", Role::Method, 4, 0.0005, 0.1));
+  // This one reaches mse 0.02 (8 spp, 0.08 s) in 0.16 s: 0.5x, slower than rendering more.
+  d.records.push_back(record("slow", Role::Method, 4, 0.02, 0.16));
+  const Table t = speedup_table(d, "mse");
+  ASSERT_EQ(t.rows.size(), 2u);
+  const auto& fast = t.rows[0];
+  const auto& slow = t.rows[1];
+  ASSERT_EQ(fast.size(), t.header.size());
+  EXPECT_EQ(fast[1], "fast");
+  EXPECT_EQ(fast[4], "320");                 // plain PT spp needed
+  EXPECT_EQ(fast[5], "3.2 (extrapolated)");  // beyond the 0.64 s of the longest plain render
+  EXPECT_EQ(fast[6], "32.0x");
+  EXPECT_EQ(slow[1], "slow");
+  EXPECT_EQ(slow[4], "8");
+  EXPECT_EQ(slow[5], "0.08");
+  EXPECT_EQ(slow[6], "0.5x");
+}
+
+TEST(SpeedupTable, SaysSoWhenThereAreTooFewPlainRendersToFit) {
+  ResultsDocument d;
+  d.config.scenes = {"box"};
+  d.config.spp = {4};
+  d.records.push_back(record("path_tracing", Role::Plain, 4, 0.04, 0.04));
+  d.records.push_back(record("fast", Role::Method, 4, 0.0005, 0.1));
+  const Table t = speedup_table(d, "mse");
+  EXPECT_TRUE(t.rows.empty());
+  EXPECT_NE(t.note.find("too few plain path tracing points to fit (1)"), std::string::npos) << t.note;
+}
+
+}  // namespace
+}  // namespace dnb::experiment
