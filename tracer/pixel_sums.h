@@ -33,9 +33,9 @@ enum : int {
   kDirect = 0, kIndirect = 3, kAlbedo = 6, kReflection = 9, kEmission = 12, kNormal = 15, kTint = 18,
   kDirectT = 21, kIndirectT = 24, kDepth = 27, kDepthSq = 28,
   kLevelSize = 32,  // padded to a multiple of 4
-  // Level 0 only: colour and the squares for the variance layers.
-  kColor = 0, kColorSq = 3, kDirectSq = 6, kIndirectSq = 9, kDirectTSq = 12, kIndirectTSq = 15,
-  kExtraSize = 20,
+  // Level 0 only: the colour (its variance comes from the sample groups, GroupMoments).
+  kColor = 0,
+  kExtraSize = 4,
 };
 }  // namespace acc
 
@@ -75,13 +75,6 @@ inline void add_values(double* __restrict a, const double* __restrict v) {
   for (int i = 0; i < N; ++i) a[i] += v[i];
 }
 
-// Squares in double: a legal emitter of 1e30 squares to 1e60, beyond float.
-inline void put_squares(double* o, Vec3 a) {
-  o[0] = double(a.x) * a.x;
-  o[1] = double(a.y) * a.y;
-  o[2] = double(a.z) * a.z;
-}
-
 // A variance as a layer value: the variance of a mean of samples near float's limit (an emitter
 // of 1e30 seen directly) can exceed float's range, and is then clamped to its largest value
 // rather than written as Inf (render_frame warns when it does).
@@ -95,20 +88,6 @@ inline void store(Image& img, int x, int y, const double* s, double inv) {
   for (int c = 0; c < 3; ++c) p[c] = float(s[c] * inv);
 }
 
-// Sample variance of the mean of three sums (0 below two samples).
-inline void store_var(Image& img, int x, int y, const double* sum, const double* sq, std::int64_t n) {
-  float* p = img.pixel(x, y);
-  for (int c = 0; c < 3; ++c) {
-    if (n < 2) {
-      p[c] = 0;
-      continue;
-    }
-    double mean = sum[c] / n;
-    double var = std::max(0.0, (sq[c] - mean * sum[c]) / double(n - 1));
-    p[c] = variance_to_float(var / n);
-  }
-}
-
 // The albedo-weighted mean of an illumination layer (tracer/render.cpp's top) into out[0..2].
 inline void demodulated(const double* sum_t, const double* sum, const double* albedo, std::int64_t n, float* out) {
   for (int c = 0; c < 3; ++c) {
@@ -117,24 +96,33 @@ inline void demodulated(const double* sum_t, const double* sum, const double* al
   }
 }
 
-// Variance of that mean: of the samples X T / mean(T), or of X where the albedo sums to 0.
-inline void demodulated_var(const double* sum_t, const double* sq_t, const double* sum, const double* sq,
-                            const double* albedo, std::int64_t n, float* out) {
-  for (int c = 0; c < 3; ++c) {
-    if (n < 2) {
-      out[c] = 0;
-      continue;
+// The variance of a pixel's mean from its sample pairs (render.cpp's top). A mean is a ratio
+// of sums A / B: of the colour over the sample count (weights b = 1), or of D T over T for the
+// albedo-weighted means (b = T). Its first-order variance is that of sum_i (a_i - R b_i) / B with
+// R = A / B; the two samples of a stratum are independent and alike, so over the pairs
+//   Var(A / B) = sum_pairs ((a1 - a2) - R (b1 - b2))^2 / B^2
+//              = (S_aa - 2 R S_ab + R^2 S_bb) / B^2,
+// unbiased for b = 1 (each pair's (a1 - a2)^2 / 2 is its stratum's variance, and the stratum
+// holds two samples). A sample without a partner (an odd spp, or a partner dropped as
+// non-finite) is given the pairs' average, (1 + singles / (2 pairs)).
+struct PairMoments {
+  double aa[3] = {0, 0, 0}, ab[3] = {0, 0, 0}, bb[3] = {0, 0, 0};
+  std::int64_t pairs = 0, singles = 0;
+  void add_pair(Vec3 da, Vec3 db) {
+    for (int c = 0; c < 3; ++c) {
+      aa[c] += double(da[c]) * da[c];
+      ab[c] += double(da[c]) * db[c];
+      bb[c] += double(db[c]) * db[c];
     }
-    const bool weighted = albedo[c] > 1e-12 * double(n);
-    const double s1 = weighted ? sum_t[c] : sum[c], s2 = weighted ? sq_t[c] : sq[c];
-    const double mean = s1 / n;
-    double var = std::max(0.0, (s2 - mean * s1) / double(n - 1)) / n;
-    if (weighted) {
-      const double t = albedo[c] / n;
-      var /= t * t;
-    }
-    out[c] = variance_to_float(var);
+    ++pairs;
   }
-}
+  // Var(A / B) of channel c, as a layer value; 0 without a pair.
+  float variance(int c, double a, double b) const {
+    if (pairs < 1 || !(b > 0)) return 0.0f;
+    const double r = a / b;
+    const double s = std::max(0.0, aa[c] - 2 * r * ab[c] + r * r * bb[c]);
+    return variance_to_float(s * (1.0 + double(singles) / (2.0 * double(pairs))) / (b * b));
+  }
+};
 
 }  // namespace dnb::rt

@@ -28,7 +28,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr const char* kCheckpointMagic = "DNBCKPT1";
+// 2: pair_sq (squared differences of sample pairs) replaced sum_sq (squared samples).
+constexpr const char* kCheckpointMagic = "DNBCKPT2";
 // MPI tag of block transfers; messages between two ranks are never reordered by MPI, so one tag
 // suffices.
 constexpr int kBlockTag = 4101;
@@ -38,7 +39,7 @@ ColorSums zero_sums(int width, int height) {
   s.width = width;
   s.height = height;
   s.sum.assign(std::size_t(width) * height * 3, 0.0);
-  s.sum_sq.assign(s.sum.size(), 0.0);
+  s.pair_sq.assign(s.sum.size(), 0.0);
   return s;
 }
 
@@ -79,7 +80,7 @@ std::vector<ConvergenceRow> rows_from_json(const nlohmann::json& a) {
 
 void add_block(ColorSums& total, const ColorSums& block) {
   if (total.width != block.width || total.height != block.height || total.sum.size() != block.sum.size() ||
-      total.sum_sq.size() != block.sum_sq.size())
+      total.pair_sq.size() != block.pair_sq.size())
     throw WorkError(fmt::format("block sums of {}x{} cannot be added to a total of {}x{}", block.width,
                                 block.height, total.width, total.height));
   // The tracer's element-wise add: applied in block order, it makes references bit-identical.
@@ -90,15 +91,14 @@ ConvergenceRow convergence_of(const ColorSums& s) {
   ConvergenceRow row;
   row.spp = s.samples;
   const double n = double(s.samples);
-  if (s.samples < 2 || s.sum.empty()) {
+  if (s.pairs < 1 || s.sum.empty()) {
     row.rel_error = row.est_relmse = NAN;
     return row;
   }
   double sum_var = 0, sum_mean2 = 0, relmse = 0;
   for (std::size_t i = 0; i < s.sum.size(); ++i) {
     const double mean = s.sum[i] / n;
-    // Unbiased sample variance over the n samples, divided by n: the variance of the mean.
-    const double var = std::max(0.0, (s.sum_sq[i] - s.sum[i] * mean) / (n - 1)) / n;
+    const double var = s.variance_of_mean(i);  // from the sample pairs (render.h)
     sum_var += var;
     sum_mean2 += mean * mean;
     relmse += var / (mean * mean + 0.01);
@@ -154,6 +154,8 @@ void write_checkpoint(const std::string& path, const Checkpoint& ck) {
   h["width"] = s.width;
   h["height"] = s.height;
   h["samples"] = s.samples;
+  h["pairs"] = s.pairs;
+  h["singles"] = s.singles;
   h["dropped"] = s.dropped;
   h["seconds"] = ck.seconds;
   h["convergence"] = rows_to_json(ck.convergence);
@@ -162,12 +164,12 @@ void write_checkpoint(const std::string& path, const Checkpoint& ck) {
   // wrote it.
   h["double_bytes"] = sizeof(double);
   h["sum_sha256"] = sha256_hex(s.sum.data(), bytes);
-  h["sum_sq_sha256"] = sha256_hex(s.sum_sq.data(), bytes);
+  h["pair_sq_sha256"] = sha256_hex(s.pair_sq.data(), bytes);
   const std::string header = h.dump();
 
   std::string content = fmt::format("{}\n{} {}\n{}", kCheckpointMagic, header.size(), sha256_hex(header), header);
   content.append(reinterpret_cast<const char*>(s.sum.data()), bytes);
-  content.append(reinterpret_cast<const char*>(s.sum_sq.data()), bytes);
+  content.append(reinterpret_cast<const char*>(s.pair_sq.data()), bytes);
   AtomicOutput out(path);
   out.write(content);  // every write checked, fsynced
   out.commit();        // then renamed over the previous checkpoint
@@ -208,6 +210,8 @@ std::optional<Checkpoint> read_checkpoint(const std::string& path, std::string* 
     s.width = h.at("width").get<int>();
     s.height = h.at("height").get<int>();
     s.samples = h.at("samples").get<std::int64_t>();
+    s.pairs = h.at("pairs").get<std::int64_t>();
+    s.singles = h.at("singles").get<std::int64_t>();
     s.dropped = h.at("dropped").get<std::int64_t>();
     const std::size_t values = h.at("values").get<std::size_t>();
     if (h.at("double_bytes").get<std::size_t>() != sizeof(double) || values != std::size_t(s.width) * s.height * 3)
@@ -217,11 +221,11 @@ std::optional<Checkpoint> read_checkpoint(const std::string& path, std::string* 
     if (data.size() != payload + 2 * bytes)
       return fail(fmt::format("{} bytes, expected {} (truncated?)", data.size(), payload + 2 * bytes));
     s.sum.resize(values);
-    s.sum_sq.resize(values);
+    s.pair_sq.resize(values);
     std::memcpy(s.sum.data(), data.data() + payload, bytes);
-    std::memcpy(s.sum_sq.data(), data.data() + payload + bytes, bytes);
+    std::memcpy(s.pair_sq.data(), data.data() + payload + bytes, bytes);
     if (sha256_hex(s.sum.data(), bytes) != h.at("sum_sha256").get<std::string>() ||
-        sha256_hex(s.sum_sq.data(), bytes) != h.at("sum_sq_sha256").get<std::string>())
+        sha256_hex(s.pair_sq.data(), bytes) != h.at("pair_sq_sha256").get<std::string>())
       return fail("payload checksum mismatch (corrupted)");
     return ck;
   } catch (const std::exception& e) {
@@ -278,22 +282,24 @@ ResumeState resume_from_checkpoint(const BlockJob& job, int nblocks) {
   return st;
 }
 
-// A block's sums from a rank to rank 0: samples and dropped as doubles (exact below 2^53),
-// then sum and sum_sq.
+// A block's sums from a rank to rank 0: samples, pairs, singles and dropped as doubles (exact
+// below 2^53), then sum and pair_sq.
 void send_block(const ColorSums& s) {
-  const double head[2] = {double(s.samples), double(s.dropped)};
-  mpi::send_doubles(0, kBlockTag, head, 2);
+  const double head[4] = {double(s.samples), double(s.pairs), double(s.singles), double(s.dropped)};
+  mpi::send_doubles(0, kBlockTag, head, 4);
   mpi::send_doubles(0, kBlockTag, s.sum.data(), s.sum.size());
-  mpi::send_doubles(0, kBlockTag, s.sum_sq.data(), s.sum_sq.size());
+  mpi::send_doubles(0, kBlockTag, s.pair_sq.data(), s.pair_sq.size());
 }
 
 void receive_block(int from, ColorSums& s) {
-  double head[2];
-  mpi::recv_doubles(from, kBlockTag, head, 2);
+  double head[4];
+  mpi::recv_doubles(from, kBlockTag, head, 4);
   s.samples = std::int64_t(head[0]);
-  s.dropped = std::int64_t(head[1]);
+  s.pairs = std::int64_t(head[1]);
+  s.singles = std::int64_t(head[2]);
+  s.dropped = std::int64_t(head[3]);
   mpi::recv_doubles(from, kBlockTag, s.sum.data(), s.sum.size());
-  mpi::recv_doubles(from, kBlockTag, s.sum_sq.data(), s.sum_sq.size());
+  mpi::recv_doubles(from, kBlockTag, s.pair_sq.data(), s.pair_sq.size());
 }
 
 }  // namespace
@@ -338,7 +344,7 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
   auto check_block = [&](const ColorSums& s, int b) {
     auto [begin, end] = block_range(job, b);
     if (s.width != job.width || s.height != job.height || s.samples != end - begin ||
-        s.sum.size() != std::size_t(pixels) * 3 || s.sum_sq.size() != s.sum.size())
+        s.sum.size() != std::size_t(pixels) * 3 || s.pair_sq.size() != s.sum.size())
       throw WorkError(fmt::format("block {} (samples {}..{}) came back as {}x{} with {} samples", b, begin, end,
                                   s.width, s.height, s.samples));
   };

@@ -1,11 +1,25 @@
 // render_frame and render_color_sums: per-pixel sample loops over tiles (TBB), accumulation of
 // the layers of tracer/integrator.h, the edge set G and its sub-pixel data (paper 3.1).
 //
-// Sampling: sample s of pixel (x, y) lies in stratum (s mod g, s div g) of a g x g grid,
-// g = floor(sqrt(spp)), jittered inside it; samples past g^2 are uniform in the pixel. Every
-// random number comes from Sampler(seed, pixel, s) (tracer/math.h), so a sample's value does not
-// depend on threads, tiles or order, and samples of one pixel are summed in index order: frames
-// are bit-identical for any thread count.
+// Sampling: the samples of a pixel come in pairs (2j, 2j + 1) that share a stratum. The first
+// 2 gx gy samples cover a gx x gy grid of strata, two each, jittered independently inside it
+// (gx gy <= spp / 2, gx in gy .. 2 gy, chosen to leave as few samples over as possible: 16 x 8
+// at 256 spp); the samples past them are uniform in the pixel, also taken in pairs, and with an
+// odd spp the last one is alone. Every random number comes from Sampler(seed, pixel, s)
+// (tracer/math.h), so a sample's value does not depend on threads, tiles or order, and samples
+// of one pixel are summed in index order: frames are bit-identical for any thread count.
+//
+// Variance of a pixel's mean: stratified samples are not independent, so the sample variance
+// of a pixel's samples / spp overstates the variance of its mean (by ~3x where the pixel holds
+// an edge or texture that stratification averages out: issue 25, and the old estimator's
+// figures in tests/tracer/variance_test.cpp). The two samples of a stratum are independent and
+// alike, so half their squared difference estimates that stratum's variance without bias, and
+// the variance of the mean is the sum of the pairs' squared differences / spp^2 (pixel_sums.h's
+// PairMoments, spp / 2 degrees of freedom; a lone last sample is given the pairs' average).
+// variance_test.cpp checks it against the seed-to-seed variance over 800 seeds. The cost of
+// two samples per stratum instead of one: half as many strata, which raises only the
+// film-position part of the noise (1.13x the variance at 256x192 and 64 spp on cornell-box;
+// docs/references.md).
 //
 // Edge set G (paper 3.1), from the finished normal and depth layers: pixel p is in G when
 //  - its own samples disagree: |mean normal| < kEdgeNormalLength (normals spread over > ~25
@@ -26,8 +40,9 @@
 // paper 3.1 never enters the layers. Where sum_s T_c(s) = 0 (mirrors, sky, black albedo) D_c and
 // I_c are the plain means, which keeps the illumination of such pixels available to filters.
 // For a pixel of constant albedo both definitions coincide. direct_variance and
-// indirect_variance are the variances of these means (of D T / mean T: the ratio estimator's
-// first-order variance). Edge sub-pixels use the same definition over their stratum's samples.
+// indirect_variance are the variances of these means (from the pairs' differences of D T and T: the
+// ratio estimator's first-order variance). Edge sub-pixels use the same definition of the means
+// over their stratum's samples.
 #include <atomic>
 #include <cmath>
 
@@ -72,12 +87,31 @@ void check_settings(const RenderSettings& s) {
   check_bound(s.threads, bounds::kThreads, "render: threads");
 }
 
+// How the samples of a pixel are stratified (see top of file).
+struct SampleLayout {
+  int spp = 1;
+  int gx = 1, gy = 1;  // strata, two samples each
+  SampleLayout() = default;
+  explicit SampleLayout(int spp_) : spp(spp_) {
+    const int m = std::max(1, spp / 2);
+    int best = 0;
+    for (int y = std::max(1, int(std::floor(std::sqrt(double(m))))); y >= 1; --y) {
+      const int x = std::min(m / y, 2 * y);
+      if (x < y) continue;
+      if (x * y > best) best = x * y, gx = x, gy = y;
+      if (2 * y * y < m) break;  // narrower cells than 2:1 are not worth a few more strata
+    }
+  }
+  int stratified() const { return spp >= 2 ? 2 * gx * gy : 0; }  // samples in the strata
+};
+
 // Film position of sample s inside its pixel, in [0, 1)^2 (see top of file).
-inline void sample_position(int s, int grid, Sampler& rng, float& fx, float& fy) {
+inline void sample_position(int s, const SampleLayout& layout, Sampler& rng, float& fx, float& fy) {
   float u = rng.next(), v = rng.next();
-  if (s < grid * grid) {
-    fx = (float(s % grid) + u) / float(grid);
-    fy = (float(s / grid) + v) / float(grid);
+  if (s < layout.stratified()) {
+    const int h = s / 2;
+    fx = (float(h % layout.gx) + u) / float(layout.gx);
+    fy = (float(h / layout.gx) + v) / float(layout.gy);
   } else {
     fx = u;
     fy = v;
@@ -134,19 +168,19 @@ Vec3 pixel_vec(const Image& img, int x, int y) {
 }
 
 // What tracing one sample needs: the scene's camera, the tracer, the image size, the seed and
-// the stratification grid of the render (see top of file).
+// the stratification of the render (see top of file).
 struct SampleSource {
   const Scene& scene;
   const PathTracer& tracer;
   int width, height;
   std::uint64_t seed;
-  int grid;
+  SampleLayout layout;
 
   // Traces sample s of pixel (x, y) into r; its film position inside the pixel goes to fx, fy.
   // Returns the rays traced.
   std::uint64_t trace(int x, int y, int s, SampleResult& r, float& fx, float& fy) const {
     Sampler rng(seed, std::uint64_t(y) * width + x, std::uint64_t(s));
-    sample_position(s, grid, rng, fx, fy);
+    sample_position(s, layout, rng, fx, fy);
     PathContext ctx{rng};
     tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, width, height), ctx, r);
     return ctx.rays;
@@ -214,19 +248,11 @@ FrameLayers layers_of(AovFrame& frame, int K) {
 // ---- Main pass: per-pixel sums, then the pixel's layers ----
 
 // Adds one finite sample to its pixel's sums: levels 0 .. min(r.levels, K + 1) - 1, and the
-// level-0 colour and squares (`extra`, acc::kExtraSize values).
+// level-0 colour (`extra`, acc::kExtraSize values).
 inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, double* extra) {
   alignas(32) float vals[acc::kLevelSize];
-  alignas(32) double xvals[acc::kExtraSize];
-  const LevelSample& l0 = r.level[0];
-  const Vec3 f = l0.color(), dt = l0.direct * l0.albedo, it = l0.indirect * l0.albedo;
-  for (int c = 0; c < 3; ++c) xvals[acc::kColor + c] = f[c];
-  put_squares(xvals + acc::kColorSq, f);
-  put_squares(xvals + acc::kDirectSq, l0.direct);
-  put_squares(xvals + acc::kIndirectSq, l0.indirect);
-  put_squares(xvals + acc::kDirectTSq, dt);
-  put_squares(xvals + acc::kIndirectTSq, it);
-  xvals[18] = xvals[19] = 0;
+  const Vec3 f = r.level[0].color();
+  alignas(32) double xvals[acc::kExtraSize] = {f.x, f.y, f.z, 0.0};
   add_values<acc::kExtraSize>(extra, xvals);
   for (int k = 0; k < r.levels && k <= K; ++k) {
     pack_level(r.level[k], vals);
@@ -250,18 +276,70 @@ void store_level(const LevelImages& l, int x, int y, const LevelSums& L, const L
   if (prev) store(*l.tint, x, y, prev->at(acc::kTint), prev->n > 0 ? 1.0 / prev->n : 0.0);
 }
 
+// The pair moments of a pixel's level-0 means (pixel_sums.h): each sample's values are kept
+// until its partner arrives; a pair with a dropped (non-finite) sample leaves the other alone.
+struct PixelPairs {
+  PairMoments color, direct, indirect;  // weights: 1 for the colour, the albedo T for D T and I T
+  PairMoments direct_plain, indirect_plain;  // D and I where the albedo sums to 0 (weight 1)
+  LevelSample first;
+  bool have_first = false;
+
+  // Sample s, finite or not (finite: its level 0 is `l0`).
+  void add(int s, bool finite, const LevelSample& l0) {
+    if (s % 2 == 0) {
+      if (have_first) single();
+      have_first = finite;
+      if (finite) first = l0;
+      return;
+    }
+    if (!finite || !have_first) {
+      if (have_first) single();
+      if (finite) single();
+      have_first = false;
+      return;
+    }
+    const Vec3 df = first.color() - l0.color(), dt = first.albedo - l0.albedo;
+    const Vec3 ddt = first.direct * first.albedo - l0.direct * l0.albedo;
+    const Vec3 dit = first.indirect * first.albedo - l0.indirect * l0.albedo;
+    const Vec3 zero{0, 0, 0};
+    color.add_pair(df, zero);
+    direct.add_pair(ddt, dt);
+    indirect.add_pair(dit, dt);
+    direct_plain.add_pair(first.direct - l0.direct, zero);
+    indirect_plain.add_pair(first.indirect - l0.indirect, zero);
+    have_first = false;
+  }
+  void finish() {
+    if (have_first) single();
+    have_first = false;
+  }
+  void single() {
+    for (PairMoments* m : {&color, &direct, &indirect, &direct_plain, &indirect_plain}) ++m->singles;
+  }
+};
+
+// The variance of an illumination layer's mean: albedo-weighted where its mean is (demodulated()'s
+// test), plain otherwise.
+void store_demodulated_var(const PairMoments& weighted, const PairMoments& plain, const double* sum_t,
+                           const double* sum, const double* albedo, std::int64_t n, float* out) {
+  for (int c = 0; c < 3; ++c)
+    out[c] = albedo[c] > 1e-12 * double(n) ? weighted.variance(c, sum_t[c], albedo[c])
+                                           : plain.variance(c, sum[c], double(n));
+}
+
 // Every layer of pixel (x, y) from its sums, and the relative depth spread of its samples.
 void store_pixel(const FrameLayers& out, int x, int y, const std::vector<LevelSums>& sums, const double* extra,
-                 Image& depth_spread) {
+                 const PixelPairs& pairs, Image& depth_spread) {
   const std::int64_t n = sums[0].n;
   const double inv = n > 0 ? 1.0 / n : 0.0;
   const LevelSums& L0 = sums[0];
   store(*out.color, x, y, extra + acc::kColor, inv);
-  store_var(*out.var_f, x, y, extra + acc::kColor, extra + acc::kColorSq, n);
-  demodulated_var(L0.at(acc::kDirectT), extra + acc::kDirectTSq, L0.at(acc::kDirect), extra + acc::kDirectSq,
-                  L0.at(acc::kAlbedo), n, out.var_d->pixel(x, y));
-  demodulated_var(L0.at(acc::kIndirectT), extra + acc::kIndirectTSq, L0.at(acc::kIndirect), extra + acc::kIndirectSq,
-                  L0.at(acc::kAlbedo), n, out.var_i->pixel(x, y));
+  float* vf = out.var_f->pixel(x, y);
+  for (int c = 0; c < 3; ++c) vf[c] = pairs.color.variance(c, extra[acc::kColor + c], double(n));
+  store_demodulated_var(pairs.direct, pairs.direct_plain, L0.at(acc::kDirectT), L0.at(acc::kDirect), L0.at(acc::kAlbedo),
+                        n, out.var_d->pixel(x, y));
+  store_demodulated_var(pairs.indirect, pairs.indirect_plain, L0.at(acc::kIndirectT), L0.at(acc::kIndirect),
+                        L0.at(acc::kAlbedo), n, out.var_i->pixel(x, y));
   out.samples->at(x, y, 0) = float(n);
   for (std::size_t k = 0; k < sums.size(); ++k)
     store_level(out.level[k], x, y, sums[k], k > 0 ? &sums[k - 1] : nullptr);
@@ -287,16 +365,17 @@ void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image
     for (int x = x0; x < x1; ++x) {
       for (auto& s : sums) s = LevelSums{};
       alignas(32) double extra[acc::kExtraSize] = {};
+      PixelPairs pairs;
       for (int s = 0; s < spp; ++s) {
         float fx, fy;
         counts.rays += src.trace(x, y, s, r, fx, fy);
-        if (!sample_finite(r)) {
-          ++counts.dropped;
-          continue;
-        }
-        accumulate_sample(r, K, sums.data(), extra);
+        const bool finite = sample_finite(r);
+        if (finite) accumulate_sample(r, K, sums.data(), extra);
+        else ++counts.dropped;
+        pairs.add(s, finite, r.level[0]);
       }
-      store_pixel(out, x, y, sums, extra, depth_spread);
+      pairs.finish();
+      store_pixel(out, x, y, sums, extra, pairs, depth_spread);
     }
 }
 
@@ -437,8 +516,6 @@ void write_meta(FrameMeta& meta, const Scene& scene, const RenderSettings& setti
   meta.extra["rays"] = std::to_string(counts.rays);
 }
 
-int grid_of(int spp) { return std::max(1, int(std::floor(std::sqrt(double(spp))))); }
-
 }  // namespace
 
 AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
@@ -446,7 +523,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   Stopwatch clock;
   const int W = settings.width, H = settings.height, K = settings.reflection_levels;
   PathTracer tracer(scene, tracer_options(settings));
-  const SampleSource src{scene, tracer, W, H, settings.seed, grid_of(settings.spp)};
+  const SampleSource src{scene, tracer, W, H, settings.seed, SampleLayout(settings.spp)};
 
   AovFrame frame = allocate_frame(W, H, K, settings.threads);
   const FrameLayers out = layers_of(frame, K);
@@ -480,33 +557,46 @@ ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, 
                                  settings.spp));
   const int W = settings.width, H = settings.height;
   PathTracer tracer(scene, tracer_options(settings));
-  const SampleSource src{scene, tracer, W, H, settings.seed, grid_of(settings.spp)};
+  const SampleSource src{scene, tracer, W, H, settings.seed, SampleLayout(settings.spp)};
   ColorSums out;
   out.width = W;
   out.height = H;
   out.samples = sample_end - sample_begin;
+  // Pair (2j, 2j + 1) is counted by the range that holds 2j + 1 (which traces 2j again when the
+  // range starts there); with an odd spp the last sample is alone.
+  out.pairs = sample_end / 2 - (sample_begin + 1) / 2;
+  out.singles = (sample_end == settings.spp && settings.spp % 2 == 1) ? 1 : 0;
   out.sum.assign(std::size_t(W) * H * 3, 0.0);
-  out.sum_sq.assign(std::size_t(W) * H * 3, 0.0);
+  out.pair_sq.assign(std::size_t(W) * H * 3, 0.0);
   std::atomic<std::int64_t> dropped{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
     SampleResult r;
     std::int64_t tile_dropped = 0;
+    // A sample's colour, 0 when dropped (as mean() counts it: the attempted samples divide).
+    auto color_of = [&](int x, int y, int s, bool count) {
+      float fx, fy;
+      src.trace(x, y, s, r, fx, fy);
+      if (sample_finite(r)) return r.level[0].color();
+      if (count) ++tile_dropped;
+      return Vec3{0, 0, 0};
+    };
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
         const std::uint64_t pixel = std::uint64_t(y) * W + x;
         double* s1 = &out.sum[pixel * 3];
-        double* s2 = &out.sum_sq[pixel * 3];
+        double* s2 = &out.pair_sq[pixel * 3];
+        Vec3 first{0, 0, 0};
+        if (sample_begin % 2 == 1) first = color_of(x, y, sample_begin - 1, false);
         for (int s = sample_begin; s < sample_end; ++s) {
-          float fx, fy;
-          src.trace(x, y, s, r, fx, fy);
-          if (!sample_finite(r)) {
-            ++tile_dropped;
-            continue;
-          }
-          Vec3 f = r.level[0].color();
-          for (int c = 0; c < 3; ++c) {
-            s1[c] += f[c];
-            s2[c] += double(f[c]) * f[c];
+          const Vec3 f = color_of(x, y, s, true);
+          for (int c = 0; c < 3; ++c) s1[c] += f[c];
+          if (s % 2 == 0) {
+            first = f;
+          } else {
+            for (int c = 0; c < 3; ++c) {
+              const double d = double(first[c]) - f[c];
+              s2[c] += d * d;
+            }
           }
         }
       }
@@ -525,10 +615,12 @@ void ColorSums::add(const ColorSums& o) {
   if (o.width != width || o.height != height)
     throw WorkError(fmt::format("cannot add colour sums of {}x{} to {}x{}", o.width, o.height, width, height));
   samples += o.samples;
+  pairs += o.pairs;
+  singles += o.singles;
   dropped += o.dropped;
   for (std::size_t i = 0; i < sum.size(); ++i) {
     sum[i] += o.sum[i];
-    sum_sq[i] += o.sum_sq[i];
+    pair_sq[i] += o.pair_sq[i];
   }
 }
 
@@ -541,15 +633,16 @@ Image ColorSums::mean() const {
   return img;
 }
 
+double ColorSums::variance_of_mean(std::size_t i) const {
+  // PairMoments' formula (pixel_sums.h) with weight 1 per sample.
+  if (pairs < 1 || samples < 2) return 0.0;
+  const double n = double(samples);
+  return pair_sq[i] * (1.0 + double(singles) / (2.0 * double(pairs))) / (n * n);
+}
+
 Image ColorSums::variance_of_mean() const {
   Image img(width, height, 3);
-  if (samples < 2) return img;
-  const double n = double(samples);
-  for (std::size_t i = 0; i < sum.size(); ++i) {
-    double m = sum[i] / n;
-    double var = std::max(0.0, (sum_sq[i] - m * sum[i]) / (n - 1));
-    img.data()[i] = variance_to_float(var / n);
-  }
+  for (std::size_t i = 0; i < sum.size(); ++i) img.data()[i] = variance_to_float(variance_of_mean(i));
   return img;
 }
 

@@ -19,7 +19,8 @@ namespace dnb {
 class Scene;  // tracer/scene.h
 
 // Bumped whenever a change to the tracer changes its images (part of every cache key).
-inline constexpr const char* kTracerVersion = "dnb-tracer-3";
+// 4: two samples per stratum, and variance layers from the pairs (render.cpp's top).
+inline constexpr const char* kTracerVersion = "dnb-tracer-4";
 
 struct RenderSettings {
   int width = 1024;
@@ -37,18 +38,25 @@ struct RenderSettings {
 // Renders every AOV layer of DESIGN.md (plus edge sub-pixels and reflection levels).
 AovFrame render_frame(const Scene& scene, const RenderSettings& settings);
 
-// Per-pixel sums of the full radiance F and of its square over the sample indices
-// [sample_begin, sample_end) of a render with settings.spp samples per pixel in all. The sums
-// of a range depend only on (scene, settings.seed, settings.spp, the range), never on threads.
+// Per-pixel sums of the full radiance F over the sample indices [sample_begin, sample_end) of a
+// render with settings.spp samples per pixel in all, and the sums of the squared differences of
+// the range's sample pairs (the two samples of a stratum, render.cpp's top; a range that starts
+// inside a pair traces its first sample again). The sums of a range depend only on (scene,
+// settings.seed, settings.spp, the range), never on threads.
 struct ColorSums {
   int width = 0, height = 0;
   std::int64_t samples = 0;          // samples per pixel summed
-  std::int64_t dropped = 0;          // NaN/Inf samples dropped
-  std::vector<double> sum, sum_sq;   // 3 per pixel, row-major
+  std::int64_t pairs = 0;            // sample pairs in pair_sq
+  std::int64_t singles = 0;          // samples without a partner (the last of an odd spp)
+  std::int64_t dropped = 0;          // NaN/Inf samples dropped (counted as 0)
+  std::vector<double> sum, pair_sq;  // 3 per pixel, row-major
   // Adds another range's sums. Adding ranges in a fixed order gives a fixed result.
   void add(const ColorSums& other);
   Image mean() const;                // sum / samples, as float RGB
-  Image variance_of_mean() const;    // per-pixel sample variance / samples
+  // Of value i (pixel * 3 + channel): the variance of its mean from the pairs,
+  // pair_sq (1 + singles / (2 pairs)) / samples^2; 0 without a pair.
+  double variance_of_mean(std::size_t i) const;
+  Image variance_of_mean() const;
 };
 ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, int sample_begin,
                             int sample_end);

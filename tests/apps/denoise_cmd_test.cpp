@@ -68,18 +68,20 @@ TEST(DenoiseCommand, OutputIsDenoisedAndNamesItsMethodAndParameters) {
   for (std::size_t k = 0; k < input.size(); ++k) changed += input.data()[k] != output.data()[k];
   EXPECT_GT(changed, input.size() / 2) << "the output repeats the input's colour";
 
-  // Scored by the program itself; relmse (squared error over the reference squared) weighs the
-  // dark walls as much as the light. Measured: input 0.109, output 0.017; a bound of half the
-  // input's leaves room for tuning while a copy of the input (ratio 1) fails.
+  // Scored by the program itself. The 8-bit mse is the stable reading at this size: over input
+  // seeds 1, 3-7 the output's is 0.54-0.69 of the input's, so 0.8 leaves room for tuning while
+  // a copy of the input (ratio 1) fails. relmse (squared error over the reference squared,
+  // weighing the dark walls as much as the light) rests on a few firefly pixels of a 32x24
+  // frame: 0.34-0.88 of the input's over the same seeds, so only required to fall.
   auto score = [&](const std::string& image) {
     auto m = test::run_denoisebench_stdout("metrics --json " + image + " " + ref);
     EXPECT_EQ(m.exit_code, 0) << m.output << m.errors;
     return nlohmann::json::parse(m.output);
   };
   const auto before = score(in), after = score(out);
-  EXPECT_LT(after["relmse"].get<double>(), 0.5 * before["relmse"].get<double>())
+  EXPECT_LT(after["mse"].get<double>(), 0.8 * before["mse"].get<double>())
       << "input " << before.dump() << "\noutput " << after.dump();
-  EXPECT_LT(after["mse"].get<double>(), before["mse"].get<double>());
+  EXPECT_LT(after["relmse"].get<double>(), before["relmse"].get<double>());
 
   auto file = OIIO::ImageInput::open(out);
   ASSERT_TRUE(file) << out;

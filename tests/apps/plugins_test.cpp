@@ -32,10 +32,12 @@ test::CommandResult run_in(const test::TempDir& dir, const std::string& args) {
   return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
 }
 
-// A tiny matrix (one scene, 32x24, 4 spp input, 64 spp reference) of the given methods.
-std::string config(const std::string& methods, const std::string& plugins_dir, const std::string& extra = "") {
-  return "name = \"plug\"\nwidth = 32\nheight = 24\nscenes = [\"cornell-box\"]\nspp = [4]\nmethods = [" + methods +
-         "]\nplugins = [\"" + plugins_dir + "\"]\n[reference]\nspp = 64\nblock_spp = 16\n[timing]\nrepeats = 2\n" + extra;
+// A tiny matrix (one scene, 32x24 unless asked, 4 spp input, 64 spp reference) of the given methods.
+std::string config(const std::string& methods, const std::string& plugins_dir, const std::string& extra = "",
+                   int width = 32, int height = 24, int reference_spp = 64) {
+  return "name = \"plug\"\nwidth = " + std::to_string(width) + "\nheight = " + std::to_string(height) +
+         "\nscenes = [\"cornell-box\"]\nspp = [4]\nmethods = [" + methods + "]\nplugins = [\"" + plugins_dir +
+         "\"]\n[reference]\nspp = " + std::to_string(reference_spp) + "\nblock_spp = 16\n[timing]\nrepeats = 2\n" + extra;
 }
 
 std::map<std::string, json> records_by_method(const json& res) {
@@ -47,7 +49,10 @@ std::map<std::string, json> records_by_method(const json& res) {
 TEST(Plugins, BothProtocolsRunScoreAndReportLikeBuiltIns) {
   test::TempDir dir;
   // The repository's examples: illum_box (frame) and illum_atrous_worker (worker).
-  write(dir.path() / "c.toml", config("\"illum_box\", \"illum_atrous_worker\", \"bilateral\"", test_plugins()));
+  // 64x48 against a 128 spp reference: at 32x24 a 7x7 box is a fifth of the frame and the
+  // reference's own noise a large share of every error, so the margin rested on one realisation.
+  write(dir.path() / "c.toml",
+        config("\"illum_box\", \"illum_atrous_worker\", \"bilateral\"", test_plugins(), "", 64, 48, 128));
   const std::string out = dir.file("out");
   auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -60,7 +65,8 @@ TEST(Plugins, BothProtocolsRunScoreAndReportLikeBuiltIns) {
     EXPECT_EQ(rec["role"], "method") << m;
     EXPECT_EQ(rec["kind"], "filter") << m;
     // Both filter the illumination of a 4 spp frame: they must beat the unfiltered input against
-    // a 64 spp reference (the input's error is mostly its own noise at this sample count).
+    // a 128 spp reference (the input's error is mostly its own noise at this sample count).
+    // Measured: 0.61 (illum_box) and 0.72 (illum_atrous_worker) of the input's mse.
     EXPECT_LT(rec["metrics"]["mse"].get<double>(), 0.9 * input_mse) << m;
     EXPECT_GT(rec["times"]["filter"].get<double>(), 0.0) << m;
     EXPECT_TRUE(fs::exists(out + "/" + rec["files"]["image"].get<std::string>())) << m;

@@ -456,8 +456,8 @@ TEST(Determinism, BitIdenticalForOneAndTwoThreads) {
   EXPECT_TRUE(a.edges == b.edges);
   // The colour sums used by references give the same colour as the frame.
   s.threads = 2;
-  ColorSums lo = render_color_sums(*scene, s, 0, 4);
-  ColorSums hi = render_color_sums(*scene, s, 4, 9);
+  ColorSums lo = render_color_sums(*scene, s, 0, 3);  // ends inside a pair: the next range redoes it
+  ColorSums hi = render_color_sums(*scene, s, 3, 9);
   lo.add(hi);
   Image m = lo.mean();
   const Image& F = a.layer(layer::kColor);

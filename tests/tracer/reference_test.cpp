@@ -30,6 +30,7 @@ struct Synthetic {
   int width = 12, height = 8;
   int calls = 0;
   int fail_after = -1;  // throw on this call (a crash mid-render)
+  int spp = 100;        // the job's (for the last, unpaired sample of an odd spp)
   ColorSums operator()(int begin, int end, const std::function<void(std::int64_t)>& on_progress) {
     if (fail_after >= 0 && calls >= fail_after) throw WorkError("synthetic crash");
     ++calls;
@@ -38,12 +39,18 @@ struct Synthetic {
     s.height = height;
     s.samples = end - begin;
     s.sum.assign(std::size_t(width) * height * 3, 0.0);
-    s.sum_sq.assign(s.sum.size(), 0.0);
+    s.pair_sq.assign(s.sum.size(), 0.0);
+    // Pairs (2j, 2j + 1) as the tracer takes them (render.h): counted by the range holding 2j + 1.
+    s.pairs = end / 2 - (begin + 1) / 2;
+    s.singles = (end == spp && spp % 2 == 1) ? 1 : 0;
     for (int k = begin; k < end; ++k)
       for (std::size_t i = 0; i < s.sum.size(); ++i) {
-        double v = synthetic_sample(std::uint64_t(k), i);
+        const double v = synthetic_sample(std::uint64_t(k), i);
         s.sum[i] += v;
-        s.sum_sq[i] += v * v;
+        if (k % 2 == 1) {
+          const double d = synthetic_sample(std::uint64_t(k - 1), i) - v;
+          s.pair_sq[i] += d * d;
+        }
       }
     if (on_progress) on_progress(std::int64_t(end - begin) * width * height);
     return s;
@@ -65,10 +72,10 @@ BlockJob small_job(const std::string& checkpoint = "") {
 }
 
 bool bit_identical(const ColorSums& a, const ColorSums& b) {
-  return a.width == b.width && a.height == b.height && a.samples == b.samples && a.dropped == b.dropped &&
+  return a.width == b.width && a.height == b.height && a.samples == b.samples && a.pairs == b.pairs && a.singles == b.singles && a.dropped == b.dropped &&
          a.sum.size() == b.sum.size() &&
          std::memcmp(a.sum.data(), b.sum.data(), a.sum.size() * sizeof(double)) == 0 &&
-         std::memcmp(a.sum_sq.data(), b.sum_sq.data(), a.sum.size() * sizeof(double)) == 0;
+         std::memcmp(a.pair_sq.data(), b.pair_sq.data(), a.sum.size() * sizeof(double)) == 0;
 }
 
 TEST(ReferenceBlocks, FoldsBlocksInOrder) {
@@ -225,6 +232,7 @@ TEST(ReferenceConvergence, MatchesAnalyticVarianceOfTheMean) {
   Synthetic synth;
   synth.width = 64;
   synth.height = 48;
+  synth.spp = 256;
   BlockJob job = small_job();
   job.width = 64;
   job.height = 48;
@@ -234,8 +242,9 @@ TEST(ReferenceConvergence, MatchesAnalyticVarianceOfTheMean) {
   ASSERT_EQ(r.convergence.size(), 4u);
   for (auto& row : r.convergence) {
     const double expected = 1.0 / std::sqrt(3.0 * double(row.spp));
-    // 9216 pixel-channels: the estimate's relative spread is about sqrt(2/(9216 n)) plus the
-    // spread of the mean^2 sum, far below 3%.
+    // 9216 pixel-channels, each with n / 2 >= 32 degrees of freedom (the pairs): the
+    // estimate's relative spread is about sqrt(2 / (9216 n / 2)) plus the spread of the mean^2
+    // sum, far below 3%.
     EXPECT_NEAR(row.rel_error / expected, 1.0, 0.03) << "spp " << row.spp;
     // est_relmse = mean(var / (mean^2 + 0.01)) ~ (1/(12 n)) / (0.25 + 0.01 + 1/(12 n)), within 5%
     // (mean^2 varies from pixel to pixel, and the expectation of a ratio is not a ratio).
