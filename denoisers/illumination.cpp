@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <utility>
 
@@ -235,12 +236,18 @@ FireflySplit split_fireflies(Image layer, float ratio, bool with_excess) {
     float* b = r.bound.data() + std::size_t(y) * w;
     auto at = [&](int x) {
       float m = 0;
+      bool any = false;
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           const int xx = x + dx, yy = y + dy;
-          if ((dx || dy) && xx >= 0 && yy >= 0 && xx < w && yy < h) m = std::max(m, lum[std::size_t(yy) * w + xx]);
+          if ((dx || dy) && xx >= 0 && yy >= 0 && xx < w && yy < h) {
+            m = std::max(m, lum[std::size_t(yy) * w + xx]);
+            any = true;
+          }
         }
-      return ratio * m;
+      // A pixel without neighbours (a 1x1 image) has nothing to be a firefly against: no bound
+      // (a bound of 0 would cut it to black).
+      return any ? ratio * m : std::numeric_limits<float>::infinity();
     };
     if (up && dn && w > 2) {
       b[0] = at(0);
