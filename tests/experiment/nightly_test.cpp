@@ -373,6 +373,43 @@ TEST(NightlyTolerances, FollowTheStatedRule) {
   EXPECT_THROW(derive_gates({example()}, {"a"}, {}, {}, example_gates(), o), InputError);
 }
 
+// `denoisebench nightly tolerances` (scripts/nightly_noise) reads run folders and bench files as
+// the programs write them, keeps the baseline's ahead rule and writes gates.json.
+TEST(NightlyTolerances, DerivedFromRunFoldersAndBenchFilesIntoTheBaseline) {
+  test::TempDir dir;
+  std::vector<std::string> runs;
+  for (double mse : {40.0, 44.0, 48.0}) {  // guided: relative std 4 / 44
+    json r = results_doc();
+    r["records"][2]["metrics"]["mse"] = mse;
+    const std::string run = dir.file("run" + std::to_string(runs.size()));
+    std::filesystem::create_directories(run);
+    test::write(run + "/results.json", r.dump());
+    runs.push_back(run);
+  }
+  std::vector<std::string> benches;
+  for (double scale : {1.0, 1.1}) {
+    json b = bench_doc();
+    for (auto& run : b["benchmarks"])
+      if (run.contains("ratio")) run["ratio"] = run["ratio"].get<double>() * scale;
+    benches.push_back(dir.file("bench" + std::to_string(benches.size()) + ".json"));
+    test::write(benches.back(), b.dump());
+  }
+  const std::string baseline = dir.file("baseline");
+  std::filesystem::create_directories(baseline);
+  test::write(baseline + "/gates.json", example_gates().to_json().dump());
+  const Gates g = derive_tolerances(runs, benches, baseline);
+  EXPECT_NEAR(g.quality_tolerance("cornell-box", "guided"), 3.0 * 4.0 / 44.0, 1e-12);
+  // The guided case's median ratio is 2.0 and 2.2: relative std 0.1 / sqrt(2) / 1.05 (the rule
+  // of FollowTheStatedRule), times 4.25.
+  EXPECT_NEAR(g.performance.at("nightly/guided/32x24/threads:1"), 4.25 * 0.1 / std::sqrt(2.0) / 1.05, 1e-9);
+  EXPECT_EQ(g.ahead_of, example_gates().ahead_of);  // the baseline's rule, kept
+  const Gates written = Gates::from_json(json::parse(test::slurp(baseline + "/gates.json")), "gates.json");
+  EXPECT_DOUBLE_EQ(written.quality_tolerance("cornell-box", "guided"), g.quality_tolerance("cornell-box", "guided"));
+  EXPECT_THROW(derive_tolerances({}, {}, baseline), InputError);
+  test::write(dir.file("empty.json"), json{{"context", json::object()}, {"benchmarks", json::array()}}.dump());
+  EXPECT_THROW(derive_tolerances({}, {dir.file("empty.json")}, baseline), InputError);
+}
+
 TEST(NightlyTolerances, DefaultAheadRuleListsTheFiltersNotTheRenderers) {
   Summary s = example();
   s.quality.push_back({"cornell-box", "irradiance_cache", "method", 16, 5.0});
