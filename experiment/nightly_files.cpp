@@ -4,8 +4,10 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -161,18 +163,33 @@ Summary summarize(const experiment::ResultsDocument& results, const std::string&
   s.cpu_model = machine.value("cpu", "unknown");
   s.machine = fmt::format("{} ({}, {} threads)", machine.value("hostname", "unknown"), s.cpu_model,
                           machine.value("hardware_threads", 0));
-  std::set<std::tuple<std::string, std::string, int>> seen;
+  if (config.seeds.size() > 1) s.config["seeds"] = config.seeds;
+  // Several input seeds (config `seeds`): a cell's entry is the mean of its seeds' MSE, so the
+  // gates compare like with like; one seed twice for a cell is a malformed file.
+  std::map<std::tuple<std::string, std::string, int>, std::size_t> entry_of;
+  std::set<std::tuple<std::string, std::string, int, std::uint64_t>> seen;
+  std::vector<int> seeds_in;
   for (std::size_t i = 0; i < results.records.size(); ++i) {
     const experiment::CellRecord& r = results.records[i];
     if (!experiment::is_method_role(r.role)) continue;  // the input and plain path tracing
     const std::string w = fmt::format("{}: records[{}]", where_results, i);
     const auto mse = r.metrics.find("mse");
     if (mse == r.metrics.end()) throw InputError(fmt::format("{}: metrics: missing key 'mse'", w));
-    QualityEntry e{r.scene, r.method, experiment::to_string(r.role), r.spp, mse->second ? *mse->second : NAN};
-    if (!seen.insert({e.scene, e.method, e.spp}).second)
-      throw InputError(fmt::format("{}: a second record for scene {}, method {}, spp {}", w, e.scene, e.method, e.spp));
-    s.quality.push_back(e);
+    const double value = mse->second ? *mse->second : NAN;
+    if (!seen.insert({r.scene, r.method, r.spp, r.seed.value_or(0)}).second)
+      throw InputError(fmt::format("{}: a second record for scene {}, method {}, spp {}{}", w, r.scene, r.method, r.spp,
+                                   r.seed ? fmt::format(", seed {}", *r.seed) : std::string()));
+    const auto key = std::make_tuple(r.scene, r.method, r.spp);
+    if (auto it = entry_of.find(key); it != entry_of.end()) {
+      s.quality[it->second].mse += value;  // NaN stays NaN: a non-finite seed fails the gate
+      ++seeds_in[it->second];
+      continue;
+    }
+    entry_of[key] = s.quality.size();
+    s.quality.push_back({r.scene, r.method, experiment::to_string(r.role), r.spp, value});
+    seeds_in.push_back(1);
   }
+  for (std::size_t k = 0; k < s.quality.size(); ++k) s.quality[k].mse /= seeds_in[k];
   if (s.quality.empty()) throw InputError(fmt::format("{}: no method records", where_results));
 
   if (bench) add_benchmarks(s, *bench, where_bench);

@@ -299,6 +299,31 @@ TEST(NightlySummary, ReadsMethodRecordsAndNightlyCases) {
   EXPECT_EQ(back.performance[1].error, "no OpenCL device");
 }
 
+TEST(NightlySummary, SeveralSeedsGiveOneEntryPerCellTheMeanOfItsSeeds) {
+  json r = results_doc();
+  r["schema_version"] = 4;
+  r["config"]["seeds"] = {1, 2};
+  json guided = r["records"][2], other_seed = guided;
+  guided["seed"] = 1;
+  other_seed["seed"] = 2;
+  other_seed["metrics"]["mse"] = 50.5;  // seed 1 has 40.5
+  r["records"][2] = guided;
+  r["records"].erase(3);  // the ablation: one seed is enough here
+  r["records"].push_back(other_seed);
+  const Summary s = summarize_json(r, "results.json", nullptr, "");
+  ASSERT_EQ(s.quality.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.quality[0].mse, 45.5);
+  EXPECT_EQ(s.config.at("seeds"), json({1, 2}));
+  // The same seed twice is a malformed file, named.
+  r["records"].push_back(other_seed);
+  try {
+    summarize_json(r, "results.json", nullptr, "");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("records[4]: a second record for scene cornell-box, method guided, spp 2, seed 2"));
+  }
+}
+
 TEST(NightlySummary, MalformedInputNamesTheFileAndKey) {
   auto message = [](const json& r) {
     try {
