@@ -72,7 +72,12 @@ void add_metrics(CLI::App& app, Action& action) {
           j["image"] = row.image;
           j["reference"] = q.reference;
           for (const auto& [name, v] : row.values) j[name] = std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-          if (out.reference_has_variance) j["reference_unconverged_share"] = out.reference_unconverged_share;
+          if (out.reference_has_variance) {
+            j["reference_unconverged_share"] = out.reference_unconverged_share;
+            j["reference_estimated_error"] = {{"mse", out.reference_error.mse},
+                                              {"mse_hdr", out.reference_error.mse_hdr},
+                                              {"relmse", out.reference_error.relmse}};
+          }
           if (!row.maps.empty()) j["error_maps"] = row.maps;
           for (const auto& [name, p] : row.pooled)
             j[name + "_pooled"] = {{"mean", p.mean},           {"weighted_median", p.weighted_median},

@@ -103,6 +103,7 @@ json CellRecord::to_json() const {
   if (reference.seed) ref["seed"] = *reference.seed;
   if (reference.cache_hit) ref["cache_hit"] = *reference.cache_hit;
   if (reference.unconverged_rse) ref["unconverged_rse"] = *reference.unconverged_rse;
+  if (reference.estimated_error) ref["estimated_error"] = *reference.estimated_error;
   r["reference"] = ref;
   if (!files.empty()) r["files"] = files;
   if (input_cache_hit) r["input_cache_hit"] = *input_cache_hit;
@@ -150,6 +151,7 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   r.reference.image = jf::get_or<std::string>(ref, "image", "", rw);
   r.reference.unconverged_share = optional_number(ref, "unconverged_share", rw);
   r.reference.unconverged_rse = optional_number(ref, "unconverged_rse", rw);
+  r.reference.estimated_error = optional_value<std::map<std::string, double>>(ref, "estimated_error", rw);
 
   r.files = jf::get_or<std::map<std::string, std::string>>(j, "files", {}, where);
   r.input_cache_hit = optional_value<bool>(j, "input_cache_hit", where);

@@ -21,7 +21,7 @@
 //   spp, width, height, seed, cell_key (the hash of everything that determines the cell),
 //   metrics {name: value | null for a non-finite value}, times {input_render, filter, total,
 //   reference[, filter_runs, setup_seconds]}, reference {spp, seed, seconds, cache_hit, image,
-//   unconverged_share, unconverged_rse}, files {image, error_flip, error_relmse; input cells
+//   unconverged_share, unconverged_rse[, estimated_error {mse, mse_hdr, relmse}]}, files {image, error_flip, error_relmse; input cells
 //   also frame and, when the frame has one, frame_edges}, input_cache_hit; method cells also
 //   base_method, kind, params, phases, counters. reference.image is the reference file itself
 //   (R,G,B, variance.*, metadata); files.frame is the AOV frame file every cell of that scene
@@ -114,6 +114,9 @@ struct ReferenceInfo {
   std::string image;                       // relative to the results folder
   std::optional<double> unconverged_share;  // null when the reference has no variance layers
   std::optional<double> unconverged_rse;
+  // The reference's own expected error, what a perfect image would score against it
+  // (metrics::reference_error: mse, mse_hdr, relmse); absent without variance layers.
+  std::optional<std::map<std::string, double>> estimated_error;
 };
 
 struct CellRecord {

@@ -74,7 +74,11 @@ SceneCells scene_cells(const std::string& out_dir, const std::string& name, cons
     write_reference(ref, dest, "");
   // The reference's own unconverged pixels (fireflies carried by a few samples): mse_converged
   // leaves them out; the report names their share beside it.
-  if (!ref.variance.empty()) info.unconverged_share = metrics::unconverged_share(ref.color, ref.variance);
+  if (!ref.variance.empty()) {
+    info.unconverged_share = metrics::unconverged_share(ref.color, ref.variance);
+    const metrics::ReferenceError e = metrics::reference_error(ref.color, ref.variance);
+    info.estimated_error = std::map<std::string, double>{{"mse", e.mse}, {"mse_hdr", e.mse_hdr}, {"relmse", e.relmse}};
+  }
   info.unconverged_rse = metrics::kUnconvergedRse;
   return s;
 }

@@ -155,6 +155,23 @@ std::string unconverged_cell(const ResultsDocument& res, const std::string& scen
   return "n/a";
 }
 
+// The reference's own expected error in `metric` (mse, mse_hdr, relmse), as the run recorded it:
+// what a perfect image would score against this reference.
+std::optional<double> reference_error_of(const ResultsDocument& res, const std::string& scene, const std::string& metric) {
+  for (const auto& r : res.records)
+    if (r.scene == scene && r.reference.estimated_error)
+      if (auto it = r.reference.estimated_error->find(metric); it != r.reference.estimated_error->end()) return it->second;
+  return std::nullopt;
+}
+
+// The column is there for the metrics the reference's noise adds to, when a scene has the estimate.
+bool has_reference_error(const ResultsDocument& res, const std::string& metric) {
+  if (metric != "mse" && metric != "mse_hdr" && metric != "relmse") return false;
+  for (const auto& s : res.scenes())
+    if (reference_error_of(res, s, metric)) return true;
+  return false;
+}
+
 }  // namespace
 
 Table table1(const ResultsDocument& res, const std::string& metric) {
@@ -176,6 +193,7 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
   for (const auto& m : methods) t.header.push_back(m);
   t.header.push_back(fmt::format("input ({} spp)", spp));
   const auto& info = metrics::metric(metric);
+  const bool reference_column = has_reference_error(res, metric);
   bool several = false;
   for (const auto& s : res.scenes()) {
     std::vector<std::string> row{s};
@@ -188,9 +206,11 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
     if (const int best = significantly_best(vals, info.lower_is_better); best >= 0) row[std::size_t(best) + 1] += " *";
     row.push_back(format_interval(seed_values(res, s, "input", spp, metric)));
     if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
+    if (reference_column) row.push_back(format_metric(reference_error_of(res, s, metric)));
     t.rows.push_back(row);
   }
   if (metric == "mse_converged") t.header.push_back("reference pixels left out");
+  if (reference_column) t.header.push_back("reference's own (est.)");
   t.note = fmt::format("{}; {} is better. From results.json.{}{}{}", info.description, info.lower_is_better ? "lower" : "higher",
                        several ? fmt::format(" Several input seeds: mean ± the half width of its 95% t-interval over the seeds; "
                                             "*: the best method of the row, {} than the runner-up by a paired t-test over the "
@@ -199,6 +219,10 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
                                : std::string(),
                        res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).",
                        res.skipped.empty() ? "" : " skipped: the method renders the scene, and that scene was read from files.");
+  if (reference_column)
+    t.note += " reference's own (est.): what a perfect image would score against this reference, from the reference's "
+              "variance of the mean (metrics::reference_error; first order for the 8-bit mse): that much of every cell is "
+              "the reference's noise, not the method's error (mse_hdr_nc and relmse_nc take it out).";
   return t;
 }
 

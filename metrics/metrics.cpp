@@ -74,22 +74,30 @@ MetricResult mse(const Image& image, const Image& reference) {
   return per_sample(to_srgb8(image), to_srgb8(reference), [](double x, double y) { return (x - y) * (x - y); });
 }
 
-Image unconverged_mask(const Image& reference, const Image& variance, double max_rse) {
+void check_variance(const Image& reference, const Image& variance) {
   if (variance.channels() != 3 || variance.width() != reference.width() || variance.height() != reference.height())
     throw InputError(fmt::format("the reference's variance is {}x{} with {} channels: expected {}x{} with 3 "
                                  "(variance.R, variance.G, variance.B)",
                                  variance.width(), variance.height(), variance.channels(), reference.width(),
                                  reference.height()));
+  for (std::size_t i = 0; i < variance.size(); ++i) {
+    const double v = variance.data()[i];
+    if (!(v >= 0) || !std::isfinite(v)) {
+      const std::size_t p = i / 3;
+      throw InputError(fmt::format("the reference's variance at pixel ({}, {}) channel {} is {}: expected a finite "
+                                   "value >= 0",
+                                   p % reference.width(), p / reference.width(), "RGB"[i % 3], v));
+    }
+  }
+}
+
+Image unconverged_mask(const Image& reference, const Image& variance, double max_rse) {
+  check_variance(reference, variance);
   Image mask(reference.width(), reference.height(), 1);
   for (std::size_t p = 0; p < reference.pixel_count(); ++p) {
     double mean = 0, var = 0;
     for (int c = 0; c < 3; ++c) {
       const double v = variance.data()[3 * p + c];
-      if (!(v >= 0) || !std::isfinite(v)) {
-        throw InputError(fmt::format("the reference's variance at pixel ({}, {}) channel {} is {}: expected a finite "
-                                     "value >= 0",
-                                     p % reference.width(), p / reference.width(), "RGB"[c], v));
-      }
       mean = std::max(mean, double(reference.data()[3 * p + c]));
       var = std::max(var, v);
     }
@@ -134,6 +142,68 @@ double mse_hdr(const Image& image, const Image& reference) { return mse_hdr_map(
 
 MetricResult relmse(const Image& image, const Image& reference) {
   return per_sample(image, reference, [](double x, double y) { return (x - y) * (x - y) / (y * y + 0.01); });
+}
+
+namespace {
+
+// A linear-radiance metric less the reference's expected share of it, per sample: `error(x, y)`
+// is the metric's own per-sample term, `share(y, v)` the reference's (v its variance of the mean).
+template <typename E, typename S>
+MetricResult noise_corrected(const Image& image, const Image& reference, const Image* variance, E error, S share) {
+  check_pair(image, reference);
+  MetricResult r{0, Image(image.width(), image.height(), 1)};
+  if (!variance) {
+    r.value = std::numeric_limits<double>::quiet_NaN();
+    return r;
+  }
+  check_variance(reference, *variance);
+  double total = 0;
+  for (std::size_t p = 0; p < image.pixel_count(); ++p) {
+    double s = 0;
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t i = 3 * p + c;
+      const double x = image.data()[i], y = reference.data()[i];
+      s += error(x, y) - share(y, double(variance->data()[i]));
+    }
+    r.map.data()[p] = float(s / 3);
+    total += s;
+  }
+  r.value = total / double(image.size());
+  return r;
+}
+
+// d/dy of the 8-bit display value 255 srgb_encode(clamp(y, 0, 1)): 0 where the clamp holds.
+double srgb8_slope(double y) {
+  if (!(y > 0) || y >= 1) return y == 0 ? 255 * 12.92 : 0.0;
+  return 255 * (y <= 0.0031308 ? 12.92 : 1.055 / 2.4 * std::pow(y, 1.0 / 2.4 - 1.0));
+}
+
+}  // namespace
+
+MetricResult mse_hdr_nc(const Image& image, const Image& reference, const Image* variance) {
+  return noise_corrected(image, reference, variance, [](double x, double y) { return (x - y) * (x - y); },
+                         [](double, double v) { return v; });
+}
+
+MetricResult relmse_nc(const Image& image, const Image& reference, const Image* variance) {
+  return noise_corrected(image, reference, variance, [](double x, double y) { return (x - y) * (x - y) / (y * y + 0.01); },
+                         [](double y, double v) { return v / (y * y + 0.01); });
+}
+
+ReferenceError reference_error(const Image& reference, const Image& variance) {
+  check_variance(reference, variance);
+  ReferenceError e;
+  for (std::size_t i = 0; i < reference.size(); ++i) {
+    const double y = reference.data()[i], v = variance.data()[i], k = srgb8_slope(y);
+    e.mse_hdr += v;
+    e.relmse += v / (y * y + 0.01);
+    e.mse += k * k * v;
+  }
+  const double n = double(std::max<std::size_t>(1, reference.size()));
+  e.mse_hdr /= n;
+  e.relmse /= n;
+  e.mse /= n;
+  return e;
 }
 
 MetricResult psnr(const Image& image, const Image& reference) {
@@ -188,6 +258,14 @@ const std::vector<MetricInfo>& all_metrics() {
        "mean HDR-FLIP (Andersson et al. 2021) of the linear radiance: LDR-FLIP's largest error over ACES-tone-mapped "
        "exposures, the range from the reference; 67 pixels per degree",
        true, [](const Image& a, const Image& b, const Image*) { return hdrflip(a, b); }, true},
+      {"mse_hdr_nc",
+       "mse_hdr less the reference's own expected share, the mean of its variance of the mean (noise-corrected; "
+       "can fall below 0 for a method closer to the truth than the reference's noise); n/a without the variance",
+       true, mse_hdr_nc, true},
+      {"relmse_nc",
+       "relmse less the reference's own expected share, variance / (y^2 + 0.01) (noise-corrected, first order); "
+       "n/a without the variance",
+       true, relmse_nc, true},
       {"mse_converged",
        "8-bit mse over the pixels whose reference has converged (relative standard error at most 1/2: "
        "more than about 4 samples carry the pixel); n/a without the reference's variance",

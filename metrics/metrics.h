@@ -9,6 +9,8 @@
 //            (luminance-free: mean over the R, G, B channels, 'valid' window positions)
 //   flip     mean LDR-FLIP (Andersson et al. 2020), 67 pixels per degree
 //   hdrflip  mean HDR-FLIP (Andersson et al. 2021) on the linear radiance, 67 pixels per degree
+//   mse_hdr_nc, relmse_nc  mse_hdr and relmse less the reference's own expected share (see
+//            reference_error); need the reference's variance, n/a without it
 //   mse_converged  the 8-bit mse over the pixels whose reference has converged (see
 //            unconverged_mask); needs the reference's variance, n/a without it
 //
@@ -154,6 +156,25 @@ double unconverged_share(const Image& reference, const Image& reference_variance
 // non-negative samples. NaN (reported n/a) when `reference_variance` is null or when every
 // pixel is unconverged.
 MetricResult mse_converged(const Image& image, const Image& reference, const Image* reference_variance);
+
+// The reference's own error, from its variance of the mean v (issue 25). Scored against a noisy
+// reference r = mu + e, an image x independent of it has E[(x - r)^2] = E[(x - mu)^2] + Var(r)
+// per sample: the reference adds its variance to every method's mse_hdr. Hence
+//   mse_hdr_nc = mean of (x - r)^2 - v             (unbiased for the error against the truth)
+//   relmse_nc  = mean of ((x - r)^2 - v) / (r^2 + 0.01)   (first order in v / (r^2 + 0.01))
+// and the reference's own expected error, what a perfect image would score: mean v (mse_hdr),
+// mean v / (r^2 + 0.01) (relmse), and for the 8-bit mse the first-order (delta-method)
+// estimate mean of (d display / d r)^2 v, which ignores rounding and, where the clamp holds
+// (r >= 1), counts nothing. The variance must be the variance of the mean (tracer version 4 on:
+// docs/references.md); InputError as for mse_converged.
+struct ReferenceError {
+  double mse = 0, mse_hdr = 0, relmse = 0;
+};
+ReferenceError reference_error(const Image& reference, const Image& reference_variance);
+MetricResult mse_hdr_nc(const Image& image, const Image& reference, const Image* reference_variance);
+MetricResult relmse_nc(const Image& image, const Image& reference, const Image* reference_variance);
+// InputError unless `variance` is a 3-channel image of the reference's size, finite and >= 0.
+void check_variance(const Image& reference, const Image& variance);
 
 // `denoisebench metrics IMAGE REF`: IMAGE's R,G,B scored against REF's with every metric, the
 // reference's variance of the mean (variance.R/G/B) used when the file has it. InputErrors name

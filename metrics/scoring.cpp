@@ -152,6 +152,7 @@ ScoreOutcome score(const ScoreRequest& q) {
     out.reference_has_variance = true;
     try {
       out.reference_unconverged_share = unconverged_share(ref.rgb, *variance);
+      out.reference_error = reference_error(ref.rgb, *variance);
     } catch (const InputError& e) {
       throw InputError(fmt::format("'{}': {}", q.reference, e.what()));
     }

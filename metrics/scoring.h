@@ -54,6 +54,7 @@ struct ScoreOutcome {
   std::vector<ImageScore> rows;      // one per image, in order
   bool reference_has_variance = false;
   double reference_unconverged_share = 0;
+  ReferenceError reference_error;   // the reference's own expected error (when it has variance)
   std::vector<std::string> notes;    // what the user should know (8-bit inputs, metrics left out)
   std::optional<HdrFlipExposures> hdrflip_exposures;  // when hdrflip is scored: the reference's range
 };

@@ -43,7 +43,8 @@ CellRecord method_record() {
   r.times.filter_runs = std::vector<double>{0.3, 0.25, 0.2};
   r.times.setup = 2.5;
   r.reference = {.spp = 1024, .seed = 1000003, .seconds = 600, .cache_hit = true, .image = "images/c/reference.exr",
-                 .unconverged_share = 0.0125, .unconverged_rse = 0.5};
+                 .unconverged_share = 0.0125, .unconverged_rse = 0.5,
+                 .estimated_error = std::map<std::string, double>{{"mse", 0.75}, {"mse_hdr", 1e-5}, {"relmse", 2e-4}}};
   r.files = {{"image", "images/c/x_16.exr"}, {"error_flip", "images/c/x_16.err_flip.exr"}};
   r.input_cache_hit = false;
   r.base_method = "proposed";
@@ -97,6 +98,7 @@ TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   EXPECT_EQ(back.config.table2.filter_opencl, "proposed:opencl");
   EXPECT_EQ(back.config.table2.filter_cpu, "proposed");  // the default, written once
   EXPECT_EQ(r.times.setup, 2.5);
+  EXPECT_EQ(r.reference.estimated_error->at("mse"), 0.75);
   ASSERT_EQ(back.failures.size(), 1u);
   EXPECT_EQ(back.failures[0].log_tail, (std::vector<std::string>{"Traceback", "E"}));
   EXPECT_NE(back.failure("cornell-box", "plug", 16), nullptr);
@@ -128,6 +130,7 @@ TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   // A record that has no optional fields writes none of them.
   EXPECT_FALSE(j.at("records")[0].contains("params"));
   EXPECT_FALSE(j.at("records")[0].contains("base_method"));
+  EXPECT_FALSE(j.at("records")[0].at("reference").contains("estimated_error"));
 }
 
 TEST(ResultsDocument, QueriesTheTablesAreWrittenIn) {

@@ -86,5 +86,28 @@ TEST(SpeedupTable, SaysSoWhenThereAreTooFewPlainRendersToFit) {
   EXPECT_NE(t.note.find("too few plain path tracing points to fit (1)"), std::string::npos) << t.note;
 }
 
+TEST(Table1, StatesTheReferencesOwnEstimatedErrorBesideTheMetricsItEnters) {
+  ResultsDocument d;
+  d.config.scenes = {"box", "room"};
+  d.config.spp = {4};
+  for (const char* scene : {"box", "room"}) {
+    CellRecord in = record("input", Role::Input, 4, 40, 0.1), m = record("fast", Role::Method, 4, 5, 0.1);
+    in.scene = m.scene = scene;
+    in.metrics["ssim"] = m.metrics["ssim"] = 0.9;
+    if (std::string(scene) == "box")  // the room's reference has no variance layers
+      in.reference.estimated_error = m.reference.estimated_error =
+          std::map<std::string, double>{{"mse", 1.25}, {"mse_hdr", 1e-4}, {"relmse", 2e-3}};
+    d.records.push_back(in);
+    d.records.push_back(m);
+  }
+  const Table t = table1(d, "mse");
+  ASSERT_EQ(t.header.back(), "reference's own (est.)");
+  ASSERT_EQ(t.rows.size(), 2u);
+  EXPECT_EQ(t.rows[0].back(), "1.25");  // box, from its records
+  EXPECT_EQ(t.rows[1].back(), "n/a");   // room: no estimate
+  EXPECT_EQ(table1(d, "mse_hdr").rows[0].back(), "0.0001");
+  EXPECT_NE(table1(d, "ssim").header.back(), "reference's own (est.)");  // not a squared error
+}
+
 }  // namespace
 }  // namespace dnb::experiment

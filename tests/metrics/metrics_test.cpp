@@ -2,6 +2,7 @@
 // the refusals (NaN, unequal sizes) that every registered metric must share.
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -24,7 +25,8 @@ Image pattern(int w, int h) {
 
 TEST(Metrics, RegistryListsTheContractMetrics) {
   EXPECT_EQ(metric_names(),
-            (std::vector<std::string>{"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip", "hdrflip", "mse_converged"}));
+            (std::vector<std::string>{"mse", "mse_hdr", "relmse", "psnr", "ssim", "flip", "hdrflip", "mse_hdr_nc",
+                                      "relmse_nc", "mse_converged"}));
   EXPECT_THROW(metric("nope"), InputError);
   EXPECT_FALSE(metric("ssim").lower_is_better);
 }
@@ -124,8 +126,7 @@ TEST(Metrics, EveryMetricRefusesNanAndUnequalSizes) {
   }
 }
 
-// The variance of the mean as the tracer writes it (tracer/reference.cpp): the unbiased sample
-// variance over n samples, divided by n.
+// The variance of the mean of n independent samples: their unbiased sample variance over n.
 std::pair<double, double> mean_and_variance(const std::vector<double>& samples) {
   double sum = 0, sum_sq = 0;
   for (double v : samples) { sum += v; sum_sq += v * v; }
@@ -187,6 +188,86 @@ TEST(Metrics, MseConvergedLeavesOutTheUnconvergedPixelsOnly) {
   // Every pixel unconverged: nothing to average, NaN.
   Image all_noisy(4, 1, 3, 100.0f);
   EXPECT_TRUE(std::isnan(mse_converged(img, ref, &all_noisy).value));
+}
+
+// A reference r = mu + e with known per-sample variance v (Gaussian e, fixed seed) and images
+// x = mu + b: against r, mse_hdr expects b^2 + v; mse_hdr_nc takes the reference's v out.
+struct NoisyReference {
+  Image truth, reference, variance;
+};
+NoisyReference noisy_reference(int w, int h, double sd) {
+  NoisyReference n{pattern(w, h), pattern(w, h), Image(w, h, 3, float(sd * sd))};
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> e(0.0, sd);
+  for (std::size_t i = 0; i < n.reference.size(); ++i) n.reference.data()[i] = float(n.truth.data()[i] + e(rng));
+  return n;
+}
+
+TEST(Metrics, NoiseCorrectedHdrMetricsTakeOutTheReferencesVariance) {
+  const double sd = 0.05, v = sd * sd;
+  const NoisyReference n = noisy_reference(64, 64, sd);
+  const double samples = double(n.truth.size());
+  // The mean of (x - r)^2 over P samples of N(b, v) differences has a standard deviation of
+  // sqrt((2 v^2 + 4 b^2 v) / P): 5 of them (plus float rounding of the images) is the tolerance.
+  for (double b : {0.0, 0.02, 0.1}) {
+    Image x = n.truth;
+    for (std::size_t i = 0; i < x.size(); ++i) x.data()[i] += float(b);
+    const double tol = 5 * std::sqrt((2 * v * v + 4 * b * b * v) / samples) + 1e-6;
+    EXPECT_NEAR(mse_hdr(x, n.reference), b * b + v, tol) << b;  // the raw metric carries the reference's v
+    EXPECT_NEAR(metric("mse_hdr_nc").compute(x, n.reference, &n.variance).value, b * b, tol) << b;
+    // relmse_nc: the same per sample over y^2 + 0.01 (y in [0, 1.5] here, so the weights stay
+    // within 1/2.26 .. 100); to first order in v / (y^2 + 0.01) its expectation is the mean of
+    // b^2 / (mu^2 + 0.01). The tolerance scales the one above by the largest weight, 100, and
+    // adds the first-order term's size, v^2 / (y^2 + 0.01)^2 at most.
+    double expected = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const double mu = n.truth.data()[i];
+      expected += b * b / (mu * mu + 0.01);
+    }
+    expected /= samples;
+    const double rel = metric("relmse_nc").compute(x, n.reference, &n.variance).value;
+    EXPECT_NEAR(rel, expected, 100 * tol + 0.03 * expected + v * v * 1e4) << b;
+  }
+  // Without the reference's variance there is nothing to take out: n/a.
+  EXPECT_TRUE(std::isnan(metric("mse_hdr_nc").compute(n.truth, n.reference).value));
+  EXPECT_TRUE(std::isnan(metric("relmse_nc").compute(n.truth, n.reference).value));
+  Image bad = n.variance;
+  bad.at(1, 2, 0) = -1;
+  EXPECT_THROW(metric("mse_hdr_nc").compute(n.truth, n.reference, &bad), InputError);
+}
+
+TEST(Metrics, ReferenceErrorIsWhatAPerfectImageScores) {
+  const double sd = 0.01;
+  Image ref(4, 2, 3, 0.5f), var(4, 2, 3, float(sd * sd));
+  ref.at(3, 1, 0) = 1.5f;  // clamped for the 8-bit display: its noise does not show there
+  ref.at(2, 1, 1) = 0.0f;
+  const ReferenceError e = reference_error(ref, var);
+  const double v = var.data()[0];  // sd^2 as the float layer holds it
+  EXPECT_NEAR(e.mse_hdr, v, 1e-15);
+  double relmse = 0, mse = 0;
+  auto slope = [](double y) {  // a numerical derivative of the 8-bit display value, one-sided at 0
+    const double h = 1e-6;
+    return y <= 0 ? 255 * (srgb_encode(h) - srgb_encode(0)) / h : 255 * (srgb_encode(y + h) - srgb_encode(y - h)) / (2 * h);
+  };
+  for (std::size_t i = 0; i < ref.size(); ++i) {
+    const double y = ref.data()[i];
+    relmse += v / (y * y + 0.01);
+    mse += y >= 1 ? 0.0 : slope(y) * slope(y) * v;
+  }
+  EXPECT_NEAR(e.relmse, relmse / double(ref.size()), 1e-15);
+  EXPECT_NEAR(e.mse, mse / double(ref.size()), 1e-6 * e.mse);
+  // Against the real thing: the 8-bit mse of a grey truth (0.4) against a reference with noise of
+  // sd 0.03 (about 5 display steps, so the first order holds; rounding adds about 1/12 of a step
+  // squared, 0.3% here): within 5%, about 5 standard errors of the measured mean over 12288
+  // samples (sqrt(2 / 12288) = 1.3%).
+  Image grey(64, 64, 3, 0.4f), noisy = grey;
+  Image grey_var(64, 64, 3, float(0.03 * 0.03));
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.03);
+  for (std::size_t i = 0; i < noisy.size(); ++i) noisy.data()[i] = float(0.4 + noise(rng));
+  const double measured = metric("mse").compute(grey, noisy).value;
+  const double predicted = reference_error(noisy, grey_var).mse;
+  EXPECT_NEAR(measured / predicted, 1.0, 0.05) << measured << " vs " << predicted;
 }
 
 TEST(Metrics, MseConvergedRefusesABadVariance) {
