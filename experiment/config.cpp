@@ -45,6 +45,20 @@ void read_sections(ConfigTable& root, ExperimentConfig& c) {
     c.reference_spp = ref->get("spp", c.reference_spp, bounds::kSpp);
     c.reference_block_spp = ref->get("block_spp", c.reference_block_spp, bounds::kBlockSpp);
     c.reference_seed = std::uint64_t(ref->get("seed", std::int64_t(c.reference_seed), bounds::kSeed));
+    if (auto per = ref->table("scene")) {
+      for (const auto& name : per->keys()) {
+        auto t = per->table(name);  // the key is there: a table, or an InputError naming it
+        const bool rendered = std::any_of(c.scenes.begin(), c.scenes.end(),
+                                          [&](const SceneSpec& s) { return s.name == name && !s.files; });
+        if (!rendered)
+          throw InputError(fmt::format("{}: '{}' is not a rendered scene of this config: only those have a reference "
+                                       "to render",
+                                       per->where(name), name));
+        c.reference_scene_spp[name] = t->get("spp", c.reference_spp, bounds::kSpp);
+        t->finish();
+      }
+      per->finish();
+    }
     ref->finish();
   }
   if (auto t = root.table("timing")) {
@@ -272,6 +286,7 @@ RunConfig ExperimentConfig::recorded() const {
   r.seed = seed;
   r.seeds = seeds;
   r.reference_spp = reference_spp;
+  r.reference_scene_spp = reference_scene_spp;
   r.spp = spp;
   r.plain_spp = plain_spp;
   // The tables are drawn at the first of these: the rendered scenes' spp, then the file scenes'.

@@ -71,6 +71,13 @@ struct ExperimentConfig {
   std::vector<SceneSpec> scenes;      // `scenes` then every [[scene]], config order
   std::vector<int> spp;               // input spp of the rendered scenes (empty when there are none)
   int reference_spp = 1024;
+  // [reference.scene.NAME] spp = N: a scene whose reference needs more (or fewer) samples than
+  // the others, such as one whose fireflies would otherwise hold most of every method's error.
+  std::map<std::string, int> reference_scene_spp;
+  int reference_spp_for(const std::string& scene) const {
+    const auto it = reference_scene_spp.find(scene);
+    return it == reference_scene_spp.end() ? reference_spp : it->second;
+  }
   int reference_block_spp = 64;
   int max_depth = 8;
   std::vector<int> plain_spp;         // plain path tracing curve (speed-up claim)

@@ -196,6 +196,7 @@ json config_json(const RunConfig& c) {
             {"methods", methods}};
   if (!c.scene_files.empty()) j["scene_files"] = scene_files_json(c.scene_files);  // only configs that have them
   if (c.seeds.size() > 1) j["seeds"] = c.seeds;  // only configs of several seeds: one-seed files read as before
+  if (!c.reference_scene_spp.empty()) j["reference_scene_spp"] = c.reference_scene_spp;
   return j;
 }
 
@@ -210,6 +211,7 @@ RunConfig config_from_json(const json& j, const std::string& where) {
   c.seed = jf::get_or<std::uint64_t>(j, "seed", 0, where);
   c.seeds = jf::get_or<std::vector<std::uint64_t>>(j, "seeds", {c.seed}, where);
   c.reference_spp = jf::get_or<int>(j, "reference_spp", 0, where);
+  c.reference_scene_spp = jf::get_or<std::map<std::string, int>>(j, "reference_scene_spp", {}, where);
   c.spp = jf::get_or<std::vector<int>>(j, "spp", {}, where);
   c.plain_spp = jf::get_or<std::vector<int>>(j, "plain_spp", {}, where);
   c.scenes = jf::get_or<std::vector<std::string>>(j, "scenes", {}, where);

@@ -91,6 +91,7 @@ struct RunConfig {
   std::uint64_t seed = 0;
   std::vector<std::uint64_t> seeds;  // the inputs' seeds (several: Table 1 gives intervals); [seed] when one
   int reference_spp = 0;
+  std::map<std::string, int> reference_scene_spp;  // [reference.scene.NAME] spp: the scenes that differ
   std::vector<int> spp, plain_spp;
   std::vector<std::string> scenes;  // every scene's name, config order (file scenes by label)
   std::map<std::string, SceneFilesEntry> scene_files;  // the scenes read from files, by name

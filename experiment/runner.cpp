@@ -87,7 +87,7 @@ SceneCells scene_cells(const std::string& out_dir, const std::string& name, cons
 // every record of the scene says about it.
 SceneCells rendered_scene_cells(const ExperimentConfig& c, const RunOptions& opt, const Cache& cache, const Scene& scene,
                                 const std::string& name, Reference& ref) {
-  const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = c.reference_spp, .seed = c.reference_seed,
+  const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = c.reference_spp_for(name), .seed = c.reference_seed,
                              .max_depth = c.max_depth, .block_spp = c.reference_block_spp, .threads = c.threads};
   ReferenceOptions ro;
   ro.cache_dir = cache.dir();
@@ -98,7 +98,7 @@ SceneCells rendered_scene_cells(const ExperimentConfig& c, const RunOptions& opt
   s.scene_hash = scene_content_hash(scene);
   s.seed = c.seed;
   ReferenceInfo& info = s.reference_info;
-  info.spp = c.reference_spp;
+  info.spp = rs.spp;
   info.seed = c.reference_seed;
   info.seconds = ref.convergence.empty() ? ref.render_seconds : ref.convergence.back().seconds;
   info.cache_hit = ref.cache_hit;
@@ -165,13 +165,14 @@ class InputFrame {
   std::string path_;
 };
 
-CellPlan plain_cell(const ExperimentConfig& c, const Scene& scene, const std::string& scene_hash, int spp) {
+CellPlan plain_cell(const ExperimentConfig& c, const Scene& scene, const std::string& scene_hash, int spp,
+                    int reference_spp) {
   CellPlan p;
   p.role = Role::Plain;
   p.method = "path_tracing";
   p.spp = spp;
   p.identity = {{"plain", spp}, {"scene", scene_hash}, {"w", c.width}, {"h", c.height}, {"seed", c.seed},
-                {"ref", c.reference_spp}, {"depth", c.max_depth}, {"tracer", kTracerVersion}};
+                {"ref", reference_spp}, {"depth", c.max_depth}, {"tracer", kTracerVersion}};
   p.stem = "path_tracing_" + std::to_string(spp);
   p.compute = [&c, &scene, spp] {
     Stopwatch w;
@@ -264,12 +265,13 @@ void run_rendered_scene(const ExperimentConfig& c, const RunOptions& opt, Cache&
   const auto scene = load_scene(name);
   Reference ref;
   const SceneCells cells = rendered_scene_cells(c, opt, cache, *scene, name, ref);
-  for (int spp : c.plain_spp) run_cell(plain_cell(c, *scene, cells.scene_hash, spp), cells, context);
+  for (int spp : c.plain_spp)
+    run_cell(plain_cell(c, *scene, cells.scene_hash, spp, c.reference_spp_for(name)), cells, context);
   // Every input seed gives its own input and method cells (Table 1's intervals are over them).
   // With one seed the stems are the same as before seeds existed; with several, "_s<seed>" is added.
   for (int spp : c.spp)
     for (std::uint64_t seed : c.seeds) {
-      InputFrame frame(cache, *scene, input_settings(c, spp, seed), opt.use_cache, c.reference_spp);
+      InputFrame frame(cache, *scene, input_settings(c, spp, seed), opt.use_cache, c.reference_spp_for(name));
       const std::string suffix = c.seeds.size() > 1 ? fmt::format("_s{}", seed) : "";
       auto seeded = [&](CellPlan p) {
         p.seed = seed;

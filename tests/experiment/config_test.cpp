@@ -3,6 +3,8 @@
 // and the key that wrote it (not a command-line flag, and not an hour into the run).
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include <filesystem>
 #include <tuple>
 
@@ -40,6 +42,28 @@ TEST(ExperimentConfig, ValidConfigLoads) {
 }
 
 // Each of these was accepted (or wrapped) by the loader and failed only when work started.
+TEST(ExperimentConfig, AScenesReferenceCanHaveItsOwnSpp) {
+  test::TempDir dir;
+  const std::string path = dir.file("exp.toml");
+  test::write(path, "name = \"t\"\nscenes = [\"cornell-box\", \"sponza\"]\nmethods = [\"bilateral\"]\n"
+                    "[reference]\nspp = 256\n[reference.scene.sponza]\nspp = 4096\n");
+  const ExperimentConfig c = load_config(path);
+  EXPECT_EQ(c.reference_spp_for("cornell-box"), 256);
+  EXPECT_EQ(c.reference_spp_for("sponza"), 4096);
+  EXPECT_EQ(c.recorded().reference_scene_spp, (std::map<std::string, int>{{"sponza", 4096}}));
+  // A scene the config does not render, a value that is not a table, an spp out of bounds, an
+  // unknown key: each names the file, line and key.
+  const std::string head = "name = \"t\"\nscenes = [\"cornell-box\"]\nmethods = [\"bilateral\"]\n[reference]\n";
+  std::string msg = load_error(dir, head + "[reference.scene.sponza]\nspp = 4096\n");
+  EXPECT_TRUE(names(msg, "exp.toml:5") && names(msg, "'sponza' is not a rendered scene of this config")) << msg;
+  msg = load_error(dir, head + "scene = { cornell-box = 7 }\n");
+  EXPECT_TRUE(names(msg, "exp.toml:5") && names(msg, "key 'reference.scene.cornell-box': expected a table")) << msg;
+  msg = load_error(dir, head + "[reference.scene.cornell-box]\nspp = 0\n");
+  EXPECT_TRUE(names(msg, "exp.toml:6") && names(msg, "spp")) << msg;
+  msg = load_error(dir, head + "[reference.scene.cornell-box]\nsamples = 64\n");
+  EXPECT_TRUE(names(msg, "exp.toml:6") && names(msg, "samples")) << msg;
+}
+
 TEST(ExperimentConfig, OutOfBoundsValuesNameFileLineAndKey) {
   test::TempDir dir;
   const std::string file = dir.file("exp.toml");

@@ -69,6 +69,21 @@ void expect_scores_equal(const CellRecord& rec, const metrics::FileScores& again
   }
 }
 
+// [reference.scene.NAME] spp: that scene's reference is rendered with its own spp, every record
+// says so, and the cells are keyed by it (a change reruns them; the render cache keeps the frames).
+TEST(ResultsFolder, AScenesOwnReferenceSppIsRenderedRecordedAndKeyed) {
+  test::TempDir dir;
+  const ResultsDocument base = run(dir, "tiny.toml", kRendered, "out");
+  const ResultsDocument d = run(dir, "more.toml", std::string(kRendered) + "[reference.scene.cornell-box]\nspp = 32\n", "out");
+  EXPECT_EQ(d.config.reference_scene_spp, (std::map<std::string, int>{{"cornell-box", 32}}));
+  for (const CellRecord& r : d.records) EXPECT_EQ(r.reference.spp, 32) << r.method;
+  EXPECT_EQ(read_frame(dir.file("out") + "/" + d.records[0].reference.image, {layer::kColor}).meta.spp, 32);
+  EXPECT_NE(record(d, "bilateral").cell_key, record(base, "bilateral").cell_key);
+  // Twice the samples: about half the reference's own error (variance of the mean ~ 1 / spp).
+  EXPECT_LT(record(d, "input").reference.estimated_error->at("mse_hdr"),
+            0.75 * record(base, "input").reference.estimated_error->at("mse_hdr"));
+}
+
 TEST(ResultsFolder, RescoresAloneWithTheReferencesVarianceAndTheFramesTheCellsRead) {
   test::TempDir dir;
   const ResultsDocument d = run(dir, "tiny.toml", kRendered, "out");
