@@ -215,6 +215,7 @@ std::vector<NamedTable> all_tables(const ResultsDocument& res) {
   t.push_back({"table2_time", table2(res), true});
   t.push_back({"ratios", ratio_table(res, res.config.table2.filter_cpu), true});
   t.push_back({"worse_blocks", worse_blocks_table(res), true});
+  t.push_back({"speedup_measured", measured_speedup_table(res), true});
   t.push_back({"speedup", speedup_table(res), true});
   t.push_back({"ablation", ablation_table(res), true});
   if (!res.failures.empty()) t.insert(t.begin(), {"failures", failures_table(res), true});

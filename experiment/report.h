@@ -7,6 +7,8 @@
 //                                  OpenCL, irradiance cache, reference (Table 2's layout)
 //   speedup.md                     plain path tracing's fitted error-vs-time curve, and for each
 //                                  method the spp and time it needs to reach the method's error
+//   speedup_measured.md            the same on mse_hdr_nc, measured (interpolated, never
+//                                  extrapolated: "beyond the measured range" instead)
 //   ablation.md                    the ablation variants against the full method
 //   ratios.md                      Table 2's CPU method's error over every other method's
 //   plots/*.png                    by reports/plots.py (matplotlib)
@@ -56,6 +58,10 @@ Table table2(const ResultsDocument& results);
 // The run's failed cells with their reasons (no rows when none failed).
 Table failures_table(const ResultsDocument& results);
 Table speedup_table(const ResultsDocument& results, const std::string& metric = "mse");
+// The equal-error speed-up measured on the plain path tracing renders of the run, on a metric
+// whose expectation falls as 1/spp for plain path tracing (mse_hdr_nc): interpolated between
+// the renders that bracket a method's error, and "> X (beyond the measured range)" outside them.
+Table measured_speedup_table(const ResultsDocument& results, const std::string& metric = "mse_hdr_nc");
 Table ablation_table(const ResultsDocument& results, const std::string& metric = "mse");
 // `method`'s mse and mse_converged over every other method's, per scene (Table 1's methods).
 Table ratio_table(const ResultsDocument& results, const std::string& method);

@@ -2,6 +2,7 @@
 // times, the speed-up over plain path tracing, the ablation and the ratios. Pure functions of
 // the document.
 #include <algorithm>
+#include <tuple>
 #include <cmath>
 #include <map>
 #include <set>
@@ -381,6 +382,64 @@ Table speedup_table(const ResultsDocument& res, const std::string& metric) {
   }
   t.note = "Fits (least squares in log-log over the plain path tracing renders of the run):\n\n" + fits +
            "\nspeed-up = time plain path tracing needs to reach the method's error / the method's total time (input render + filtering).";
+  return t;
+}
+
+Table measured_speedup_table(const ResultsDocument& res, const std::string& metric) {
+  Table t;
+  const int spp = res.table_spp();
+  t.title = fmt::format("Measured speed-up over plain path tracing ({} at {} spp input)", metric, spp);
+  t.header = {"scene", "method", metric, "total time (s)", "plain PT time for that error (s)", "speed-up"};
+  std::string ranges;
+  for (const auto& s : res.scenes()) {
+    // The plain renders in spp order, each with its time and error (seed-averaged records are
+    // one per spp here: the plain curve has the first seed only).
+    std::vector<std::tuple<int, double, double>> curve;  // spp, time, error
+    for (const auto& r : res.records)
+      if (r.scene == s && r.role == Role::Plain && r.metric(metric)) curve.emplace_back(r.spp, r.times.total, *r.metric(metric));
+    std::sort(curve.begin(), curve.end());
+    if (curve.size() < 2) {
+      ranges += fmt::format("- {}: too few plain path tracing renders ({}).\n", s, curve.size());
+      continue;
+    }
+    const auto& [lo_spp, lo_t, lo_e] = curve.front();
+    const auto& [hi_spp, hi_t, hi_e] = curve.back();
+    ranges += fmt::format("- {}: plain path tracing measured at {}..{} spp ({:.3g}..{:.3g} s, {} {:.4g}..{:.4g}).\n", s,
+                          lo_spp, hi_spp, lo_t, hi_t, metric, lo_e, hi_e);
+    for (const auto& m : res.methods(Role::Method)) {
+      const CellRecord* r = res.find(s, m, spp);
+      if (!r || !r->metric(metric)) continue;
+      const double e = *r->metric(metric), total = r->times.total;
+      std::string need, speed;
+      if (!(e < lo_e) && e > 0) {  // no better than the cheapest plain render
+        need = fmt::format("< {:.3g} (below the measured range)", lo_t);
+        speed = fmt::format("< {:.2g}x", lo_t / total);
+      } else if (!(e > hi_e)) {  // better than the most expensive plain render (or below 0: within the reference's noise)
+        need = fmt::format("> {:.3g} (beyond the measured range)", hi_t);
+        speed = fmt::format("> {:.2g}x", hi_t / total);
+      } else {
+        // The first pair of consecutive renders that brackets the error; time interpolated in
+        // log-log between them (where plain path tracing's expected error falls as 1/spp).
+        for (std::size_t k = 0; k + 1 < curve.size(); ++k) {
+          const double e0 = std::get<2>(curve[k]), e1 = std::get<2>(curve[k + 1]);
+          if (!(e0 >= e && e >= e1) || !(e1 > 0)) continue;
+          const double t0 = std::get<1>(curve[k]), t1 = std::get<1>(curve[k + 1]);
+          const double f = e0 == e1 ? 0.0 : std::log(e0 / e) / std::log(e0 / e1);
+          const double tn = std::exp(std::log(t0) + f * (std::log(t1) - std::log(t0)));
+          need = fmt::format("{:.3g}", tn);
+          speed = fmt::format("{:.3g}x", tn / total);
+          break;
+        }
+        if (need.empty()) need = speed = "n/a (the plain curve does not fall through it)";
+      }
+      t.rows.push_back({s, m, format_metric(e), fmt_time(total), need, speed});
+    }
+  }
+  t.note = "Plain path tracing's time to reach each method's error, interpolated between the two measured plain renders "
+           "that bracket it (log-log), never extrapolated: outside the measured range the table says so, with the bound "
+           "the range gives. " + metric + " is chosen because its expectation for plain path tracing falls as 1/spp "
+           "(the reference's own noise taken out: docs/references.md); speedup.md is the 8-bit reading with a fitted "
+           "power law.\n\n" + ranges;
   return t;
 }
 

@@ -86,6 +86,34 @@ TEST(SpeedupTable, SaysSoWhenThereAreTooFewPlainRendersToFit) {
   EXPECT_NE(t.note.find("too few plain path tracing points to fit (1)"), std::string::npos) << t.note;
 }
 
+TEST(MeasuredSpeedup, InterpolatesWithinThePlainRendersAndSaysSoOutsideThem) {
+  // Plain path tracing at 4, 16, 64 spp: time 0.01 s * spp, mse_hdr_nc 0.16 / spp.
+  ResultsDocument d;
+  d.config.scenes = {"box"};
+  d.config.spp = {4};
+  auto rec = [](const std::string& m, Role role, int spp, double e, double t) {
+    CellRecord r = record(m, role, spp, 0, t);
+    r.metrics["mse_hdr_nc"] = e;
+    return r;
+  };
+  for (int spp : {64, 4, 16}) d.records.push_back(rec("path_tracing", Role::Plain, spp, 0.16 / spp, 0.01 * spp));
+  d.records.push_back(rec("mid", Role::Method, 4, 0.005, 0.1));      // what 32 spp give: 0.32 s
+  d.records.push_back(rec("great", Role::Method, 4, 0.001, 0.1));    // beyond 64 spp
+  d.records.push_back(rec("poor", Role::Method, 4, 0.05, 0.1));      // worse than 4 spp
+  d.records.push_back(rec("noise", Role::Method, 4, -1e-4, 0.1));    // within the reference's noise
+  const Table t = measured_speedup_table(d);
+  ASSERT_EQ(t.rows.size(), 4u);
+  EXPECT_EQ(t.rows[0][1], "mid");
+  EXPECT_EQ(t.rows[0][4], "0.32");  // log-log between 16 and 64 spp: exact for a 1/spp law
+  EXPECT_EQ(t.rows[0][5], "3.2x");
+  EXPECT_EQ(t.rows[1][4], "> 0.64 (beyond the measured range)");
+  EXPECT_EQ(t.rows[1][5], "> 6.4x");
+  EXPECT_EQ(t.rows[2][4], "< 0.04 (below the measured range)");
+  EXPECT_EQ(t.rows[2][5], "< 0.4x");
+  EXPECT_EQ(t.rows[3][4], "> 0.64 (beyond the measured range)");
+  EXPECT_NE(t.note.find("measured at 4..64 spp"), std::string::npos) << t.note;
+}
+
 TEST(Table1, StatesTheReferencesOwnEstimatedErrorBesideTheMetricsItEnters) {
   ResultsDocument d;
   d.config.scenes = {"box", "room"};
