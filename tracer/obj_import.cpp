@@ -76,31 +76,45 @@ void check_mtl_colours(const fs::path& obj) {
   }
 }
 
-// The first face line of the OBJ whose position index is out of range, as "FILE:LINE: face
-// index N (the file has M vertices)"; "" when none is found. Run only after an index error,
-// to name its line (tinyobjloader reports none, or the last line of the file).
+// The first face line of the OBJ with an index out of range (position, texture coordinate or
+// normal: "f v/vt/vn"), as "FILE:LINE: face index N ..."; "" when none is found. Run only after
+// an index error, to name its line (tinyobjloader reports none, or the last line of the file).
 std::string bad_face_index(const fs::path& path) {
-  std::int64_t total = 0;
+  // Vertex lines of each kind: v, vt, vn (a negative index counts back from the line).
+  auto kind_of = [](const std::string& line) -> int {
+    if (line.size() > 2 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) return 0;
+    if (line.size() > 3 && line[0] == 'v' && line[1] == 't' && (line[2] == ' ' || line[2] == '\t')) return 1;
+    if (line.size() > 3 && line[0] == 'v' && line[1] == 'n' && (line[2] == ' ' || line[2] == '\t')) return 2;
+    return -1;
+  };
+  static const char* const kWhat[3] = {"vertices", "texture coordinates", "normals"};
+  static const char* const kPart[3] = {"position", "texture coordinate", "normal"};
+  std::int64_t total[3] = {0, 0, 0};
   {
     std::ifstream in(path);
     std::string line;
     while (std::getline(in, line))
-      if (line.size() > 2 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) ++total;
+      if (const int k = kind_of(line); k >= 0) ++total[k];
   }
   std::ifstream in(path);
   std::string line;
-  std::int64_t so_far = 0;
+  std::int64_t so_far[3] = {0, 0, 0};
   for (int n = 1; std::getline(in, line); ++n) {
-    if (line.size() < 2 || (line[1] != ' ' && line[1] != '\t')) continue;
-    if (line[0] == 'v') ++so_far;
-    if (line[0] != 'f') continue;
+    if (const int k = kind_of(line); k >= 0) ++so_far[k];
+    if (line.size() < 2 || line[0] != 'f' || (line[1] != ' ' && line[1] != '\t')) continue;
     std::istringstream words(line.substr(1));
     std::string w;
     while (words >> w) {
-      const long long idx = std::atoll(w.c_str());  // the position index: before the first '/'
-      if (idx == 0 || idx > total || (idx < 0 && -idx > so_far))
-        return fmt::format("{}:{}: face index {} is out of range (the file has {} vertices{})", path.string(), n, w,
-                           total, idx < 0 ? fmt::format(", {} before this line", so_far) : "");
+      std::istringstream parts(w);
+      std::string part;
+      for (int k = 0; k < 3 && std::getline(parts, part, '/'); ++k) {
+        if (part.empty()) continue;  // "1//3": no texture coordinate
+        const long long idx = std::atoll(part.c_str());
+        if (idx == 0 || idx > total[k] || (idx < 0 && -idx > so_far[k]))
+          return fmt::format("{}:{}: face index {} ({} {}) is out of range (the file has {} {}{})", path.string(), n, w,
+                             kPart[k], part, total[k], kWhat[k],
+                             idx < 0 ? fmt::format(", {} before this line", so_far[k]) : "");
+      }
     }
   }
   return "";
@@ -217,6 +231,11 @@ Mesh obj_triangles(const tinyobj::ObjReader& reader, const fs::path& path, const
                             fmt::format("'{}': face index out of range in shape '{}'", path.string(), shape.name));
         p[k] = x.point(Vec3(attrib.vertices[3 * ix.vertex_index], attrib.vertices[3 * ix.vertex_index + 1],
                             attrib.vertices[3 * ix.vertex_index + 2]));
+        // A normal or texture coordinate index that is given must exist (tinyobjloader passes it on).
+        if ((ix.normal_index >= 0 && std::size_t(3 * ix.normal_index + 2) >= attrib.normals.size()) ||
+            (ix.texcoord_index >= 0 && std::size_t(2 * ix.texcoord_index + 1) >= attrib.texcoords.size()))
+          throw_index_error(path, fmt::format("'{}': a normal or texture coordinate index is out of range in shape '{}'",
+                                              path.string(), shape.name));
         if (ix.normal_index >= 0 && std::size_t(3 * ix.normal_index + 2) < attrib.normals.size())
           n[k] = x.normal(Vec3(attrib.normals[3 * ix.normal_index], attrib.normals[3 * ix.normal_index + 1],
                                attrib.normals[3 * ix.normal_index + 2]));

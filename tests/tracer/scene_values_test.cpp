@@ -154,12 +154,19 @@ TEST(SceneValues, ObjIndexErrorsNameTheLine) {
       {"mtllib t.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nv 0 2 0\nf 1 2 3\nf 1 2 9\n", ":7:"},
       {"mtllib t.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nv 0 2 0\nf 1 2 3\nf 1 2 3 4\nf 1 2 3 7\n", ":8:"},
       {"mtllib t.mtl\nv -1 -1 0\nf -1 -2 -3\nv 1 -1 0\nv 0 1 0\n", ":3:"},
+      // A normal index past the one normal (line 6) and a texture coordinate past the one (line
+      // 8): used to be read as "no normal" and "no texture coordinate" without a word.
+      {"mtllib t.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//5\n", ":6:"},
+      {"mtllib t.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\nf 1/1 2/3 3/1\n", ":8:"},
   };
   for (const auto& [obj, line] : objs) {
     test::write_text(dir.file("t.obj"), obj);
     const std::string msg = error_of([&] { load_scene(test::write_text(dir.file("s.toml"), obj_scene())); });
     EXPECT_TRUE(names(msg, dir.file("t.obj") + line)) << obj << " -> " << msg;
   }
+  test::write_text(dir.file("t.obj"), objs[3][0]);
+  const std::string msg = error_of([&] { load_scene(test::write_text(dir.file("s.toml"), obj_scene())); });
+  EXPECT_TRUE(names(msg, "face index 3//5 (normal 5) is out of range (the file has 1 normals)")) << msg;
 }
 
 // A texture larger than the bound is refused from its header, before its texels are allocated.
