@@ -15,6 +15,8 @@
 #include <OpenImageIO/deepdata.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 
@@ -397,15 +399,26 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
   image->commit();
 }
 
+double physical_memory_bytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? double(pages) * double(page) : 0.0;
+}
+
+void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes) {
+  const double need = 2.0 * double(width) * double(height) * double(channels) * sizeof(float);
+  if (available_bytes > 0 && need > available_bytes)
+    throw InputError(fmt::format("'{}': decoding {}x{} with {} channels needs about {:.1f} GiB, more than this "
+                                 "machine's {:.1f} GiB of memory",
+                                 path, width, height, channels, need / double(1ull << 30),
+                                 available_bytes / double(1ull << 30)));
+}
+
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required) {
   auto in = open_input(path);
   const OIIO::ImageSpec spec = in->spec();
   if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat AOV frame", path));
-  try {
-    Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
-  } catch (const InputError& e) {
-    throw InputError(e.what());
-  }
+  Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
+  check_decode_memory(path, spec.width, spec.height, spec.nchannels, physical_memory_bytes());
   const int w = spec.width, h = spec.height, nch = spec.nchannels;
   std::vector<float> buf(std::size_t(w) * h * nch);
   if (!in->read_image(0, 0, 0, nch, TypeDesc::FLOAT, buf.data()))
@@ -480,6 +493,7 @@ Image read_rgb(const std::string& path) {
   const OIIO::ImageSpec spec = in->spec();
   if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat RGB image", path));
   Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
+  check_decode_memory(path, spec.width, spec.height, 3, physical_memory_bytes());
   int idx[3];
   const char* want[3] = {"R", "G", "B"};
   for (int c = 0; c < 3; ++c) {
@@ -525,6 +539,7 @@ ExrChannels read_exr_channels(const std::string& path, bool with_pixels) {
     const OIIO::ImageSpec spec = in->spec();
     if (spec.deep) throw InputError(fmt::format("'{}': part {} is a deep image, expected flat channels", path, part));
     Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
+    if (with_pixels) check_decode_memory(path, spec.width, spec.height, spec.nchannels, physical_memory_bytes());
     if (part == 0) {
       out.width = spec.width;
       out.height = spec.height;

@@ -40,6 +40,13 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
 // InputError naming the file and the missing channels. The edge file is read when the
 // frame's header says it has one; a header that names one which is missing is an error.
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required = {});
+// Refuses (InputError naming the file) an image whose decoding would need more than
+// `available_bytes`: the readers hold its channels as floats, interleaved and then as layers,
+// about 2 x width x height x channels x 4 bytes. A small file may declare the largest size
+// Image::check_size allows (2^28 pixels, 1024 channels: 2 TiB), which a compressed EXR of
+// zeros can even hold. The readers pass this machine's physical memory.
+void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes);
+double physical_memory_bytes();  // 0 when unknown (then nothing is refused)
 
 // Writes a 3-channel image as R,G,B (plus optional string attributes).
 void write_rgb(const Image& rgb, const std::string& path,

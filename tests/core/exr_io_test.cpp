@@ -1,4 +1,5 @@
 // The AOV frame's EXR round trip and the refusals of bad files (issue 2).
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -279,6 +280,29 @@ TEST(AtomicWrite, CommittedWriteReplacesTheDestination) {
   write_text_atomic(dir.file("a.txt"), "one");
   write_text_atomic(dir.file("a.txt"), "two");
   EXPECT_EQ(read_text_file(dir.file("a.txt")), "two");
+}
+
+}  // namespace
+}  // namespace dnb
+
+namespace dnb {
+namespace {
+
+// A small file may declare the largest size Image::check_size allows; the readers refuse it when
+// decoding would need more than the machine's memory, naming the file, instead of dying with
+// std::bad_alloc or the out-of-memory killer (issue 20).
+TEST(ExrIo, DecodingMoreThanTheMachinesMemoryIsRefusedNamingTheFile) {
+  const double gib = double(1ull << 30);
+  try {
+    check_decode_memory("huge.exr", 32768, 8192, 1024, 24 * gib);  // 2^28 pixels, 1024 channels: 2 TiB
+    FAIL() << "not refused";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("'huge.exr': decoding 32768x8192 with 1024 channels needs about 2048.0 GiB"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("24.0 GiB of memory"));
+  }
+  EXPECT_NO_THROW(check_decode_memory("frame.exr", 1024, 768, 64, 24 * gib));  // 0.4 GiB
+  EXPECT_NO_THROW(check_decode_memory("frame.exr", 32768, 8192, 1024, 0));     // memory unknown: not refused
+  EXPECT_GT(physical_memory_bytes(), 0.0);
 }
 
 }  // namespace
