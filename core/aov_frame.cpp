@@ -10,6 +10,8 @@ std::string layer::at_level(int level, const std::string& base) {
   return level == 0 ? base : fmt::format("refl{}.{}", level, base);
 }
 
+std::string layer::at_half(int half, const std::string& base) { return fmt::format("half{}.{}", half, base); }
+
 static std::string base_name(const std::string& layer) {
   auto dot = layer.rfind('.');
   return dot == std::string::npos ? layer : layer.substr(dot + 1);

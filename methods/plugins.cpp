@@ -45,7 +45,11 @@ bool known_layer(const std::string& name) {
                                              layer::kSamples};
   if (base.count(name)) return true;
   static const std::regex level(R"(refl([1-9][0-9]?)\.([a-z_]+))");
+  static const std::regex half(R"(half[01]\.([a-z_]+))");
   std::smatch m;
+  if (std::regex_match(name, m, half))
+    return std::find(std::begin(layer::kHalfLayers), std::end(layer::kHalfLayers), m[1].str()) !=
+           std::end(layer::kHalfLayers);
   return std::regex_match(name, m, level) && (base.count(m[2].str()) || m[2].str() == layer::kTint);
 }
 

@@ -36,7 +36,8 @@ CacheKey frame_cache_key(const Scene& scene, const RenderSettings& s) {
   CacheKey key = render_key("frame", scene, s.width, s.height, s.spp, s.seed, s.max_depth);
   key.add("reflection_levels", s.reflection_levels)
       .add("edge_subpixels", s.edge_subpixels ? 1 : 0)
-      .add("tracer", kTracerVersion);
+      .add("tracer", kTracerVersion)
+      .add("layers", kFrameLayers);
   return key;
 }
 

@@ -193,10 +193,16 @@ struct LevelImages {
   Image *direct, *indirect, *albedo, *reflection, *emission, *normal, *depth, *tint;  // tint: k > 0
 };
 
+// One half buffer's layers (core/aov_frame.h's layer::kHalfLayers).
+struct HalfImages {
+  Image *color, *direct, *indirect, *albedo, *normal, *depth;
+};
+
 // The layers the main pass writes, looked up once.
 struct FrameLayers {
   Image *color, *var_f, *var_d, *var_i, *samples, *edge;
   std::vector<LevelImages> level;  // 0 .. K
+  HalfImages half[2];              // the even and the odd samples' level 0
 };
 
 // Every layer of a frame with K reflection levels, zero-filled in parallel (a 1024x768 frame
@@ -214,6 +220,8 @@ AovFrame allocate_frame(int W, int H, int K, int threads) {
     names.emplace_back(layer::at_level(k, layer::kDepth), 1);
     if (k > 0) names.emplace_back(layer::at_level(k, layer::kTint), 3);
   }
+  for (int h = 0; h < 2; ++h)
+    for (const char* b : layer::kHalfLayers) names.emplace_back(layer::at_half(h, b), default_channels(b));
   std::vector<Image> images(names.size());
   run_in_arena(threads, [&] {
     tbb::parallel_for(std::size_t(0), names.size(), [&](std::size_t i) { images[i] = Image(W, H, names[i].second); });
@@ -242,23 +250,58 @@ FrameLayers layers_of(AovFrame& frame, int K) {
     l.depth = &frame.layer(layer::at_level(k, layer::kDepth));
     l.tint = k > 0 ? &frame.layer(layer::at_level(k, layer::kTint)) : nullptr;
   }
+  for (int h = 0; h < 2; ++h) {
+    HalfImages& l = out.half[h];
+    l.color = &frame.layer(layer::at_half(h, layer::kColor));
+    l.direct = &frame.layer(layer::at_half(h, layer::kDirect));
+    l.indirect = &frame.layer(layer::at_half(h, layer::kIndirect));
+    l.albedo = &frame.layer(layer::at_half(h, layer::kAlbedo));
+    l.normal = &frame.layer(layer::at_half(h, layer::kNormal));
+    l.depth = &frame.layer(layer::at_half(h, layer::kDepth));
+  }
   return out;
 }
 
 // ---- Main pass: per-pixel sums, then the pixel's layers ----
 
+// The sums of one half buffer: level 0's layers and the colour over the even or the odd samples.
+struct HalfSums {
+  LevelSums level;
+  alignas(32) double extra[acc::kExtraSize] = {};
+};
+
 // Adds one finite sample to its pixel's sums: levels 0 .. min(r.levels, K + 1) - 1, and the
-// level-0 colour (`extra`, acc::kExtraSize values).
-inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, double* extra) {
+// level-0 colour (`extra`, acc::kExtraSize values); level 0 and the colour also to its half's
+// sums. The full sums stay their own sequence of additions (not half0 + half1), so the layers
+// are bit for bit what they were before the half buffers.
+inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, double* extra, HalfSums& half) {
   alignas(32) float vals[acc::kLevelSize];
   const Vec3 f = r.level[0].color();
   alignas(32) double xvals[acc::kExtraSize] = {f.x, f.y, f.z, 0.0};
   add_values<acc::kExtraSize>(extra, xvals);
+  add_values<acc::kExtraSize>(half.extra, xvals);
   for (int k = 0; k < r.levels && k <= K; ++k) {
     pack_level(r.level[k], vals);
     ++sums[k].n;
     add_values<acc::kLevelSize>(sums[k].v, vals);
+    if (k == 0) {
+      ++half.level.n;
+      add_values<acc::kLevelSize>(half.level.v, vals);
+    }
   }
+}
+
+// A half buffer's layers of pixel (x, y): the level-0 means over its samples, D and I
+// albedo-weighted as in the full layers (all zero for a half without a finite sample: spp 1).
+void store_half(const HalfImages& l, int x, int y, const HalfSums& h) {
+  const LevelSums& L = h.level;
+  const double li = L.n > 0 ? 1.0 / L.n : 0.0;
+  store(*l.color, x, y, h.extra + acc::kColor, li);
+  demodulated(L.at(acc::kDirectT), L.at(acc::kDirect), L.at(acc::kAlbedo), L.n, l.direct->pixel(x, y));
+  demodulated(L.at(acc::kIndirectT), L.at(acc::kIndirect), L.at(acc::kAlbedo), L.n, l.indirect->pixel(x, y));
+  store(*l.albedo, x, y, L.at(acc::kAlbedo), li);
+  store(*l.normal, x, y, L.at(acc::kNormal), li);
+  l.depth->at(x, y, 0) = float(L.v[acc::kDepth] * li);
 }
 
 // Level k's layers of pixel (x, y) from its sums; `prev`: level k - 1's sums (k > 0), whose
@@ -365,17 +408,19 @@ void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image
     for (int x = x0; x < x1; ++x) {
       for (auto& s : sums) s = LevelSums{};
       alignas(32) double extra[acc::kExtraSize] = {};
+      HalfSums half[2];
       PixelPairs pairs;
       for (int s = 0; s < spp; ++s) {
         float fx, fy;
         counts.rays += src.trace(x, y, s, r, fx, fy);
         const bool finite = sample_finite(r);
-        if (finite) accumulate_sample(r, K, sums.data(), extra);
+        if (finite) accumulate_sample(r, K, sums.data(), extra, half[s & 1]);
         else ++counts.dropped;
         pairs.add(s, finite, r.level[0]);
       }
       pairs.finish();
       store_pixel(out, x, y, sums, extra, pairs, depth_spread);
+      for (int h = 0; h < 2; ++h) store_half(out.half[h], x, y, half[h]);
     }
 }
 

@@ -21,6 +21,10 @@ class Scene;  // tracer/scene.h
 // Bumped whenever a change to the tracer changes its images (part of every cache key).
 // 4: two samples per stratum, and variance layers from the pairs (render.cpp's top).
 inline constexpr const char* kTracerVersion = "dnb-tracer-4";
+// Bumped whenever a frame gains or loses layers while the images of the layers it had stay the
+// same (part of the frame cache key, not the references'). "halves-1": the half buffers
+// half0.* and half1.* (core/aov_frame.h).
+inline constexpr const char* kFrameLayers = "halves-1";
 
 struct RenderSettings {
   int width = 1024;

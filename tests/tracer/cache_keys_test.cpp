@@ -42,7 +42,7 @@ TEST(CacheKeys, FrameKeyPartsAndOrderArePinned) {
   EXPECT_EQ(frame_cache_key(*scene, s).canonical(),
             std::string("frame\nscene=") + kThreeFileHash +
                 "\nwidth=64\nheight=48\nspp=16\nseed=3\nmax_depth=5\nreflection_levels=1\nedge_subpixels=0\n"
-                "tracer=" + kTracerVersion + "\n");
+                "tracer=" + kTracerVersion + "\nlayers=" + kFrameLayers + "\n");
 }
 
 TEST(CacheKeys, ReferenceKeyPartsAndOrderArePinned) {

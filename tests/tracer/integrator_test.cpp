@@ -522,6 +522,8 @@ TEST(Frame, HasEveryChannelOfTheDesign) {
     for (const char* b : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kNormal, layer::kDepth,
                           layer::kReflection, layer::kEmission, layer::kTint})
       names.push_back(layer::at_level(k, b));
+  for (int h = 0; h < 2; ++h)
+    for (const char* b : layer::kHalfLayers) names.push_back(layer::at_half(h, b));
   EXPECT_TRUE(f.missing_channels(names).empty());
   EXPECT_EQ(f.meta.tracer_version, kTracerVersion);
   EXPECT_EQ(f.meta.spp, 4);
@@ -534,6 +536,50 @@ TEST(Frame, HasEveryChannelOfTheDesign) {
   EXPECT_GT(e, 0);
   EXPECT_GT(r, 0);
   for (const auto& [name, img] : f.layers()) EXPECT_EQ(count_non_finite(img.view()), 0u) << name;
+}
+
+// The half buffers (core/aov_frame.h): half 0 holds the even samples, half 1 the odd ones. At
+// 2 spp each is one sample, which render_color_sums traces on its own: the colours must agree
+// bit for bit. At 16 spp the two halves' mean is the frame's layer, to float rounding (8
+// samples per half; the full sums add the same values in another order: 1e-6 relative).
+TEST(HalfBuffers, EachHalfIsTheMeanOfItsOwnSamples) {
+  auto scene = load_scene("cornell-box");
+  RenderSettings s;
+  s.width = 24;
+  s.height = 18;
+  s.spp = 2;
+  s.reflection_levels = 0;
+  AovFrame f = render_frame(*scene, s);
+  ASSERT_EQ(f.meta.dropped_samples, 0);
+  EXPECT_TRUE(render_color_sums(*scene, s, 0, 1).mean() == f.layer(layer::at_half(0, layer::kColor)));
+  EXPECT_TRUE(render_color_sums(*scene, s, 1, 2).mean() == f.layer(layer::at_half(1, layer::kColor)));
+  EXPECT_FALSE(f.layer(layer::at_half(0, layer::kColor)) == f.layer(layer::at_half(1, layer::kColor)));
+
+  s.spp = 16;
+  f = render_frame(*scene, s);
+  ASSERT_EQ(f.meta.dropped_samples, 0);
+  for (const char* b : {layer::kColor, layer::kAlbedo, layer::kNormal, layer::kDepth}) {
+    const Image &h0 = f.layer(layer::at_half(0, b)), &h1 = f.layer(layer::at_half(1, b)), &full = f.layer(b);
+    for (std::size_t k = 0; k < full.size(); ++k)
+      ASSERT_NEAR(0.5 * (double(h0.data()[k]) + h1.data()[k]), full.data()[k], 1e-6 * std::fabs(full.data()[k]) + 1e-9)
+          << b << " value " << k;
+  }
+  // D and I are albedo-weighted per half (sum of D T over the half's samples / sum of T), so the
+  // halves' D_h T_h add up to the frame's D T: D_0 T_0 + D_1 T_1 = 2 D T for every pixel and
+  // channel (8 samples per half; float rounding of the means, 1e-5 relative).
+  for (const char* b : {layer::kDirect, layer::kIndirect}) {
+    const Image &l0 = f.layer(layer::at_half(0, b)), &l1 = f.layer(layer::at_half(1, b)), &l = f.layer(b);
+    const Image &t0 = f.layer(layer::at_half(0, layer::kAlbedo)), &t1 = f.layer(layer::at_half(1, layer::kAlbedo)),
+                &t = f.layer(layer::kAlbedo);
+    int checked = 0;
+    for (std::size_t k = 0; k < l.size(); ++k) {
+      const double want = 2.0 * l.data()[k] * t.data()[k];
+      const double got = double(l0.data()[k]) * t0.data()[k] + double(l1.data()[k]) * t1.data()[k];
+      ASSERT_NEAR(got, want, 1e-5 * std::fabs(want) + 1e-9) << b << " value " << k;
+      checked += want > 0;
+    }
+    EXPECT_GT(checked, int(l.size() / 2)) << b;
+  }
 }
 
 TEST(Render, BadSettingsAreInputErrors) {

@@ -78,7 +78,7 @@ TEST(VarianceOfTheMean, FrameLayersPredictTheSeedToSeedVariance) {
   RenderSettings s = small_render(16);
   s.reflection_levels = 0;
   s.edge_subpixels = false;
-  SeedStats color, direct, indirect;
+  SeedStats color, direct, indirect, half[2];
   std::vector<int> edge_count(std::size_t(s.width) * s.height, 0);
   for (int seed = 1; seed <= kSeeds; ++seed) {
     s.seed = std::uint64_t(seed);
@@ -86,6 +86,12 @@ TEST(VarianceOfTheMean, FrameLayersPredictTheSeedToSeedVariance) {
     color.add(f.layer(layer::kColor), f.layer(layer::kVariance));
     direct.add(f.layer(layer::kDirect), f.layer(layer::kDirectVariance));
     indirect.add(f.layer(layer::kIndirect), f.layer(layer::kIndirectVariance));
+    // A half buffer holds one sample of each stratum: the variance of its mean is twice the
+    // frame's, and twice is what holds only when the two halves are uncorrelated
+    // (Var F = (Var h0 + Var h1 + 2 Cov) / 4).
+    Image twice = f.layer(layer::kVariance);
+    for (std::size_t k = 0; k < twice.size(); ++k) twice.data()[k] *= 2;
+    for (int h = 0; h < 2; ++h) half[h].add(f.layer(layer::at_half(h, layer::kColor)), twice);
     const Image& g = f.layer(layer::kEdge);
     for (std::size_t p = 0; p < edge_count.size(); ++p) edge_count[p] += g.data()[p] > 0;
   }
@@ -95,9 +101,11 @@ TEST(VarianceOfTheMean, FrameLayersPredictTheSeedToSeedVariance) {
   int n_edge = 0, n_flat = 0;
   const double r_all = color.ratio(all, 3), r_edge = color.ratio(edge, 3, &n_edge), r_flat = color.ratio(flat, 3, &n_flat);
   const double r_direct = direct.ratio(flat, 3), r_indirect = indirect.ratio(flat, 3);
+  const double r_half0 = half[0].ratio(all, 3), r_half1 = half[1].ratio(all, 3);
   std::printf("predicted / measured variance of the mean over %d seeds: colour %.3f (edge %.3f over %d, flat %.3f over %d), "
               "direct %.3f, indirect %.3f (flat)\n",
               kSeeds, r_all, r_edge, n_edge / 3, r_flat, n_flat / 3, r_direct, r_indirect);
+  std::printf("half buffers: 2 x predicted / measured: half0 %.3f, half1 %.3f\n", r_half0, r_half1);
   ASSERT_GT(n_edge, 3 * 10);  // the test needs both kinds of pixel
   ASSERT_GT(n_flat, 3 * 10);
   EXPECT_NEAR(r_all, 1.0, kTolerance);
@@ -105,6 +113,8 @@ TEST(VarianceOfTheMean, FrameLayersPredictTheSeedToSeedVariance) {
   EXPECT_NEAR(r_flat, 1.0, kTolerance);
   EXPECT_NEAR(r_direct, 1.0, kTolerance);
   EXPECT_NEAR(r_indirect, 1.0, kTolerance);
+  EXPECT_NEAR(r_half0, 1.0, kTolerance);
+  EXPECT_NEAR(r_half1, 1.0, kTolerance);
 }
 
 TEST(VarianceOfTheMean, ReferenceVariancePredictsTheSeedToSeedVariance) {
