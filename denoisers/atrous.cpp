@@ -27,10 +27,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 
 #include <tbb/parallel_for.h>
 
+#include "denoisers/fast_exp.h"
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"
@@ -39,29 +39,6 @@ namespace dnb {
 namespace {
 
 constexpr float kB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};
-
-// exp(x) for x <= 0, to 1.1e-5 relative (measured over [-80, 0]; below -87 it returns
-// exp(-87)): 2^t split into integer and fraction, the fraction's power by its degree-6 Taylor
-// polynomial. Written here because glibc's expf does not vectorise without
-// -ffast-math, and the edge-stopping weights need nothing better; it is a plain function of
-// its argument, so results do not depend on vector width or threads.
-inline float exp_nonpositive(float x) {
-  const float t = std::max(x, -87.0f) * 1.44269504089f;  // log2(e)
-  const float n = std::floor(t);
-  const float f = t - n;  // [0, 1)
-  // Taylor series of 2^f = e^(f ln 2), evaluated by Horner's rule.
-  float p = 1.5403530e-4f;
-  p = p * f + 1.3333558e-3f;
-  p = p * f + 9.6181291e-3f;
-  p = p * f + 5.5504109e-2f;
-  p = p * f + 2.4022651e-1f;
-  p = p * f + 6.9314718e-1f;
-  p = p * f + 1.0f;
-  const std::int32_t bits = (std::int32_t(n) + 127) << 23;
-  float scale;
-  std::memcpy(&scale, &bits, sizeof scale);
-  return p * scale;
-}
 
 // One image as three (or one) planes of floats: the inner loops over a row then read
 // contiguous memory and vectorise.

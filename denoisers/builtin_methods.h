@@ -12,7 +12,9 @@ MethodInfo am_opencv_method();  // denoisers/am_opencv.cpp
 MethodInfo atrous_method();     // denoisers/atrous.cpp
 MethodInfo bilateral_method();  // denoisers/bilateral.cpp
 MethodInfo guided_method();     // denoisers/guided.cpp
+MethodInfo nfor_method();       // denoisers/nfor.cpp
 MethodInfo nlmeans_method();    // denoisers/nlmeans.cpp
 MethodInfo proposed_method();   // denoisers/proposed.cpp
+MethodInfo svgf_method();       // denoisers/svgf.cpp
 
 }  // namespace dnb

@@ -88,6 +88,10 @@ struct MethodStats {
   // Start-up paid once per run, not per frame (a worker plug-in loading its model): recorded
   // apart (results.json times.setup_seconds), never part of total_seconds.
   std::optional<double> setup_seconds;
+  // What the method says about itself, recorded in results.json as the cell's method_info: a
+  // worker plug-in's ready-line "info" (docs/plugins.md), such as the version of the library
+  // it loaded (oidn: OIDN's).
+  std::map<std::string, std::string> info;
   void add_phase(const std::string& name, double seconds) { phases.emplace_back(name, seconds); }
 };
 

@@ -14,8 +14,10 @@ void register_builtin_methods(MethodRegistry& r) {
   r.add(bilateral_method());
   r.add(guided_method());
   r.add(irradiance_cache_method());
+  r.add(nfor_method());
   r.add(nlmeans_method());
   r.add(proposed_method());
+  r.add(svgf_method());
 }
 
 // Defined here, not in denoisers/method.cpp, so that linking anything that uses the global

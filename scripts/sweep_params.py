@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Pick each baseline method's default parameters by minimising MSE on a training scene.
 
-Fair baselines (issue 5): every method's defaults come from this sweep on a scene that is NOT
+Fair baselines (issues 5 and 27): every method's defaults come from this sweep on a scene that is NOT
 one of the four evaluation scenes (cornell-box, conference, bedroom, sponza). It renders the
 training frame and its reference with the denoisebench CLI (or takes --frame/--reference), then
 runs a coordinate descent over each method's parameter grid below: starting from the current
@@ -102,6 +102,19 @@ GRIDS = {
             "halve_color_sigma": ["true", "false"],
             "range_map": ["log", "reinhard", "linear"],
             "filter_reflection": ["false", "true"],
+        },
+    },
+    # SVGF's spatial filter (issue 27): the paper's values to start from.
+    "svgf": {
+        "start": {"iterations": "5", "sigma_luminance": "4", "sigma_normal": "128", "sigma_depth": "1",
+                  "separate": "true", "variance_prefilter": "true"},
+        "grid": {
+            "iterations": ["3", "4", "5", "6", "7"],
+            "sigma_luminance": ["1", "2", "4", "8", "16", "32"],
+            "sigma_normal": ["8", "32", "128", "512"],
+            "sigma_depth": ["0.25", "0.5", "1", "2", "4"],
+            "separate": ["true", "false"],
+            "variance_prefilter": ["true", "false"],
         },
     },
     # A renderer (renders the training scene itself, so the sweep needs --scene). Its time is

@@ -37,6 +37,7 @@ AovFrame constant_frame(int width, int height) {
       fill(f.add(n(layer::kTint), 3), {kConstantTint, kConstantTint, kConstantTint});
     }
   }
+  set_halves(f);
   f.meta.scene = "synthetic-constant";
   f.meta.spp = 64;
   f.meta.reflection_levels = 1;
@@ -57,6 +58,7 @@ AovFrame planes_frame(int width, int height, float noise_sigma, std::uint64_t se
   Image& depth = f.layer(layer::kDepth);
   Image& reflection = f.layer(layer::kReflection);
   const float s = 0.70710678f;
+  Image noise_sd(width, height, 3);
   for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x) {
       const bool left = x < width / 2;
@@ -76,9 +78,29 @@ AovFrame planes_frame(int width, int height, float noise_sigma, std::uint64_t se
         reflection.at(x, y, c) = 0.02f;
         f.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = 0.02f / kConstantColor;  // R = tint * F1
         color.at(x, y, c) = (dn + in) * tex + 0.02f;
+        noise_sd.at(x, y, c) = noise_sigma * tex * std::sqrt(d * d + i * i);
       }
     }
+  set_halves(f, &noise_sd, seed + 1);
   return f;
+}
+
+void set_halves(AovFrame& f, const Image* sd, std::uint64_t seed) {
+  for (int h = 0; h < 2; ++h)
+    for (const char* b : layer::kHalfLayers)
+      if (std::string(b) != layer::kColor) f.set(layer::at_half(h, b), f.layer(b));
+  Image h0 = f.layer(layer::kColor), h1 = h0;
+  if (sd) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<float> gauss(0.0f, 1.0f);
+    for (std::size_t k = 0; k < h0.size(); ++k) {
+      const float e = sd->data()[k] * gauss(rng);
+      h0.data()[k] += e;
+      h1.data()[k] -= e;
+    }
+  }
+  f.set(layer::at_half(0, layer::kColor), std::move(h0));
+  f.set(layer::at_half(1, layer::kColor), std::move(h1));
 }
 
 double mse(const Image& a, const Image& b) {
