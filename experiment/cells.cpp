@@ -122,6 +122,7 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
   r.input_cache_hit = out.input_cache_hit;
   r.phases = out.phases;
   r.counters = out.counters;
+  r.method_info = out.method_info;
   r.cell_key = key;
   c.store->add(r);
   c.progress->add(1);

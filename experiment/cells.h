@@ -50,6 +50,7 @@ struct CellOutput {
   CellTimes times;  // times.reference is filled in by run_cell
   std::optional<bool> input_cache_hit;
   std::optional<std::map<std::string, double>> phases, counters;
+  std::optional<std::map<std::string, std::string>> method_info;  // MethodStats::info, when any
   // Input cells: the AOV frame file the scene's cells read (its edge file beside it, if any),
   // kept in the folder as files.frame (and files.frame_edges).
   std::string frame_file;

@@ -112,6 +112,7 @@ json CellRecord::to_json() const {
   if (params) r["params"] = *params;
   if (phases) r["phases"] = numbers_json(*phases);
   if (counters) r["counters"] = numbers_json(*counters);
+  if (method_info) r["method_info"] = *method_info;
   if (blocks) r["blocks"] = numbers_json(*blocks);
   return r;
 }
@@ -160,6 +161,14 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   r.params = optional_value<std::map<std::string, std::string>>(j, "params", where);
   if (j.contains("phases")) r.phases = number_map(object_or_empty(j, "phases", where), where + ": phases");
   if (j.contains("counters")) r.counters = number_map(object_or_empty(j, "counters", where), where + ": counters");
+  if (j.contains("method_info")) {
+    std::map<std::string, std::string> info;
+    for (const auto& [k, v] : object_or_empty(j, "method_info", where).items()) {
+      if (!v.is_string()) throw InputError(fmt::format("{}: method_info: key '{}': expected a string", where, k));
+      info[k] = v.get<std::string>();
+    }
+    r.method_info = std::move(info);
+  }
   if (j.contains("blocks")) r.blocks = number_map(object_or_empty(j, "blocks", where), where + ": blocks");
   return r;
 }

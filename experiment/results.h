@@ -23,7 +23,8 @@
 //   reference[, filter_runs, setup_seconds]}, reference {spp, seed, seconds, cache_hit, image,
 //   unconverged_share, unconverged_rse[, estimated_error {mse, mse_hdr, relmse}]}, files {image, error_flip, error_relmse; input cells
 //   also frame and, when the frame has one, frame_edges}, input_cache_hit; method cells also
-//   base_method, kind, params, phases, counters. reference.image is the reference file itself
+//   base_method, kind, params, phases, counters[, method_info {string: string}: what the method
+//   reported about itself, e.g. a plug-in's library version]. reference.image is the reference file itself
 //   (R,G,B, variance.*, metadata); files.frame is the AOV frame file every cell of that scene
 //   and spp read, byte for byte (frame_edges its edge file): with them the folder re-scores
 //   alone. Records of a scene read from files ([[scene]] frame = ...) have no seed.
@@ -135,6 +136,7 @@ struct CellRecord {
   std::string base_method, kind;
   std::optional<std::map<std::string, std::string>> params;
   std::optional<std::map<std::string, double>> phases, counters;
+  std::optional<std::map<std::string, std::string>> method_info;  // what the method reported (MethodStats::info)
   // Method cells: metrics::worse_blocks against the input frame ("block", "count", "worse",
   // "worse_twice": shares of tiles whose 8-bit mse is above the input's, and above twice it).
   std::optional<std::map<std::string, double>> blocks;

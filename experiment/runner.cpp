@@ -242,6 +242,7 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
     out.phases.emplace();
     for (const auto& [name, sec] : first.stats.phases) (*out.phases)[name] = sec;
     out.counters = first.stats.counters;
+    if (!first.stats.info.empty()) out.method_info = first.stats.info;
     out.input_cache_hit = frame.cache_hit();
     out.baseline = frame.get().layer(layer::kColor);
     return out;

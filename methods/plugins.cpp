@@ -216,6 +216,8 @@ class Worker {
     return seconds;
   }
   double setup_seconds() const { return setup_seconds_; }
+  // The ready line's "info" object, values as strings (JSON text for non-strings).
+  const std::map<std::string, std::string>& info() const { return info_; }
 
   // Closes stdin and waits for the worker to end; kills its group after a grace period.
   void stop(bool log) {
@@ -255,6 +257,9 @@ class Worker {
       fail(m_, fmt::format("printed '{}' as its first line, expected {{\"ready\": true}}", line.substr(0, 200)), keep_tail());
     }
     setup_seconds_ = sw.seconds();
+    info_.clear();
+    if (ready.contains("info") && ready["info"].is_object())
+      for (const auto& [k, v] : ready["info"].items()) info_[k] = v.is_string() ? v.get<std::string>() : v.dump();
     spdlog::info("plug-in '{}': worker {} ready in {:.3f} s", m_.name, proc_->pid(), setup_seconds_);
   }
   std::vector<std::string> keep_tail() { return last_tail_ = tail_of(*proc_); }
@@ -270,6 +275,7 @@ class Worker {
   std::unique_ptr<Subprocess> proc_;
   int starts_ = 0;
   double setup_seconds_ = 0;
+  std::map<std::string, std::string> info_;
   std::vector<std::string> last_tail_;
 };
 
@@ -308,6 +314,7 @@ class PluginMethod : public Method {
       if (worker_) {
         r.stats.own_seconds = worker_->request({{"input", in}, {"output", out}, {"params", typed_params()}});
         r.stats.setup_seconds = worker_->setup_seconds();
+        r.stats.info = worker_->info();
       } else {
         r.stats.own_seconds = run_frame_process(in, out, tail);
       }

@@ -138,7 +138,7 @@ def _run_frame(fn, argv):
     write_rgb(args["--output"], fn(read_frame(args["--input"]), params))
 
 
-def _run_worker(fn, setup):
+def _run_worker(fn, setup, info):
     protocol = sys.stdout
     sys.stdout = sys.stderr  # the user's prints go to the log, never into the protocol
     state = setup() if setup else None
@@ -147,7 +147,10 @@ def _run_worker(fn, setup):
         protocol.write(json.dumps(obj) + "\n")
         protocol.flush()
 
-    answer({"ready": True})
+    ready = {"ready": True}
+    if info is not None:
+        ready["info"] = dict(info(state) if callable(info) else info)
+    answer(ready)
     for line in sys.stdin:
         if not line.strip():
             continue
@@ -163,11 +166,13 @@ def _run_worker(fn, setup):
             answer({"ok": False, "error": f"{type(e).__name__}: {e}"})
 
 
-def run(fn, setup=None):
+def run(fn, setup=None, info=None):
     """Runs `fn(frame, params) -> H x W x 3 array` under the protocol the harness started this
     program with. With `setup` (worker protocol), `setup()` runs once before the ready line (load
     a model there: it is timed as start-up, not per frame) and `fn(frame, params, state)` gets
-    its result."""
+    its result. `info` (worker protocol; a dict of JSON values, or a function of setup's result
+    that returns one) is sent in the ready line, `{"ready": true, "info": {...}}`: what was
+    loaded, such as a library's version."""
     argv = sys.argv[1:]
     if argv:
         if setup:
@@ -176,4 +181,4 @@ def run(fn, setup=None):
             fn = lambda frame, params: fn_frame(frame, params, state)  # noqa: E731
         _run_frame(fn, argv)
     else:
-        _run_worker(fn, setup)
+        _run_worker(fn, setup, info)
