@@ -19,4 +19,13 @@ class WorkError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A method that cannot run on this machine, for a reason that is no fault of the run (a
+// plug-in whose package or trained weights are not installed): an experiment records its cells
+// as skipped with the message, which says how to make the method available. Exit status 1
+// where a single command needed it (`denoise`).
+class MethodUnavailable : public WorkError {
+ public:
+  using WorkError::WorkError;
+};
+
 }  // namespace dnb

@@ -98,6 +98,13 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
   CellOutput out;
   try {
     out = plan.compute();
+  } catch (const MethodUnavailable& e) {
+    if (!plan.contain_failures) throw;
+    // Not a failure: the method cannot run on this machine (its message says how to make it).
+    spdlog::warn("cell {} / {} / {} spp skipped: {}", scene.scene, plan.method, plan.spp, e.what());
+    c.store->skip(SkippedCell{scene.scene, plan.method, plan.spp, e.what()});
+    c.progress->add(1);
+    return std::nullopt;
   } catch (const std::exception& e) {
     if (!plan.contain_failures || !(dynamic_cast<const WorkError*>(&e) || dynamic_cast<const InputError*>(&e))) throw;
     FailedCell f{scene.scene, plan.method, plan.spp, key, e.what(), {}};

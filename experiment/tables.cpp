@@ -219,7 +219,9 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
                                             info.lower_is_better ? "significantly lower" : "significantly higher")
                                : std::string(),
                        res.failures.empty() ? "" : " failed: the cell failed in this run (see the failed-cells table).",
-                       res.skipped.empty() ? "" : " skipped: the method renders the scene, and that scene was read from files.");
+                       res.skipped.empty() ? "" : " skipped: the cell cannot run here (results.json's skipped gives each reason: a "
+                                                   "renderer on a scene read from files, a method whose package or weights are "
+                                                   "not installed).");
   if (reference_column)
     t.note += " reference's own (est.): what a perfect image would score against this reference, from the reference's "
               "variance of the mean (metrics::reference_error; first order for the 8-bit mse): that much of every cell is "

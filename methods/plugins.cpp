@@ -231,6 +231,7 @@ class Worker {
 
  private:
   void start() {
+    if (!unavailable_.empty()) throw MethodUnavailable(unavailable_);
     if (proc_ && proc_->running()) return;
     if (proc_) proc_->kill_group();  // a dead one's leftovers
     if (starts_ >= 2) fail(m_, "the worker died twice; its remaining cells are not run", last_tail_);
@@ -251,6 +252,16 @@ class Worker {
     try {
       ready = json::parse(line);
     } catch (const json::exception&) {
+    }
+    if (ready.is_object() && ready.value("ready", true) == false && ready.contains("unavailable")) {
+      // The program cannot serve here (docs/plugins.md): every cell of it is skipped, not failed.
+      const std::string why = ready["unavailable"].is_string() ? ready["unavailable"].get<std::string>()
+                                                                : ready["unavailable"].dump();
+      unavailable_ = fmt::format("plug-in '{}' is not available on this machine: {}", m_.name, why);
+      proc_->close_stdin();
+      if (!proc_->wait(5.0)) proc_->kill_group();
+      proc_.reset();
+      throw MethodUnavailable(unavailable_);
     }
     if (!ready.is_object() || ready.value("ready", false) != true) {
       proc_->kill_group();
@@ -276,6 +287,7 @@ class Worker {
   int starts_ = 0;
   double setup_seconds_ = 0;
   std::map<std::string, std::string> info_;
+  std::string unavailable_;  // set once the program said it cannot run here
   std::vector<std::string> last_tail_;
 };
 

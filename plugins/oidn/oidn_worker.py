@@ -5,18 +5,33 @@ OIDN comes from PyPI, pinned in python/requirements-pypi.txt (pyoidn: its wheel 
 libOpenImageDenoise.so.2 with the built-in trained weights), installed by scripts/setup into the
 project's virtual environment .venv/. The manifest starts this script with Debian's Python, which
 is always there (a missing program would make every denoisebench command fail when it loads the
-manifest); the script then replaces itself (same process) with .venv's Python, or, without .venv,
-fails at start-up saying to run scripts/setup: only the oidn cells fail.
+manifest); the script then replaces itself (same process) with .venv's Python. Without .venv or
+without the pinned package it answers the harness's start with {"ready": false, "unavailable":
+...} saying to run scripts/setup: the oidn cells of an experiment are then skipped with that
+reason, not failed (docs/plugins.md).
 
 The library is loaded with ctypes (pyoidn's own Python wrapper needs cffi, not installed), once
 at start-up; one CPU device per `threads` value and one filter per kind of image are made once
 and reused for every frame (a frame of the same size as the last one commits cheaply).
 """
+import json
 import os
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VENV = os.path.normpath(os.path.join(HERE, "..", "..", ".venv"))
+
+
+def _unavailable(why):
+    """Says the method cannot run here: in the worker protocol as its ready line (the harness
+    skips its cells), in the frame protocol as an error. Written without the helper module,
+    which may not be importable before the move into .venv."""
+    if len(sys.argv) > 1:
+        sys.exit(f"oidn: {why}")
+    out = sys.__stdout__  # the protocol's stream: the helper points sys.stdout at stderr
+    out.write(json.dumps({"ready": False, "unavailable": why}) + "\n")
+    out.flush()
+    sys.exit(0)
 
 
 def _into_venv():
@@ -25,12 +40,12 @@ def _into_venv():
         return
     python = os.path.join(VENV, "bin", "python3")
     if os.environ.get("DNB_OIDN_REEXEC") == "1":
-        sys.exit(f"oidn: '{python}' did not start inside '{VENV}' (sys.prefix is '{sys.prefix}'); "
-                 "re-create it with scripts/setup (rm -rf .venv first)")
+        _unavailable(f"'{python}' did not start inside '{VENV}' (sys.prefix is '{sys.prefix}'); "
+                     "re-create it with scripts/setup (rm -rf .venv first)")
     if not os.access(python, os.X_OK):
-        sys.exit(f"oidn: the project's virtual environment '{VENV}' is missing (no '{python}'): "
-                 "run scripts/setup, which installs python/requirements-pypi.txt (pyoidn, OIDN's "
-                 "library) into it")
+        _unavailable(f"the project's virtual environment '{VENV}' is missing (no '{python}'): "
+                     "run scripts/setup, which installs python/requirements-pypi.txt (pyoidn, OIDN's "
+                     "library) into it")
     os.environ["DNB_OIDN_REEXEC"] = "1"
     sys.stdout.flush()
     sys.stderr.flush()
@@ -73,14 +88,14 @@ def _pinned_version():
 def _library_path():
     spec = importlib.util.find_spec(PACKAGE)  # the package's folder, without importing it
     if spec is None or not spec.submodule_search_locations:
-        sys.exit(f"oidn: the package '{PACKAGE}' (OIDN's library) is not installed in '{sys.prefix}': run scripts/setup")
+        _unavailable(f"the package '{PACKAGE}' (OIDN's library) is not installed in '{sys.prefix}': run scripts/setup")
     have = importlib.metadata.version(PACKAGE)
     want = _pinned_version()
     if want is not None and have != want:
-        sys.exit(f"oidn: '{sys.prefix}' has {PACKAGE} {have}, python/requirements-pypi.txt pins {want}: run scripts/setup")
+        _unavailable(f"'{sys.prefix}' has {PACKAGE} {have}, python/requirements-pypi.txt pins {want}: run scripts/setup")
     lib = os.path.join(list(spec.submodule_search_locations)[0], "oidn", "lib", "libOpenImageDenoise.so.2")
     if not os.path.exists(lib):
-        sys.exit(f"oidn: {PACKAGE} {have} has no '{lib}'")
+        _unavailable(f"{PACKAGE} {have} has no '{lib}'")
     return lib, have
 
 

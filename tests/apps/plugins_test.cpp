@@ -210,6 +210,33 @@ TEST(Plugins, EveryKindOfFailureFailsItsCellOnlyAndTheRunExits1) {
   EXPECT_EQ(json::parse(slurp(out + "/results.json"))["failures"].size(), 5u);
 }
 
+// A worker that cannot run here (its package or weights not installed) answers
+// {"ready": false, "unavailable": why}: its cells are skipped with that reason, the run's other
+// cells are scored and the run exits 0; Table 1 says "skipped"; `denoise` exits 1 naming why.
+TEST(Plugins, AnUnavailableWorkerHasItsCellsSkippedNotFailed) {
+  test::TempDir dir;
+  write(dir.path() / "c.toml", config("\"t_unavailable\", \"t_copy\"", test_plugins()));
+  auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json res = json::parse(slurp(dir.file("out") + "/results.json"));
+  EXPECT_TRUE(res["failures"].empty()) << res["failures"].dump();
+  ASSERT_EQ(res["skipped"].size(), 1u) << res["skipped"].dump();
+  EXPECT_EQ(res["skipped"][0]["method"], "t_unavailable");
+  EXPECT_THAT(res["skipped"][0]["reason"].get<std::string>(), HasSubstr("train them with train.py"));
+  auto recs = records_by_method(res);
+  EXPECT_EQ(recs.count("t_unavailable"), 0u);
+  EXPECT_EQ(recs.count("t_copy"), 1u);
+  auto rep = test::run_command("'" + binary().string() + "' report " + dir.file("out"));
+  ASSERT_EQ(rep.exit_code, 0) << rep.output;
+  EXPECT_THAT(slurp(dir.file("out") + "/table1_mse.md"), HasSubstr("skipped"));
+  ASSERT_EQ(run_in(dir, "render cornell-box --size 24x16 --spp 2 -o " + dir.file("f.exr")).exit_code, 0);
+  auto d = run_in(dir, "denoise t_unavailable " + dir.file("f.exr") + " -o " + dir.file("o.exr") + " --plugins " +
+                           test_plugins());
+  EXPECT_EQ(d.exit_code, 1) << d.output;
+  EXPECT_THAT(d.output, HasSubstr("not available on this machine: no weights"));
+  EXPECT_FALSE(fs::exists(dir.file("o.exr")));
+}
+
 TEST(Plugins, AWorkerThatDiesIsRestartedOnceThenItsCellsFail) {
   test::TempDir dir;
   // Three input spp: three cells of the worker.
