@@ -214,6 +214,8 @@ std::vector<NamedTable> all_tables(const ResultsDocument& res) {
   for (const auto& m : metrics::metric_names()) t.push_back({"table1_" + m, table1(res, m), m == "mse"});
   t.push_back({"table2_time", table2(res), true});
   t.push_back({"ratios", ratio_table(res, res.config.table2.filter_cpu), true});
+  if (const Table v = versus_modern_table(res, res.config.table2.filter_cpu); !v.rows.empty())
+    t.push_back({"versus_modern", v, true});
   t.push_back({"worse_blocks", worse_blocks_table(res), true});
   t.push_back({"speedup_measured", measured_speedup_table(res), true});
   t.push_back({"speedup", speedup_table(res), true});

@@ -65,6 +65,12 @@ Table measured_speedup_table(const ResultsDocument& results, const std::string& 
 Table ablation_table(const ResultsDocument& results, const std::string& metric = "mse");
 // `method`'s mse and mse_converged over every other method's, per scene (Table 1's methods).
 Table ratio_table(const ResultsDocument& results, const std::string& method);
+// Whether `method` is ahead of each of today's baselines present in the run (kModernBaselines,
+// and variants of them), per scene and metric (mse, mse_hdr): "ahead", "behind" or "no
+// significant difference" by a paired t-test over the seeds (p < 0.05), with the mean per-seed
+// error ratio and its 95% interval. Reported, never gated (issue 27). Empty rows without any.
+Table versus_modern_table(const ResultsDocument& results, const std::string& method);
+inline const std::vector<std::string> kModernBaselines = {"svgf", "nfor", "oidn", "kpcn"};
 // Per scene and method: the share of 16x16 tiles whose 8-bit mse is above the input frame's,
 // and above twice it (records' `blocks`; the mean over the seeds when there are several).
 Table worse_blocks_table(const ResultsDocument& results);

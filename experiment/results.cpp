@@ -163,7 +163,8 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   if (j.contains("counters")) r.counters = number_map(object_or_empty(j, "counters", where), where + ": counters");
   if (j.contains("method_info")) {
     std::map<std::string, std::string> info;
-    for (const auto& [k, v] : object_or_empty(j, "method_info", where).items()) {
+    const json info_json = object_or_empty(j, "method_info", where);  // kept: items() refers into it
+    for (const auto& [k, v] : info_json.items()) {
       if (!v.is_string()) throw InputError(fmt::format("{}: method_info: key '{}': expected a string", where, k));
       info[k] = v.get<std::string>();
     }

@@ -276,6 +276,59 @@ Table ratio_table(const ResultsDocument& res, const std::string& method) {
   return t;
 }
 
+Table versus_modern_table(const ResultsDocument& res, const std::string& method) {
+  Table t;
+  const int spp = res.table_spp();
+  // The modern baselines and their variants (a variant names its base method), in run order.
+  std::vector<std::string> others;
+  for (const auto& r : res.records) {
+    if (r.role != Role::Method || r.spp != spp || r.method == method) continue;
+    const std::string& base = r.base_method.empty() ? r.method : r.base_method;
+    if (std::find(kModernBaselines.begin(), kModernBaselines.end(), base) != kModernBaselines.end() &&
+        std::find(others.begin(), others.end(), r.method) == others.end())
+      others.push_back(r.method);
+  }
+  t.title = fmt::format("{} against today's baselines at {} spp input (reported, not gated)", method, spp);
+  t.header = {"scene", "metric"};
+  for (const auto& m : others) t.header.push_back(m);
+  if (others.empty()) return t;
+  for (const auto& s : res.scenes()) {
+    for (const char* metric : {"mse", "mse_hdr"}) {
+      std::vector<std::string> row{s, metric};
+      const auto a = seed_values(res, s, method, spp, metric);
+      for (const auto& m : others) {
+        std::vector<double> mine, theirs, ratios;
+        for (const auto& [seed, v] : seed_values(res, s, m, spp, metric))
+          if (auto it = a.find(seed); it != a.end() && v > 0) {
+            mine.push_back(it->second), theirs.push_back(v), ratios.push_back(it->second / v);
+          }
+        if (ratios.empty()) {
+          row.push_back(res.skip(s, m, spp) ? "skipped" : res.failure(s, m, spp) ? "failed" : "n/a");
+          continue;
+        }
+        if (ratios.size() == 1) {
+          row.push_back(fmt::format("{} ({:.2f}; one seed: no test)", ratios[0] < 1 ? "lower" : "higher", ratios[0]));
+          continue;
+        }
+        const stats::Interval i = stats::t_interval(ratios);
+        const double p = stats::paired_t_test_p(mine, theirs);
+        const char* verdict = !(std::isfinite(p) && p < 0.05) ? "no significant difference"
+                              : stats::mean(mine) < stats::mean(theirs) ? "ahead"
+                                                                        : "behind";
+        row.push_back(fmt::format("{} ({:.2f} ± {:.2f})", verdict, i.mean, i.half_width));
+      }
+      t.rows.push_back(row);
+    }
+  }
+  t.note = fmt::format("Is {} ahead of the strongest baselines of today (SVGF's spatial filter, NFOR, OIDN, a learned one)? "
+                       "ahead / behind: its error is lower / higher, significantly by a paired t-test over the input "
+                       "seeds (two-sided, p < 0.05); in brackets the mean of the per-seed ratios {} / baseline ± the half "
+                       "width of their 95% t-interval. The nightly gates {} only against the paper's baselines. From "
+                       "results.json.",
+                       method, method, method);
+  return t;
+}
+
 Table worse_blocks_table(const ResultsDocument& res) {
   Table t;
   const int spp = res.table_spp();

@@ -52,6 +52,7 @@ CellRecord method_record() {
   r.params = std::map<std::string, std::string>{{"nlm_space", "false"}};
   r.phases = std::map<std::string, double>{{"nlm", 0.1}};
   r.counters = std::map<std::string, double>{{"repaired_samples", 0}};
+  r.method_info = std::map<std::string, std::string>{{"oidn_version", "2.5.1"}, {"package", "pyoidn==2.5.1.0"}};
   return r;
 }
 
@@ -98,6 +99,8 @@ TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   EXPECT_EQ(back.config.table2.filter_opencl, "proposed:opencl");
   EXPECT_EQ(back.config.table2.filter_cpu, "proposed");  // the default, written once
   EXPECT_EQ(r.times.setup, 2.5);
+  ASSERT_TRUE(r.method_info.has_value());
+  EXPECT_EQ(r.method_info->at("oidn_version"), "2.5.1");
   EXPECT_EQ(r.reference.estimated_error->at("mse"), 0.75);
   ASSERT_EQ(back.failures.size(), 1u);
   EXPECT_EQ(back.failures[0].log_tail, (std::vector<std::string>{"Traceback", "E"}));
