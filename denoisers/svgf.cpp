@@ -5,7 +5,8 @@
 //
 // Input: the demodulated (untextured) illumination, which the tracer writes already divided by
 // the albedo (D and I, denoisers/illumination.h). As in SVGF, direct and indirect light are
-// filtered apart (`separate`; off: L = D + I in one chain), and the result is remodulated,
+// filtered apart (`separate`, the paper's choice; off, the default after the sweep: L = D + I in
+// one chain), and the result is remodulated,
 // F' = (D' + I') * T + R + E. R and E pass through unfiltered (SVGF filters what its primary
 // hits see; specular paths are not its subject).
 //
@@ -25,8 +26,9 @@
 // (sum w)^2 (the paper's equations 1-4). |grad z| is SVGF's fwidth of depth: the sum over x and y
 // of the one-sided depth difference of smaller magnitude (a screen-space derivative that does
 // not jump at silhouettes), on the depth normalised by its median (normalized_depth), floored
-// at 1e-8. Pixels that hit nothing (zero normal) blend only with each other. The defaults are
-// the paper's (sigma_z = 1, sigma_n = 128, sigma_l = 4, five passes).
+// at 1e-8. Pixels that hit nothing (zero normal) blend only with each other. The paper's values
+// (five passes, sigma_z = 1, sigma_n = 128, sigma_l = 4, D and I apart) were the sweep's start;
+// the defaults are its result on the training scene (docs/method-defaults.md, "svgf").
 //
 // Hand-written: no library implements SVGF (OpenCV, OIIO and OIDN do not). Each pixel of a pass
 // reads only the previous pass, rows run in parallel (TBB), taps are summed in a fixed order:
@@ -295,11 +297,11 @@ MethodInfo svgf_method() {
       .kind = MethodKind::Filter,
       .params =
           {
-              {"iterations", ParamType::Int, "5", "number of a-trous passes (tap spacing 1, 2, 4, ...)", 1.0, 10.0},
-              {"sigma_luminance", ParamType::Float, "4", "luminance edge-stopping: |dl| / (sigma sqrt(Var l))", 1e-3, 1e4},
-              {"sigma_normal", ParamType::Int, "128", "normal edge-stopping exponent: max(0, n_p . n_q)^sigma", 0.0, 4096.0},
+              {"iterations", ParamType::Int, "3", "number of a-trous passes (tap spacing 1, 2, 4, ...)", 1.0, 10.0},
+              {"sigma_luminance", ParamType::Float, "2", "luminance edge-stopping: |dl| / (sigma sqrt(Var l))", 1e-3, 1e4},
+              {"sigma_normal", ParamType::Int, "4", "normal edge-stopping exponent: max(0, n_p . n_q)^sigma", 0.0, 4096.0},
               {"sigma_depth", ParamType::Float, "1", "depth edge-stopping: |dz| / (sigma |grad z| |q - p|)", 1e-4, 1e4},
-              {"separate", ParamType::Bool, "true", "filter D and I apart, each with its variance (SVGF); false: D + I together"},
+              {"separate", ParamType::Bool, "false", "filter D and I apart, each with its variance (SVGF); false: D + I together"},
               {"variance_prefilter", ParamType::Bool, "true", "3x3 Gaussian of the variance before each pass (SVGF)"},
           },
       .create = [](const Params& p) { return std::make_unique<Svgf>(p); },

@@ -104,14 +104,15 @@ GRIDS = {
             "filter_reflection": ["false", "true"],
         },
     },
-    # SVGF's spatial filter (issue 27): the paper's values to start from.
+    # SVGF's spatial filter (issue 27). The first sweep started from the paper's values (5, 4, 128,
+    # 1, true, true) and ended at iterations and sigma_normal's lower ends: widened there.
     "svgf": {
-        "start": {"iterations": "5", "sigma_luminance": "4", "sigma_normal": "128", "sigma_depth": "1",
-                  "separate": "true", "variance_prefilter": "true"},
+        "start": {"iterations": "3", "sigma_luminance": "2", "sigma_normal": "8", "sigma_depth": "1",
+                  "separate": "false", "variance_prefilter": "true"},
         "grid": {
-            "iterations": ["3", "4", "5", "6", "7"],
+            "iterations": ["1", "2", "3", "4", "5", "6", "7"],
             "sigma_luminance": ["1", "2", "4", "8", "16", "32"],
-            "sigma_normal": ["8", "32", "128", "512"],
+            "sigma_normal": ["1", "2", "4", "8", "32", "128", "512"],
             "sigma_depth": ["0.25", "0.5", "1", "2", "4"],
             "separate": ["true", "false"],
             "variance_prefilter": ["true", "false"],

@@ -53,7 +53,8 @@ TEST(Svgf, NoiseFreeFrameComesBackUnchanged) {
 
 // The planes scene with 30% Gaussian noise in D and I and the variance layers holding each
 // pixel's true noise variance (the tracer's layers estimate exactly this): the defaults lower
-// the MSE by more than 10x (measured 85x; 10x leaves room for a retuned default).
+// the MSE by more than 10x (measured 26x with the swept defaults, 85x with the paper's; 10x leaves room for a retuned
+// default).
 TEST(Svgf, RemovesNoiseGuidedByTheVariance) {
   AovFrame noisy = test::planes_frame(96, 64, 0.3f);
   const AovFrame clean = test::planes_frame(96, 64, 0.0f);
@@ -68,9 +69,10 @@ TEST(Svgf, RemovesNoiseGuidedByTheVariance) {
   const double after = test::mse(run_svgf(noisy).image, truth);
   std::printf("svgf on the noisy planes: mse %.3g -> %.3g (%.1fx)\n", before, after, before / after);
   EXPECT_LT(after, before / 10) << before << " -> " << after;
-  // The crease stays: with the normal and depth terms, no light leaks from the bright plane into
-  // the dark one (columns beside the crease within 5% of the truth on average; without the
-  // edge-stopping, measured 2.5% and 29%).
+  // The crease stays: the normal, depth and luminance terms keep most light from leaking from the
+  // bright plane into the dark one (the columns beside the crease within 10% of the truth on
+  // average; measured 4.8% with the swept defaults, whose normal exponent is 4, 2.5% with the
+  // paper's 128, and 25% with the edge-stopping off, which must stay above 20%).
   auto beside_crease = [&](const Image& img) {
     double s = 0;
     int n = 0;
@@ -80,9 +82,9 @@ TEST(Svgf, RemovesNoiseGuidedByTheVariance) {
   };
   std::printf("beside the crease: %.3f (defaults), %.3f (no edge-stopping)\n", beside_crease(run_svgf(noisy).image),
               beside_crease(run_svgf(noisy, {{"sigma_normal", "0"}, {"sigma_depth", "1e4"}, {"sigma_luminance", "1e4"}}).image));
-  EXPECT_LT(beside_crease(run_svgf(noisy).image), 0.05);
+  EXPECT_LT(beside_crease(run_svgf(noisy).image), 0.10);
   EXPECT_GT(beside_crease(run_svgf(noisy, {{"sigma_normal", "0"}, {"sigma_depth", "1e4"}, {"sigma_luminance", "1e4"}}).image),
-            0.05);
+            0.20);
 }
 
 }  // namespace
