@@ -544,11 +544,7 @@ TEST(Frame, HasEveryChannelOfTheDesign) {
 // samples per half; the full sums add the same values in another order: 1e-6 relative).
 TEST(HalfBuffers, EachHalfIsTheMeanOfItsOwnSamples) {
   auto scene = load_scene("cornell-box");
-  RenderSettings s;
-  s.width = 24;
-  s.height = 18;
-  s.spp = 2;
-  s.reflection_levels = 0;
+  RenderSettings s{.width = 24, .height = 18, .spp = 2, .reflection_levels = 0};
   AovFrame f = render_frame(*scene, s);
   ASSERT_EQ(f.meta.dropped_samples, 0);
   EXPECT_TRUE(render_color_sums(*scene, s, 0, 1).mean() == f.layer(layer::at_half(0, layer::kColor)));
