@@ -544,7 +544,8 @@ TEST(Frame, HasEveryChannelOfTheDesign) {
 // samples per half; the full sums add the same values in another order: 1e-6 relative).
 TEST(HalfBuffers, EachHalfIsTheMeanOfItsOwnSamples) {
   auto scene = load_scene("cornell-box");
-  RenderSettings s{.width = 24, .height = 18, .spp = 2, .reflection_levels = 0};
+  RenderSettings s{.width = 24, .height = 18, .spp = 2, .seed = 1, .threads = 0, .max_depth = 8, .reflection_levels = 0,
+                   .edge_subpixels = true, .on_progress = {}};
   AovFrame f = render_frame(*scene, s);
   ASSERT_EQ(f.meta.dropped_samples, 0);
   EXPECT_TRUE(render_color_sums(*scene, s, 0, 1).mean() == f.layer(layer::at_half(0, layer::kColor)));
