@@ -126,8 +126,8 @@ TEST(Plugins, AWorkersStartUpIsTimedApartFromItsFrames) {
 
 // The repository's `oidn` plug-in (plugins/oidn: Intel Open Image Denoise from the PyPI package
 // that scripts/setup installs into .venv): on a 16-spp cornell-box frame it runs end to end,
-// gives the same pixels on two threads as on one,
-// gives the same pixels twice on one thread, records OIDN's version, and lowers the error
+// gives the same pixels twice on one thread and on two, keeps a constant frame inside its
+// border, records OIDN's version, and lowers the error
 // against a 512-spp reference of another seed (8-bit mse: measured 0.35 of the input's;
 // 0.5 is far from a copy of the input, 1.0). Skipped, saying why, where .venv has no pyoidn.
 TEST(Plugins, OidnIsDeterministicKeepsAConstantInsideAndLowersTheError) {
