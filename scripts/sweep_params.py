@@ -118,6 +118,18 @@ GRIDS = {
             "variance_prefilter": ["true", "false"],
         },
     },
+    # NFOR (issue 27): the paper's values to start from. Not run yet: one evaluation at 1024x768
+    # takes about a minute (docs/method-defaults.md, "nfor"), so the descent takes an hour or more.
+    "nfor": {
+        "start": {"radius": "9", "patch_radius": "3", "k_small": "0.5", "k_large": "1", "second_pass": "true"},
+        "grid": {
+            "radius": ["5", "7", "9", "12"],
+            "patch_radius": ["1", "2", "3"],
+            "k_small": ["0.25", "0.5", "0.75"],
+            "k_large": ["1", "1.5", "2"],
+            "second_pass": ["true", "false"],
+        },
+    },
     # A renderer (renders the training scene itself, so the sweep needs --scene). Its time is
     # bounded by the render time of the path-traced input (the frame's render_seconds), as
     # issue 7 asks; candidates over it are recorded and never chosen.
