@@ -50,6 +50,7 @@
 #include <Eigen/Dense>
 #include <tbb/parallel_for.h>
 
+#include "denoisers/buffer_pool.h"
 #include "denoisers/fast_exp.h"
 #include "denoisers/method.h"
 
@@ -60,43 +61,42 @@ constexpr int kTile = 32;
 constexpr int kFeatures = 7;  // albedo RGB, normal XYZ, depth
 constexpr int kDims = kFeatures + 1;
 
-// An image as planes of floats.
-struct Planes {
-  int w = 0, h = 0, n = 0;
-  std::vector<float> d;
-  Planes() = default;
-  Planes(int w_, int h_, int n_) : w(w_), h(h_), n(n_), d(std::size_t(w_) * h_ * n_, 0.0f) {}
-  explicit Planes(const Image& img) : Planes(img.width(), img.height(), img.channels()) {
-    for (int c = 0; c < n; ++c)
-      for (std::size_t px = 0; px < img.pixel_count(); ++px) d[c * img.pixel_count() + px] = img.data()[px * n + c];
-  }
-  float& at(int c, int x, int y) { return d[(std::size_t(c) * h + y) * w + x]; }
-  float at(int c, int x, int y) const { return d[(std::size_t(c) * h + y) * w + x]; }
-  std::size_t plane() const { return std::size_t(w) * h; }
-  Image image() const {
-    Image out(w, h, n);
-    for (int c = 0; c < n; ++c)
-      for (std::size_t px = 0; px < plane(); ++px) out.data()[px * n + c] = d[c * plane() + px];
-    return out;
-  }
-};
+// Pixel (x, y) of channel c of the shared planar images (denoisers/buffer_pool.h).
+inline float& at(Planes& p, int c, int x, int y) { return p.row(c, y)[x]; }
+inline float at(const Planes& p, int c, int x, int y) { return p.row(c, y)[x]; }
+
+Planes planes_of(const Image& img) {
+  Planes out(img.width(), img.height(), img.channels(), Planes::Overwritten{});
+  const std::size_t n = img.pixel_count();
+  for (int c = 0; c < out.n; ++c)
+    for (std::size_t px = 0; px < n; ++px) out.plane(c)[px] = img.data()[px * out.n + c];
+  return out;
+}
+
+Image image_of(const Planes& p) {
+  Image out(p.w, p.h, p.n);
+  const std::size_t n = out.pixel_count();
+  for (int c = 0; c < p.n; ++c)
+    for (std::size_t px = 0; px < n; ++px) out.data()[px * p.n + c] = p.plane(c)[px];
+  return out;
+}
 
 Planes scaled(const Planes& a, float s) {
   Planes out = a;
-  for (float& v : out.d) v *= s;
+  for (float& v : out.data) v *= s;
   return out;
 }
 
 Planes combine(const Planes& a, const Planes& b, float wa, float wb) {
   Planes out(a.w, a.h, a.n);
-  for (std::size_t k = 0; k < a.d.size(); ++k) out.d[k] = wa * a.d[k] + wb * b.d[k];
+  for (std::size_t k = 0; k < a.data.size(); ++k) out.data[k] = wa * a.data[k] + wb * b.data[k];
   return out;
 }
 
 // (a - b)^2 / 4 per value: the variance of (a + b) / 2 from one pair of independent halves.
 Planes pair_variance(const Planes& a, const Planes& b) {
   Planes out(a.w, a.h, a.n);
-  for (std::size_t k = 0; k < a.d.size(); ++k) out.d[k] = 0.25f * (a.d[k] - b.d[k]) * (a.d[k] - b.d[k]);
+  for (std::size_t k = 0; k < a.data.size(); ++k) out.data[k] = 0.25f * (a.data[k] - b.data[k]) * (a.data[k] - b.data[k]);
   return out;
 }
 
@@ -109,8 +109,8 @@ Planes box3(const Planes& in) {
         float s = 0;
         int n = 0;
         for (int yy = std::max(0, y - 1); yy <= std::min(in.h - 1, y + 1); ++yy)
-          for (int xx = std::max(0, x - 1); xx <= std::min(in.w - 1, x + 1); ++xx) s += in.at(c, xx, yy), ++n;
-        out.at(c, x, y) = s / float(n);
+          for (int xx = std::max(0, x - 1); xx <= std::min(in.w - 1, x + 1); ++xx) s += at(in, c, xx, yy), ++n;
+        at(out, c, x, y) = s / float(n);
       }
   });
   return out;
@@ -163,8 +163,8 @@ TileWeights nlm_weights(const Planes& g, const Planes& var, int F, int R, float 
           }
           float s = 0;
           for (int c = 0; c < g.n; ++c) {
-            const float vp = var.at(c, x, y), vq = var.at(c, qx, qy);
-            const float diff = g.at(c, x, y) - g.at(c, qx, qy);
+            const float vp = at(var, c, x, y), vq = at(var, c, qx, qy);
+            const float diff = at(g, c, x, y) - at(g, c, qx, qy);
             s += (diff * diff - (vp + std::min(vp, vq))) / (1e-10f + k2 * (vp + vq));
           }
           term[e] = s * inv_c, valid[e] = 1;
@@ -209,10 +209,10 @@ Planes nlmeans(const Planes& img, const Planes& guide, const Planes& var, int F,
           for (int dx = -R; dx <= R; ++dx) {
             const float w = tw.at((dy + R) * side + dx + R, x, y);
             if (w == 0) continue;
-            for (int c = 0; c < img.n; ++c) s[c] += w * img.at(c, x + dx, y + dy);
+            for (int c = 0; c < img.n; ++c) s[c] += w * at(img, c, x + dx, y + dy);
             ws += w;
           }
-        for (int c = 0; c < img.n; ++c) out.at(c, x, y) = s[c] / ws;  // ws >= 1 (the centre)
+        for (int c = 0; c < img.n; ++c) at(out, c, x, y) = s[c] / ws;  // ws >= 1 (the centre)
       }
   });
   return out;
@@ -222,7 +222,7 @@ Planes nlmeans(const Planes& img, const Planes& guide, const Planes& var, int F,
 struct Features {
   Planes albedo, normal, depth;
   float value(int j, int x, int y) const {
-    return j < 3 ? albedo.at(j, x, y) : j < 6 ? normal.at(j - 3, x, y) : depth.at(0, x, y);
+    return j < 3 ? at(albedo, j, x, y) : j < 6 ? at(normal, j - 3, x, y) : at(depth, 0, x, y);
   }
 };
 
@@ -259,7 +259,7 @@ Planes collaborative_regression(const Planes& img, const Features& f, const Plan
             for (int a = 0; a < kDims; ++a) {
               const double wa = w * v[a];
               for (int b = a; b < kDims; ++b) A(a, b) += wa * v[b];
-              for (int c = 0; c < 3; ++c) B(a, c) += wa * img.at(c, x + dx, y + dy);
+              for (int c = 0; c < 3; ++c) B(a, c) += wa * at(img, c, x + dx, y + dy);
             }
           }
         for (int a = 0; a < kDims; ++a)
@@ -300,14 +300,14 @@ Planes collaborative_regression(const Planes& img, const Features& f, const Plan
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const float* s = &total[(std::size_t(y) * W + x) * 4];
-      for (int c = 0; c < 3; ++c) out.at(c, x, y) = s[c] / s[3];  // s[3] >= 1: p's own window
+      for (int c = 0; c < 3; ++c) at(out, c, x, y) = s[c] / s[3];  // s[3] >= 1: p's own window
     }
   return out;
 }
 
 Features half_features(const AovFrame& f, int h) {
-  return {Planes(f.layer(layer::at_half(h, layer::kAlbedo))), Planes(f.layer(layer::at_half(h, layer::kNormal))),
-          Planes(f.layer(layer::at_half(h, layer::kDepth)))};
+  return {planes_of(f.layer(layer::at_half(h, layer::kAlbedo))), planes_of(f.layer(layer::at_half(h, layer::kNormal))),
+          planes_of(f.layer(layer::at_half(h, layer::kDepth)))};
 }
 
 class Nfor final : public Method {
@@ -330,9 +330,10 @@ class Nfor final : public Method {
   MethodResult execute(const MethodInput& in) override {
     MethodResult r;
     const AovFrame& f = *in.frame;
-    const Planes colA(f.layer(layer::at_half(0, layer::kColor))), colB(f.layer(layer::at_half(1, layer::kColor)));
+    const Planes colA = planes_of(f.layer(layer::at_half(0, layer::kColor)));
+    const Planes colB = planes_of(f.layer(layer::at_half(1, layer::kColor)));
     const Planes color = combine(colA, colB, 0.5f, 0.5f);
-    const Planes var(f.layer(layer::kVariance));
+    const Planes var = planes_of(f.layer(layer::kVariance));
     const Planes var_half = scaled(var, 2.0f);  // a half's variance
     Features fa = half_features(f, 0), fb = half_features(f, 1);
     Features pa, pb;  // cross-prefiltered
@@ -356,22 +357,22 @@ class Nfor final : public Method {
         filtA[i] = collaborative_regression(colA, pb, var_half, ks[i], patch_, radius_);
         filtB[i] = collaborative_regression(colB, pa, var_half, ks[i], patch_, radius_);
         Planes noisy(color.w, color.h, 3);
-        for (std::size_t k = 0; k < noisy.d.size(); ++k) {
-          const float ea = (colB.d[k] - filtA[i].d[k]) * (colB.d[k] - filtA[i].d[k]) - var_half.d[k];
-          const float eb = (colA.d[k] - filtB[i].d[k]) * (colA.d[k] - filtB[i].d[k]) - var_half.d[k];
-          const float resid = 0.25f * (filtB[i].d[k] - filtA[i].d[k]) * (filtB[i].d[k] - filtA[i].d[k]);
-          noisy.d[k] = 0.5f * (ea + eb) - resid;
+        for (std::size_t k = 0; k < noisy.data.size(); ++k) {
+          const float ea = (colB.data[k] - filtA[i].data[k]) * (colB.data[k] - filtA[i].data[k]) - var_half.data[k];
+          const float eb = (colA.data[k] - filtB[i].data[k]) * (colA.data[k] - filtB[i].data[k]) - var_half.data[k];
+          const float resid = 0.25f * (filtB[i].data[k] - filtA[i].data[k]) * (filtB[i].data[k] - filtA[i].data[k]);
+          noisy.data[k] = 0.5f * (ea + eb) - resid;
         }
         mse[i] = nlmeans(noisy, color, var, 1, 9, 1.0f);
       }
       Planes sel(color.w, color.h, 3);  // 1 where the first candidate wins
-      for (std::size_t k = 0; k < sel.d.size(); ++k) sel.d[k] = mse[0].d[k] <= mse[1].d[k] ? 1.0f : 0.0f;
+      for (std::size_t k = 0; k < sel.data.size(); ++k) sel.data[k] = mse[0].data[k] <= mse[1].data[k] ? 1.0f : 0.0f;
       sel = nlmeans(sel, color, var, 1, 9, 1.0f);
       resA = Planes(color.w, color.h, 3);
       resB = Planes(color.w, color.h, 3);
-      for (std::size_t k = 0; k < sel.d.size(); ++k) {
-        resA.d[k] = sel.d[k] * filtA[0].d[k] + (1 - sel.d[k]) * filtA[1].d[k];
-        resB.d[k] = sel.d[k] * filtB[0].d[k] + (1 - sel.d[k]) * filtB[1].d[k];
+      for (std::size_t k = 0; k < sel.data.size(); ++k) {
+        resA.data[k] = sel.data[k] * filtA[0].data[k] + (1 - sel.data[k]) * filtA[1].data[k];
+        resB.data[k] = sel.data[k] * filtB[0].data[k] + (1 - sel.data[k]) * filtB[1].data[k];
       }
     }
     Planes result = combine(resA, resB, 0.5f, 0.5f);
@@ -385,7 +386,7 @@ class Nfor final : public Method {
                          final_feature(pa.depth, pb.depth)};
       result = collaborative_regression(result, fin, pair_variance(resA, resB), 1.0f, patch_, radius_);
     }
-    r.image = result.image();
+    r.image = image_of(result);
     return r;
   }
 

@@ -42,6 +42,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "denoisers/buffer_pool.h"
 #include "denoisers/fast_exp.h"
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"
@@ -52,28 +53,18 @@ namespace {
 constexpr float kB3[5] = {1.0f / 16, 1.0f / 4, 3.0f / 8, 1.0f / 4, 1.0f / 16};
 constexpr float kLumW[3] = {0.2126f, 0.7152f, 0.0722f};  // Rec. 709
 
-// A plane of w x h floats.
-struct Plane {
-  int w = 0, h = 0;
-  std::vector<float> v;
-  Plane() = default;
-  Plane(int w_, int h_) : w(w_), h(h_), v(std::size_t(w_) * h_, 0.0f) {}
-  float* row(int y) { return v.data() + std::size_t(y) * w; }
-  const float* row(int y) const { return v.data() + std::size_t(y) * w; }
-};
-
 // What the edge-stopping functions compare, fixed over the passes.
 struct Guides {
-  Plane n[4];        // unit normal (x, y, z, 0); a pixel that hit nothing gets (0, 0, 0, 1)
-  Plane z, inv_fw;   // normalised depth, 1 / (sigma_z max(fwidth z, 1e-8))
+  Planes n;          // unit normal (x, y, z, 0); a pixel that hit nothing gets (0, 0, 0, 1)
+  Planes z, inv_fw;  // normalised depth, 1 / (sigma_z max(fwidth z, 1e-8))
 };
 
 Guides make_guides(const AovFrame& f, float sigma_z) {
   const int w = f.width(), h = f.height();
   Guides g;
-  for (auto& p : g.n) p = Plane(w, h);
-  g.z = Plane(w, h);
-  g.inv_fw = Plane(w, h);
+  g.n = Planes(w, h, 4);
+  g.z = Planes(w, h, 1);
+  g.inv_fw = Planes(w, h, 1);
   const Image& normal = f.layer(layer::kNormal);
   const Image depth = normalized_depth(f);
   std::vector<char> hit(std::size_t(w) * h);
@@ -83,9 +74,9 @@ Guides make_guides(const AovFrame& f, float sigma_z) {
       const float len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
       const std::size_t k = std::size_t(y) * w + x;
       hit[k] = len > 1e-3f && depth.at(x, y, 0) > 0;
-      for (int c = 0; c < 3; ++c) g.n[c].v[k] = hit[k] ? n[c] / len : 0.0f;
-      g.n[3].v[k] = hit[k] ? 0.0f : 1.0f;
-      g.z.v[k] = depth.at(x, y, 0);
+      for (int c = 0; c < 3; ++c) g.n.plane(c)[k] = hit[k] ? n[c] / len : 0.0f;
+      g.n.plane(3)[k] = hit[k] ? 0.0f : 1.0f;
+      g.z.data[k] = depth.at(x, y, 0);
     }
   // fwidth: per axis the one-sided difference (to a neighbour that hit something) of smaller
   // magnitude.
@@ -94,7 +85,7 @@ Guides make_guides(const AovFrame& f, float sigma_z) {
     for (int s : {-1, 1}) {
       const int xx = x + s * dx, yy = y + s * dy;
       if (xx < 0 || yy < 0 || xx >= w || yy >= h || !hit[std::size_t(yy) * w + xx]) continue;
-      const float d = std::fabs(g.z.v[std::size_t(yy) * w + xx] - g.z.v[std::size_t(y) * w + x]);
+      const float d = std::fabs(g.z.data[std::size_t(yy) * w + xx] - g.z.data[std::size_t(y) * w + x]);
       best = best < 0 ? d : std::min(best, d);
     }
     return std::max(best, 0.0f);
@@ -103,16 +94,16 @@ Guides make_guides(const AovFrame& f, float sigma_z) {
     for (int x = 0; x < w; ++x) {
       const std::size_t k = std::size_t(y) * w + x;
       const float fw = hit[k] ? one_sided(x, y, 1, 0) + one_sided(x, y, 0, 1) : 0.0f;
-      g.inv_fw.v[k] = 1.0f / (sigma_z * std::max(fw, 1e-8f));
+      g.inv_fw.data[k] = 1.0f / (sigma_z * std::max(fw, 1e-8f));
     }
   return g;
 }
 
 // The 3x3 Gaussian (1/4 centre, 1/8 edge, 1/16 corner) of a variance plane, renormalised where
 // taps fall outside the image.
-Plane prefilter_variance(const Plane& var) {
+Planes prefilter_variance(const Planes& var) {
   static constexpr float k[3] = {0.5f, 1.0f, 0.5f};  // outer product / 4: 1/4, 1/8, 1/16
-  Plane out(var.w, var.h);
+  Planes out(var.w, var.h, 1);
   tbb::parallel_for(0, var.h, [&](int y) {
     for (int x = 0; x < var.w; ++x) {
       float s = 0, ws = 0;
@@ -121,10 +112,10 @@ Plane prefilter_variance(const Plane& var) {
           const int xx = x + i, yy = y + j;
           if (xx < 0 || yy < 0 || xx >= var.w || yy >= var.h) continue;
           const float wk = k[i + 1] * k[j + 1];
-          s += wk * var.row(yy)[xx];
+          s += wk * var.row(0, yy)[xx];
           ws += wk;
         }
-      out.row(y)[x] = s / ws;
+      out.row(0, y)[x] = s / ws;
     }
   });
   return out;
@@ -132,23 +123,23 @@ Plane prefilter_variance(const Plane& var) {
 
 // Illumination being filtered (three planes) and its luminance variance.
 struct Signal {
-  Plane c[3];
-  Plane var;
+  Planes c;    // 3 channels
+  Planes var;  // 1
 };
 
 Signal make_signal(const Image& light, const Image& variance) {
   const int w = light.width(), h = light.height();
   Signal s;
-  for (auto& p : s.c) p = Plane(w, h);
-  s.var = Plane(w, h);
+  s.c = Planes(w, h, 3);
+  s.var = Planes(w, h, 1);
   for (std::size_t k = 0; k < light.pixel_count(); ++k) {
     float v = 0;
     for (int c = 0; c < 3; ++c) {
-      s.c[c].v[k] = light.data()[k * 3 + c];
+      s.c.plane(c)[k] = light.data()[k * 3 + c];
       const float vc = variance.data()[k * 3 + c];
       v += kLumW[c] * kLumW[c] * (std::isfinite(vc) && vc > 0 ? vc : 0.0f);
     }
-    s.var.v[k] = v;
+    s.var.data[k] = v;
   }
   return s;
 }
@@ -205,28 +196,28 @@ class Svgf final : public Method {
     const int w = s.var.w, h = s.var.h;
     Image out(w, h, 3);
     for (std::size_t k = 0; k < out.pixel_count(); ++k)
-      for (int c = 0; c < 3; ++c) out.data()[k * 3 + c] = s.c[c].v[k];
+      for (int c = 0; c < 3; ++c) out.data()[k * 3 + c] = s.c.plane(c)[k];
     return out;
   }
 
   Signal pass(const Signal& in, const Guides& g, int step) const {
     const int w = in.var.w, h = in.var.h;
-    const Plane var_f = prefilter_ ? prefilter_variance(in.var) : in.var;
+    const Planes var_f = prefilter_ ? prefilter_variance(in.var) : Planes(in.var);
     Signal out;
-    for (auto& p : out.c) p = Plane(w, h);
-    out.var = Plane(w, h);
+    out.c = Planes(w, h, 3);
+    out.var = Planes(w, h, 1);
     tbb::parallel_for(0, h, [&](int y) {
       // Per row: the sums over the taps (fixed order: rows j, then columns i) and per-tap scratch.
       std::vector<float> buf(std::size_t(w) * 10, 0.0f);
       float *sr = buf.data(), *sg = sr + w, *sb = sg + w, *sv = sb + w, *ws = sv + w;
       float *lum = ws + w, *inv_l = lum + w, *wn = inv_l + w, *base = wn + w, *qlum = base + w;
-      const float *pr = in.c[0].row(y), *pg = in.c[1].row(y), *pb = in.c[2].row(y);
+      const float *pr = in.c.row(0, y), *pg = in.c.row(1, y), *pb = in.c.row(2, y);
       for (int x = 0; x < w; ++x) {
         lum[x] = kLumW[0] * pr[x] + kLumW[1] * pg[x] + kLumW[2] * pb[x];
-        inv_l[x] = 1.0f / (sigma_l_ * std::sqrt(std::max(0.0f, var_f.row(y)[x]) + 1e-10f));
+        inv_l[x] = 1.0f / (sigma_l_ * std::sqrt(std::max(0.0f, var_f.row(0, y)[x]) + 1e-10f));
       }
-      const float *nx = g.n[0].row(y), *ny = g.n[1].row(y), *nz = g.n[2].row(y), *nw = g.n[3].row(y);
-      const float *zp = g.z.row(y), *ifw = g.inv_fw.row(y);
+      const float *nx = g.n.row(0, y), *ny = g.n.row(1, y), *nz = g.n.row(2, y), *nw = g.n.row(3, y);
+      const float *zp = g.z.row(0, y), *ifw = g.inv_fw.row(0, y);
       for (int j = 0; j < 5; ++j) {
         const int yy = y + (j - 2) * step;
         if (yy < 0 || yy >= h) continue;
@@ -238,10 +229,10 @@ class Svgf final : public Method {
           const float hk = kB3[i] * kB3[j];
           // 1 / (2^i |q - p| in taps): the depth term's scale (0 for the centre, whose difference is 0).
           const float inv_len = centre ? 0.0f : 1.0f / (float(step) * std::sqrt(float((i - 2) * (i - 2) + (j - 2) * (j - 2))));
-          const float *qr = in.c[0].row(yy) + dx, *qg = in.c[1].row(yy) + dx, *qb = in.c[2].row(yy) + dx;
-          const float* qv = in.var.row(yy) + dx;
-          const float *qnx = g.n[0].row(yy) + dx, *qny = g.n[1].row(yy) + dx, *qnz = g.n[2].row(yy) + dx,
-                      *qnw = g.n[3].row(yy) + dx, *qz = g.z.row(yy) + dx;
+          const float *qr = in.c.row(0, yy) + dx, *qg = in.c.row(1, yy) + dx, *qb = in.c.row(2, yy) + dx;
+          const float* qv = in.var.row(0, yy) + dx;
+          const float *qnx = g.n.row(0, yy) + dx, *qny = g.n.row(1, yy) + dx, *qnz = g.n.row(2, yy) + dx,
+                      *qnw = g.n.row(3, yy) + dx, *qz = g.z.row(0, yy) + dx;
           for (int x = x0; x < x1; ++x) {
             qlum[x] = kLumW[0] * qr[x] + kLumW[1] * qg[x] + kLumW[2] * qb[x];
             wn[x] = std::max(0.0f, nx[x] * qnx[x] + ny[x] * qny[x] + nz[x] * qnz[x] + nw[x] * qnw[x]);
@@ -272,10 +263,10 @@ class Svgf final : public Method {
       // The centre tap's weight is h(0)^2 > 0, so ws > 0.
       for (int x = 0; x < w; ++x) {
         const float inv = 1.0f / ws[x];
-        out.c[0].row(y)[x] = sr[x] * inv;
-        out.c[1].row(y)[x] = sg[x] * inv;
-        out.c[2].row(y)[x] = sb[x] * inv;
-        out.var.row(y)[x] = sv[x] * inv * inv;
+        out.c.row(0, y)[x] = sr[x] * inv;
+        out.c.row(1, y)[x] = sg[x] * inv;
+        out.c.row(2, y)[x] = sb[x] * inv;
+        out.var.row(0, y)[x] = sv[x] * inv * inv;
       }
     });
     return out;

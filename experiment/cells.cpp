@@ -88,6 +88,12 @@ const CellRecord* reusable(const std::string& key, const CellPlan& plan, const C
 
 }  // namespace
 
+void skip_cell(const CellContext& c, SkippedCell skip) {
+  spdlog::warn("cell {} / {} / {} spp skipped: {}", skip.scene, skip.method, skip.spp, skip.reason);
+  c.store->skip(std::move(skip));
+  c.progress->add(1);
+}
+
 std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
   const std::string key = sha256_hex(plan.identity.dump());
   if (const CellRecord* old = reusable(key, plan, c)) {
@@ -101,9 +107,7 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
   } catch (const MethodUnavailable& e) {
     if (!plan.contain_failures) throw;
     // Not a failure: the method cannot run on this machine (its message says how to make it).
-    spdlog::warn("cell {} / {} / {} spp skipped: {}", scene.scene, plan.method, plan.spp, e.what());
-    c.store->skip(SkippedCell{scene.scene, plan.method, plan.spp, e.what()});
-    c.progress->add(1);
+    skip_cell(c, SkippedCell{scene.scene, plan.method, plan.spp, e.what()});
     return std::nullopt;
   } catch (const std::exception& e) {
     if (!plan.contain_failures || !(dynamic_cast<const WorkError*>(&e) || dynamic_cast<const InputError*>(&e))) throw;

@@ -86,6 +86,10 @@ struct CellContext {
 
 // Runs one plan through the steps above; returns its record (reused or new), or nullopt when the
 // cell failed and was recorded as failed (contain_failures).
+// Records a cell of the config that cannot run here as skipped (results.json "skipped", with
+// its reason; logged), and counts it done.
+void skip_cell(const CellContext& c, SkippedCell skip);
+
 std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& context);
 
 // Scores `image` against the reference with every metric and writes the error maps the report

@@ -299,9 +299,7 @@ void run_file_scene(const ExperimentConfig& c, const RunOptions& opt, const Scen
                        fmt::format("'{}' renders the scene itself, and scene '{}' is read from files ('{}', '{}'): there is "
                                    "no scene to render",
                                    m.method, spec.name, spec.files->frame, spec.files->reference)};
-      spdlog::warn("cell {} / {} / {} spp skipped: {}", spec.name, m.name, spp, skip.reason);
-      context.store->skip(std::move(skip));
-      context.progress->add(1);
+      skip_cell(context, std::move(skip));
       continue;
     }
     run_cell(method_cell(c, m, nullptr, frame, spp), cells, context);

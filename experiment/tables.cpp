@@ -241,6 +241,26 @@ Table failures_table(const ResultsDocument& res) {
   return t;
 }
 
+namespace {
+
+// Method a's and method b's `metric` on the seeds both have (b's value positive, so that a / b is
+// a ratio), in seed order.
+struct SeedPairs {
+  std::vector<double> a, b, ratios;  // ratios[i] = a[i] / b[i]
+};
+SeedPairs seed_pairs(const ResultsDocument& res, const std::string& scene, const std::string& a_method,
+                     const std::string& b_method, int spp, const std::string& metric) {
+  SeedPairs p;
+  const auto a = seed_values(res, scene, a_method, spp, metric);
+  for (const auto& [seed, v] : seed_values(res, scene, b_method, spp, metric))
+    if (auto it = a.find(seed); it != a.end() && v > 0) {
+      p.a.push_back(it->second), p.b.push_back(v), p.ratios.push_back(it->second / v);
+    }
+  return p;
+}
+
+}  // namespace
+
 Table ratio_table(const ResultsDocument& res, const std::string& method) {
   Table t;
   const int spp = res.table_spp();
@@ -253,12 +273,9 @@ Table ratio_table(const ResultsDocument& res, const std::string& method) {
   for (const auto& s : res.scenes()) {
     for (const char* metric : {"mse", "mse_converged"}) {
       std::vector<std::string> row{s, metric};
-      const auto a = seed_values(res, s, method, spp, metric);
       for (const auto& m : others) {
         // The ratio per seed (both on the same input frame), then its mean and interval.
-        std::vector<double> ratios;
-        for (const auto& [seed, v] : seed_values(res, s, m, spp, metric))
-          if (auto it = a.find(seed); it != a.end() && v > 0) ratios.push_back(it->second / v);
+        const std::vector<double> ratios = seed_pairs(res, s, method, m, spp, metric).ratios;
         if (ratios.empty()) row.push_back("n/a");
         else if (ratios.size() == 1) row.push_back(fmt::format("{:.2f}", ratios[0]));
         else {
@@ -295,13 +312,9 @@ Table versus_modern_table(const ResultsDocument& res, const std::string& method)
   for (const auto& s : res.scenes()) {
     for (const char* metric : {"mse", "mse_hdr"}) {
       std::vector<std::string> row{s, metric};
-      const auto a = seed_values(res, s, method, spp, metric);
       for (const auto& m : others) {
-        std::vector<double> mine, theirs, ratios;
-        for (const auto& [seed, v] : seed_values(res, s, m, spp, metric))
-          if (auto it = a.find(seed); it != a.end() && v > 0) {
-            mine.push_back(it->second), theirs.push_back(v), ratios.push_back(it->second / v);
-          }
+        const SeedPairs pairs = seed_pairs(res, s, method, m, spp, metric);
+        const std::vector<double>& ratios = pairs.ratios;
         if (ratios.empty()) {
           row.push_back(res.skip(s, m, spp) ? "skipped" : res.failure(s, m, spp) ? "failed" : "n/a");
           continue;
@@ -311,9 +324,9 @@ Table versus_modern_table(const ResultsDocument& res, const std::string& method)
           continue;
         }
         const stats::Interval i = stats::t_interval(ratios);
-        const double p = stats::paired_t_test_p(mine, theirs);
+        const double p = stats::paired_t_test_p(pairs.a, pairs.b);
         const char* verdict = !(std::isfinite(p) && p < 0.05) ? "no significant difference"
-                              : stats::mean(mine) < stats::mean(theirs) ? "ahead"
+                              : stats::mean(pairs.a) < stats::mean(pairs.b) ? "ahead"
                                                                         : "behind";
         row.push_back(fmt::format("{} ({:.2f} ± {:.2f})", verdict, i.mean, i.half_width));
       }

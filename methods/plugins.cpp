@@ -224,12 +224,17 @@ class Worker {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!proc_) return;
     if (!log) proc_->set_on_log_line({});  // at exit the log may already be gone
+    end_process();
+  }
+
+ private:
+  // Closes stdin and waits for the worker to end; kills its group after a grace period. The
+  // caller holds mutex_.
+  void end_process() {
     proc_->close_stdin();
     if (!proc_->wait(5.0)) proc_->kill_group();
     proc_.reset();
   }
-
- private:
   void start() {
     if (!unavailable_.empty()) throw MethodUnavailable(unavailable_);
     if (proc_ && proc_->running()) return;
@@ -258,9 +263,7 @@ class Worker {
       const std::string why = ready["unavailable"].is_string() ? ready["unavailable"].get<std::string>()
                                                                 : ready["unavailable"].dump();
       unavailable_ = fmt::format("plug-in '{}' is not available on this machine: {}", m_.name, why);
-      proc_->close_stdin();
-      if (!proc_->wait(5.0)) proc_->kill_group();
-      proc_.reset();
+      end_process();
       throw MethodUnavailable(unavailable_);
     }
     if (!ready.is_object() || ready.value("ready", false) != true) {
