@@ -193,6 +193,89 @@ TEST(Plugins, OidnIsDeterministicKeepsAConstantInsideAndLowersTheError) {
   EXPECT_EQ(recs.at("oidn")["method_info"].value("oidn_version", ""), "2.5.1") << recs.at("oidn").dump();
 }
 
+// kpcn (plugins/kpcn): a tiny network trained by scripts/train_kpcn in the test (seconds; the
+// real weights take ~25 min), then run through `denoise` like any plug-in.
+TEST(Plugins, KpcnTrainsDeterministicallyResumesAndDenoisesWithItsWeights) {
+  if (test::run_command("/usr/bin/python3 -c 'import torch' 2>&1").exit_code != 0)
+    GTEST_SKIP() << "PyTorch is not importable by /usr/bin/python3 (scripts/setup installs Debian's python3-torch)";
+  test::TempDir dir;
+  const std::string env = "DENOISEBENCH_CACHE='" + dir.file("cache") + "' ";
+  const std::string train = env + "/usr/bin/python3 " + test::source_dir() + "/scripts/train_kpcn --binary '" +
+                            binary().string() + "' --work " + dir.file("work") +
+                            " --size 40x32 --input-spp 4,8 --ref-spp 32 --procedural 1 --no-training-room"
+                            " --steps 10 --batch 2 --patch 24 --channels 8 --kernel 5 --threads 1 --checkpoint-steps 4";
+  // Interrupted after step 6 (the last checkpoint is step 4), then resumed; and once straight through.
+  auto stopped = test::run_command(train + " --out " + dir.file("a") + " --stop-after 6 2>&1");
+  ASSERT_EQ(stopped.exit_code, 0) << stopped.output;
+  EXPECT_FALSE(fs::exists(dir.file("a") + "/kpcn.pt")) << "an interrupted training must not leave weights";
+  auto resumed = test::run_command(train + " --out " + dir.file("a") + " 2>&1");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_THAT(resumed.output, HasSubstr("resuming at step 4"));
+  auto straight = test::run_command(train + " --out " + dir.file("b") + " 2>&1");
+  ASSERT_EQ(straight.exit_code, 0) << straight.output;
+  const json ma = json::parse(slurp(dir.file("a") + "/kpcn.json")), mb = json::parse(slurp(dir.file("b") + "/kpcn.json"));
+  EXPECT_EQ(ma["weights_sha256"], mb["weights_sha256"]) << "resumed and uninterrupted training differ";
+  EXPECT_EQ(slurp(dir.file("a") + "/kpcn.pt").size(), slurp(dir.file("b") + "/kpcn.pt").size());
+  EXPECT_EQ(ma["steps"], 10);
+  ASSERT_EQ(ma["scenes"].size(), 1u);
+  EXPECT_EQ(ma["scenes"][0]["name"], "proc-1-0");
+  EXPECT_EQ(ma["loss_curve"].size(), 1u);
+  // Absurd arguments exit 2 naming the option.
+  auto bad = test::run_command(train + " --out " + dir.file("c") + " --kernel 4 2>&1");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_THAT(bad.output, HasSubstr("--kernel must be odd"));
+
+  const std::string weights = "DNB_KPCN_WEIGHTS='" + dir.file("a") + "/kpcn.pt' ";
+  const std::string in = dir.file("in.exr");
+  ASSERT_EQ(test::run_denoisebench("render cornell-box --spp 4 --size 40x32 --seed 3 -o " + in).exit_code, 0);
+  for (const auto& [out, threads] : {std::pair{"o1.exr", 1}, std::pair{"o2.exr", 1}, std::pair{"o3.exr", 2}}) {
+    auto r = test::run_command(weights + "'" + binary().string() + "' denoise kpcn " + in + " -o " + dir.file(out) +
+                               " --set threads=" + std::to_string(threads) + " 2>&1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("10 training steps"));
+  }
+  const Image o1 = read_rgb(dir.file("o1.exr")), input = read_rgb(in);
+  ASSERT_EQ(o1.width(), 40);
+  ASSERT_EQ(o1.height(), 32);
+  EXPECT_EQ(count_non_finite(o1.view()), 0u);
+  EXPECT_TRUE(o1 == read_rgb(dir.file("o2.exr"))) << "two one-thread runs differ";
+  EXPECT_TRUE(o1 == read_rgb(dir.file("o3.exr"))) << "one and two threads differ";
+  EXPECT_FALSE(o1 == input) << "the output is the input";
+
+  // A constant frame stays constant to rounding everywhere, the border included (normalised
+  // kernels of a constant; the border replicated), whatever the weights; a NaN colour sample and
+  // an Inf variance sample (repaired by the harness before the plug-in) give a finite output.
+  AovFrame f(40, 32);
+  for (const auto& [name, v] : {std::pair{"color", 0.3f}, std::pair{"albedo", 0.5f}, std::pair{"reflection", 0.05f},
+                                std::pair{"emission", 0.0f}, std::pair{"normal", 0.0f}, std::pair{"variance", 0.01f}}) {
+    Image& img = f.add(name, 3);
+    std::fill(img.data(), img.data() + img.size(), v);
+  }
+  Image& d = f.add("depth", 1);
+  std::fill(d.data(), d.data() + d.size(), 2.0f);
+  write_frame(f, dir.file("const.exr"));
+  f.layer("color").at(7, 5, 1) = std::nanf("");
+  f.layer("variance").at(20, 9, 0) = INFINITY;
+  write_frame(f, dir.file("nan.exr"));
+  for (const auto& name : {"const", "nan"}) {
+    auto r = test::run_command(weights + "'" + binary().string() + "' denoise kpcn " + dir.file(std::string(name) + ".exr") +
+                               " -o " + dir.file(std::string(name) + "_out.exr") + " 2>&1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  const Image c = read_rgb(dir.file("const_out.exr")), n = read_rgb(dir.file("nan_out.exr"));
+  double worst = 0;
+  for (std::size_t k = 0; k < c.size(); ++k) worst = std::max(worst, std::abs(double(c.data()[k]) - 0.3) / 0.3);
+  EXPECT_LT(worst, 1e-5);  // float sums of 25 weights: a few roundings, not a filter's change
+  EXPECT_EQ(count_non_finite(n.view()), 0u);
+
+  // Without weights: `denoise` exits 1 saying how to train them.
+  auto none = test::run_command("DNB_KPCN_WEIGHTS='" + dir.file("none.pt") + "' '" + binary().string() +
+                                "' denoise kpcn " + in + " -o " + dir.file("none.exr") + " 2>&1");
+  EXPECT_EQ(none.exit_code, 1) << none.output;
+  EXPECT_THAT(none.output, HasSubstr("scripts/train_kpcn"));
+  EXPECT_FALSE(fs::exists(dir.file("none.exr")));
+}
+
 TEST(Plugins, EveryKindOfFailureFailsItsCellOnlyAndTheRunExits1) {
   test::TempDir dir;
   write(dir.path() / "c.toml", config("\"t_crash\", \"t_copy\", \"t_hang\", \"t_nan\", \"t_wrongsize\", \"t_nothing\", \"bilateral\"",
