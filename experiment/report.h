@@ -12,7 +12,8 @@
 //   ablation.md                    the ablation variants against the full method
 //   ratios.md                      Table 2's CPU method's error over every other method's
 //   plots/*.png                    by reports/plots.py (matplotlib)
-//   web/**.png, index.html         the static page (vendored img-comparison-slider)
+//   web/viewer/**, index.html      the static page: reports/viewer.py writes every image of each
+//                                  scene as linear half floats, reports/viewer.js shows them
 //
 // The tables are pure functions of the results document (experiment/tables.cpp); the folder
 // writer (experiment/report.cpp) adds the images and the page.
@@ -85,7 +86,7 @@ struct ReportOptions {
 // Writes every file above into `dir` (which holds results.json).
 void write_report(const std::string& dir, const ReportOptions& options = {});
 
-// The folder holding reports/ (plots.py, the page template, the vendored component):
+// The folder holding reports/ (plots.py, viewer.py, viewer.js, the page template):
 // $DNB_SOURCE_DIR/reports, else the source tree this program was built from.
 std::string reports_dir();
 
