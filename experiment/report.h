@@ -11,7 +11,7 @@
 //                                  extrapolated: "beyond the measured range" instead)
 //   ablation.md                    the ablation variants against the full method
 //   ratios.md                      Table 2's CPU method's error over every other method's
-//   plots/*.png                    by reports/plots.py (matplotlib)
+//   plots/*.{png,pdf}              by reports/plots.py (matplotlib)
 //   web/viewer/**, index.html      the static page: reports/viewer.py writes every image of each
 //                                  scene as linear half floats, reports/viewer.js shows them
 //

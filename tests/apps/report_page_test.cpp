@@ -1,13 +1,15 @@
 // The report as a researcher's tool (issue 22): the page's viewer driven in headless Chromium,
-// the page's tables at 800 and 1400 px, the HTML parsed strictly, and a missing image as bad
-// input. One small run (2 scenes, 2 seeds, 2 methods and a variant)
+// the page's tables at 800 and 1400 px, the HTML parsed strictly, the plots' colours and PDFs,
+// and a missing image as bad input. One small run (2 scenes, 2 seeds, 2 methods and a variant)
 // is made once for the suite and reported; each test reads it.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <set>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -92,6 +94,43 @@ TEST_F(ReportViewer, TheHtmlParsesWithoutErrors) {
   auto r = test::run_command("/usr/bin/python3 -c 'import html5lib, sys; html5lib.HTMLParser(strict=True).parse(open(sys.argv[1], \"rb\"))' '" +
                              out() + "/index.html' 2>&1");
   EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
+// Every method keeps one colour across every plot of the run (plots/colours.json: what
+// matplotlib drew each series in), different methods differ, a variant has its parent's colour,
+// and every plot is also a PDF that poppler opens.
+TEST_F(ReportViewer, EveryMethodHasOneColourInEveryPlotAndEveryPlotIsAPdf) {
+  const auto colours = nlohmann::json::parse(slurp(out() + "/plots/colours.json"));
+  std::map<std::string, std::set<std::string>> of;
+  for (const auto& [plot, series] : colours.items())
+    for (const auto& [method, colour] : series.items()) of[method].insert(colour.get<std::string>());
+  for (const char* m : {"input", "bilateral", "atrous", "bilateral-wide", "path_tracing"}) ASSERT_TRUE(of.count(m)) << m;
+  for (const auto& [m, cs] : of) EXPECT_EQ(cs.size(), 1u) << m << " is drawn in " << ::testing::PrintToString(cs);
+  std::map<std::string, std::string> owner;
+  for (const auto& [m, cs] : of) {
+    if (m == "bilateral-wide") continue;
+    const std::string c = *cs.begin();
+    EXPECT_FALSE(owner.count(c)) << m << " and " << owner[c] << " share " << c;
+    owner[c] = m;
+  }
+  EXPECT_EQ(of["bilateral-wide"], of["bilateral"]) << "a variant is drawn in its parent's colour";
+  EXPECT_GE(colours.size(), 7u) << "the bars and three plots per scene";
+
+  const bool pdfinfo = fs::exists("/usr/bin/pdfinfo");
+  int pngs = 0;
+  for (const auto& e : fs::directory_iterator(out() + "/plots")) {
+    if (e.path().extension() != ".png") continue;
+    ++pngs;
+    const fs::path pdf = fs::path(e.path()).replace_extension(".pdf");
+    ASSERT_TRUE(fs::exists(pdf)) << pdf;
+    EXPECT_TRUE(colours.contains(e.path().stem().string())) << e.path();
+    if (!pdfinfo) continue;
+    auto r = test::run_command("/usr/bin/pdfinfo '" + pdf.string() + "' 2>&1");
+    EXPECT_EQ(r.exit_code, 0) << pdf << ": " << r.output;
+    EXPECT_THAT(r.output, HasSubstr("Pages:")) << pdf;
+  }
+  EXPECT_EQ(pngs, 7);
+  if (!pdfinfo) GTEST_SKIP() << "the PDFs exist; pdfinfo (poppler-utils, scripts/setup) is not installed to open them";
 }
 
 // A missing image that results.json names is bad input: exit 2 naming the file and the key.

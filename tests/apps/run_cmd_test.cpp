@@ -291,7 +291,7 @@ TEST(ReportPage, LoadsInHeadlessChromiumWithEveryImage) {
   r = run_in(dir, "report " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* f : {"table1_mse.md", "table2_time.md", "speedup.md", "ablation.md",
-                        "plots/mse_bars.png", "plots/error_time_cornell-box.png",
+                        "plots/mse_bars.png", "plots/mse_bars.pdf", "plots/error_time_cornell-box.png",
                         "web/viewer/viewer.js", "web/viewer/manifest.js", "index.html"})
     EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
 
@@ -306,7 +306,7 @@ TEST(ReportPage, LoadsInHeadlessChromiumWithEveryImage) {
     if (ref.size() > 4 && ref.substr(ref.size() - 4) == ".png") ++plots;
     if (ref.size() > 3 && ref.substr(ref.size() - 3) == ".js") ++scripts;
   }
-  EXPECT_GE(plots, 2);  // the bars, and the one scene's error against time
+  EXPECT_GE(plots, 4);  // the bars, and three plots of the one scene
   EXPECT_EQ(scripts, 2);  // the viewer's data and code
 
   if (!fs::exists("/usr/bin/chromium")) GTEST_SKIP() << "Debian's chromium is not installed (scripts/setup)";
