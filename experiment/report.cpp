@@ -161,6 +161,9 @@ std::vector<NamedTable> all_tables(const ResultsDocument& res) {
     t.push_back({"table1_" + m, std::move(t1), m == "mse", b});
   }
   t.push_back({"table2_time", table2(res), true});
+  Table ft = filter_time_table(res);
+  const std::size_t ft_cols = ft.header.size();
+  t.push_back({"table2_filter_times", std::move(ft), true, {.on = true, .lower_is_better = true, .first = 2, .last = ft_cols}});
   t.push_back({"ratios", ratio_table(res, res.config.table2.filter_cpu), true});
   if (const Table v = versus_modern_table(res, res.config.table2.filter_cpu); !v.rows.empty())
     t.push_back({"versus_modern", v, true});

@@ -5,6 +5,7 @@
 //                                  table1_mse is Table 1 itself)
 //   table2_time.{md,csv,tex}       input render, filter CPU, total CPU, filter OpenCL, total
 //                                  OpenCL, irradiance cache, reference (Table 2's layout)
+//   table2_filter_times.{md,csv,tex}  every method's filter time
 //   speedup.md                     plain path tracing's fitted error-vs-time curve, and for each
 //                                  method the spp and time it needs to reach the method's error
 //   speedup_measured.md            the same on mse_hdr_nc, measured (interpolated, never
@@ -56,6 +57,9 @@ Table table1(const ResultsDocument& results, const std::string& metric);
 int significantly_best(const std::vector<std::map<std::uint64_t, double>>& cells, bool lower_is_better,
                        double alpha = 0.05);
 Table table2(const ResultsDocument& results);
+// Every method's and variant's filter time per scene (Table 2 gives the CPU and OpenCL filter's
+// only), with the input's render time.
+Table filter_time_table(const ResultsDocument& results);
 // The run's failed cells with their reasons (no rows when none failed).
 Table failures_table(const ResultsDocument& results);
 Table speedup_table(const ResultsDocument& results, const std::string& metric = "mse");

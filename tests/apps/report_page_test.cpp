@@ -133,6 +133,19 @@ TEST_F(ReportViewer, EveryMethodHasOneColourInEveryPlotAndEveryPlotIsAPdf) {
   if (!pdfinfo) GTEST_SKIP() << "the PDFs exist; pdfinfo (poppler-utils, scripts/setup) is not installed to open them";
 }
 
+// Table 2 gives every method's filter time, each from its record.
+TEST_F(ReportViewer, Table2GivesEveryMethodsFilterTime) {
+  const std::string md = slurp(out() + "/table2_filter_times.md");
+  EXPECT_THAT(md, HasSubstr("| scene | render input (2 spp) | bilateral | atrous | bilateral-wide |"));
+  const auto res = nlohmann::json::parse(slurp(out() + "/results.json"));
+  for (const auto& rec : res["records"]) {
+    if (rec["role"] == "plain" || rec["seed"] != 1 || rec["scene"] != "conference" || rec["method"] != "atrous") continue;
+    char b[32];
+    std::snprintf(b, sizeof b, "%.3g", rec["times"]["filter"].get<double>());
+    EXPECT_THAT(md, HasSubstr(std::string(" | ") + b + " | ")) << md;
+  }
+}
+
 // A missing image that results.json names is bad input: exit 2 naming the file and the key.
 TEST_F(ReportViewer, AMissingImageIsBadInputNamingTheFileAndKey) {
   test::TempDir copy;

@@ -290,7 +290,7 @@ TEST(ReportPage, LoadsInHeadlessChromiumWithEveryImage) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = run_in(dir, "report " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  for (const char* f : {"table1_mse.md", "table2_time.md", "speedup.md", "ablation.md",
+  for (const char* f : {"table1_mse.md", "table2_time.md", "table2_filter_times.md", "speedup.md", "ablation.md",
                         "plots/mse_bars.png", "plots/mse_bars.pdf", "plots/error_time_cornell-box.png",
                         "web/viewer/viewer.js", "web/viewer/manifest.js", "index.html"})
     EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
