@@ -560,5 +560,10 @@ var DNB = (function () {
     }
   });
   if (scenes.length) active = scenes[0];
+  // The sections did not exist when the browser looked for the address's #scene-... anchor.
+  if (location.hash && location.hash.indexOf("#scene-") === 0) {
+    var target = document.getElementById(decodeURIComponent(location.hash.slice(1)));
+    if (target) target.scrollIntoView();
+  }
   window.dnbViewer = {scenes: scenes};  // for the page test (tests/apps/report_page_test.cpp)
 })();

@@ -203,7 +203,9 @@ def build_scene(dir_, res, scene_i, scene, spp, seed, pick_method):
         if lo >= hi:
             lo = hi - 1
         scales["relmse"] = {"min": 10.0 ** lo, "max": 10.0 ** hi, "log": True, "colormap": "viridis"}
-    first_method = next((e for e in images if e["role"] in ("method", "ablation")), images[0])
+    # Table 2's CPU method (the one the crops follow) on the left when it ran, else the first method.
+    first_method = next((e for e in images if e["kind"] == "radiance" and e["method"] == pick),
+                        next((e for e in images if e["role"] in ("method", "ablation")), images[0]))
     return {
         "name": scene, "index": scene_i, "width": w, "height": h, "spp": spp, "seed": seed,
         "reference_spp": recs[0][1]["reference"].get("spp"),

@@ -309,10 +309,14 @@ def check_widths(ch, width, shots):
         for name, expr in (("top", "window.scrollTo(0, 0)"), ("images", "document.getElementById('images').scrollIntoView()")):
             ch.eval(expr)
             ch.eval("window.__t.settled()")
-            png = ch.send("Page.captureScreenshot", {"format": "png"})["data"]
-            with open(os.path.join(shots, f"page_{width}_{name}.png"), "wb") as f:
-                f.write(base64.b64decode(png))
+            shot(ch, os.path.join(shots, f"page_{width}_{name}.png"))
     return r
+
+
+def shot(ch, path):
+    png = ch.send("Page.captureScreenshot", {"format": "png"})["data"]
+    with open(path, "wb") as f:
+        f.write(base64.b64decode(png))
 
 
 def check_events(events):
@@ -350,6 +354,14 @@ def main():
         ch.wait_event("Page.loadEventFired")
         ch.eval(HELPERS)
         if wait_ready(ch, "after loading"):
+            if a.shots:  # the first scene as it opens, then with the pointer on it (the loupe)
+                ch.eval("document.querySelector('section.scene').scrollIntoView()")
+                ch.eval("window.__t.settled()")
+                shot(ch, os.path.join(a.shots, "scene_1400_open.png"))
+                v = ch.eval("window.__t.scenes()")[0]["views"][0]
+                ch.send("Input.dispatchMouseEvent", {"type": "mouseMoved", "x": v["x"] + v["w"] * 0.3, "y": v["y"] + v["h"] * 0.6})
+                ch.eval("window.__t.settled()")
+                shot(ch, os.path.join(a.shots, "scene_1400_loupe.png"))
             check_selectors(ch, expected)
             check_viewer(ch, expected)
         for w in (800, 1400):
