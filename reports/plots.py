@@ -202,7 +202,7 @@ def main():
             ax.set_xscale("log")
         if spans_decades(list(ax.get_ylim())) or spans_decades([l.get_ydata()[0] for l in ax.get_lines() if len(l.get_ydata())]):
             ax.set_yscale("log")
-        ax.set_xlabel("filter time, seconds (median over the seeds; the render is not included)")
+        ax.set_xlabel("filter time, s (median over the seeds; render not included)")
         ax.set_ylabel(metric)
         ax.set_title(f"{s}: {metric} against filter time, {spp} spp input")
         ax.grid(True, which="both", alpha=0.3)
