@@ -241,7 +241,8 @@ var DNB = (function () {
       var onHandle = which === "split" && Math.abs(x - sc.split * r.width) < 14;
       drag = {handle: onHandle, x: ev.clientX, y: ev.clientY, cx: sc.view.cx, cy: sc.view.cy};
       v.canvas.setPointerCapture(ev.pointerId);
-      ev.preventDefault();
+      ev.preventDefault();  // no text selection; but then no focus either, so give it to the scene
+      sc.section.focus({preventScroll: true});  // keys reach it even after a selector had focus
     });
     v.canvas.addEventListener("pointermove", function (ev) {
       var r = v.canvas.getBoundingClientRect();

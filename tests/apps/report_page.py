@@ -270,7 +270,12 @@ def check_viewer(ch, expected):
           return {{hidden: l.hidden, values: Array.prototype.map.call(l.querySelectorAll('.loupe-value'), function (e) {{ return e.textContent; }})}}; }})()""")
         if loupe["hidden"] or len(loupe["values"]) != 2:
             fail(f"{name}: the loupe does not show both sides' values ({loupe})")
-        # Keys: "2" puts the scene's second image on the right.
+        # Keys: "2" puts the scene's second image on the right, also after a selector had the
+        # focus and the user clicked the view.
+        ch.eval(f"document.querySelectorAll('section.scene')[{i}].querySelector('select.pick-right').focus()")
+        cx, cy = v3[0]["x"] + v3[0]["w"] * 0.25, v3[0]["y"] + v3[0]["h"] * 0.5
+        ch.send("Input.dispatchMouseEvent", {"type": "mousePressed", "x": cx, "y": cy, "button": "left", "clickCount": 1})
+        ch.send("Input.dispatchMouseEvent", {"type": "mouseReleased", "x": cx, "y": cy, "button": "left", "clickCount": 1})
         ch.send("Input.dispatchKeyEvent", {"type": "keyDown", "key": "2", "code": "Digit2", "text": "2", "windowsVirtualKeyCode": 50})
         ch.send("Input.dispatchKeyEvent", {"type": "keyUp", "key": "2", "code": "Digit2", "windowsVirtualKeyCode": 50})
         right = ch.eval(f"""(function () {{ var s = document.querySelectorAll('section.scene')[{i}];
