@@ -26,12 +26,24 @@ var DNB = (function () {
   }
 
   // Called by each image's script file.
-  function image(id, w, h, c, b64) {
-    if (!halfLut) halfLut = halfToFloatTable();
-    var bin = atob(b64), n = bin.length >> 1, data = new Float32Array(n);
-    for (var i = 0; i < n; i++) data[i] = halfLut[bin.charCodeAt(2 * i) | (bin.charCodeAt(2 * i + 1) << 8)];
-    loaded[id] = {w: w, h: h, c: c, data: data};
-    if (pending[id]) { pending[id][0](loaded[id]); delete pending[id]; }
+  // Called by each image's script file: "deflate" data is zlib-compressed little-endian halves.
+  function image(id, w, h, c, encoding, b64) {
+    var bin = atob(b64), bytes = new Uint8Array(bin.length);
+    for (var i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
+    var raw = encoding === "deflate"
+      ? new Response(new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"))).arrayBuffer()
+      : Promise.resolve(bytes.buffer);
+    raw.then(function (buf) {
+      if (!halfLut) halfLut = halfToFloatTable();
+      var halves = new Uint16Array(buf), data = new Float32Array(halves.length);
+      if (halves.length !== w * h * c) throw new Error(id + ": " + halves.length + " values, expected " + w * h * c);
+      for (var k = 0; k < halves.length; k++) data[k] = halfLut[halves[k]];
+      loaded[id] = {w: w, h: h, c: c, data: data};
+      if (pending[id]) { pending[id][0](loaded[id]); delete pending[id]; }
+    }).catch(function (e) {
+      console.error("cannot decode image " + id + ": " + e);
+      if (pending[id]) { pending[id][1](e); delete pending[id]; }
+    });
   }
 
   function load(entry) {
