@@ -5,14 +5,16 @@
 //                                  table1_mse is Table 1 itself)
 //   table2_time.{md,csv,tex}       input render, filter CPU, total CPU, filter OpenCL, total
 //                                  OpenCL, irradiance cache, reference (Table 2's layout)
+//   table2_filter_times.{md,csv,tex}  every method's filter time
 //   speedup.md                     plain path tracing's fitted error-vs-time curve, and for each
 //                                  method the spp and time it needs to reach the method's error
 //   speedup_measured.md            the same on mse_hdr_nc, measured (interpolated, never
 //                                  extrapolated: "beyond the measured range" instead)
 //   ablation.md                    the ablation variants against the full method
 //   ratios.md                      Table 2's CPU method's error over every other method's
-//   plots/*.png                    by reports/plots.py (matplotlib)
-//   web/**.png, index.html         the static page (vendored img-comparison-slider)
+//   plots/*.{png,pdf}              by reports/plots.py (matplotlib)
+//   web/viewer/**, index.html      the static page: reports/viewer.py writes every image of each
+//                                  scene as linear half floats, reports/viewer.js shows them
 //
 // The tables are pure functions of the results document (experiment/tables.cpp); the folder
 // writer (experiment/report.cpp) adds the images and the page.
@@ -55,6 +57,9 @@ Table table1(const ResultsDocument& results, const std::string& metric);
 int significantly_best(const std::vector<std::map<std::uint64_t, double>>& cells, bool lower_is_better,
                        double alpha = 0.05);
 Table table2(const ResultsDocument& results);
+// Every method's and variant's filter time per scene (Table 2 gives the CPU and OpenCL filter's
+// only), with the input's render time.
+Table filter_time_table(const ResultsDocument& results);
 // The run's failed cells with their reasons (no rows when none failed).
 Table failures_table(const ResultsDocument& results);
 Table speedup_table(const ResultsDocument& results, const std::string& metric = "mse");
@@ -85,7 +90,7 @@ struct ReportOptions {
 // Writes every file above into `dir` (which holds results.json).
 void write_report(const std::string& dir, const ReportOptions& options = {});
 
-// The folder holding reports/ (plots.py, the page template, the vendored component):
+// The folder holding reports/ (plots.py, viewer.py, viewer.js, the page template):
 // $DNB_SOURCE_DIR/reports, else the source tree this program was built from.
 std::string reports_dir();
 

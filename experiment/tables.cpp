@@ -398,6 +398,29 @@ Table table2(const ResultsDocument& res) {
   return t;
 }
 
+Table filter_time_table(const ResultsDocument& res) {
+  Table t;
+  const int spp = res.table_spp();
+  std::vector<std::string> methods = res.methods(Role::Method);
+  for (const auto& m : res.methods(Role::Ablation)) methods.push_back(m);
+  t.title = fmt::format("Table 2, every method: filter time in seconds ({} spp input)", spp);
+  t.header = {"scene", fmt::format("render input ({} spp)", spp)};
+  for (const auto& m : methods) t.header.push_back(m);
+  for (const auto& s : res.scenes()) {
+    const CellRecord* in = res.find(s, "input", spp);
+    std::vector<std::string> row{s, in ? fmt::format("{:.3g}", in->times.input_render) : "n/a"};
+    for (const auto& m : methods) {
+      const CellRecord* r = res.find(s, m, spp);
+      row.push_back(res.failure(s, m, spp) ? "failed" : res.skip(s, m, spp) ? "skipped" : r ? fmt::format("{:.3g}", r->times.filter) : "n/a");
+    }
+    t.rows.push_back(row);
+  }
+  t.note = "Wall-clock seconds of each method's filtering alone (times.filter of the first input seed's record; a renderer-type "
+           "method's is its rendering), medians of repeated runs after a warm-up for methods under the config's "
+           "repeat_below_seconds. From results.json.";
+  return t;
+}
+
 namespace {
 
 // One scene's plain path-tracing curve: time, error and spp of every plain record.

@@ -290,21 +290,24 @@ TEST(ReportPage, LoadsInHeadlessChromiumWithEveryImage) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = run_in(dir, "report " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  for (const char* f : {"table1_mse.md", "table2_time.md", "speedup.md", "ablation.md", "plots/mse_bars.png",
-                        "plots/error_time_cornell-box.png", "web/vendor/index.js", "index.html"})
+  for (const char* f : {"table1_mse.md", "table2_time.md", "table2_filter_times.md", "speedup.md", "ablation.md",
+                        "plots/mse_bars.png", "plots/mse_bars.pdf", "plots/error_time_cornell-box.png",
+                        "web/viewer/viewer.js", "web/viewer/manifest.js", "index.html"})
     EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
 
   // Every src/href of the page exists beside it (the page is opened from disk).
   const std::string html = slurp(out + "/index.html");
-  std::regex ref_re(R"((?:src|href|value|data-err)=\"([^\"]+)\")");
-  int images = 0;
+  std::regex ref_re(R"((?:src|href)=\"([^\"#]+)\")");
+  int plots = 0, scripts = 0;
   for (auto it = std::sregex_iterator(html.begin(), html.end(), ref_re); it != std::sregex_iterator(); ++it) {
     const std::string ref = (*it)[1];
     if (ref.rfind("data:", 0) == 0 || ref.find('.') == std::string::npos) continue;
     EXPECT_TRUE(fs::exists(out + "/" + ref)) << ref;
-    if (ref.size() > 4 && ref.substr(ref.size() - 4) == ".png") ++images;
+    if (ref.size() > 4 && ref.substr(ref.size() - 4) == ".png") ++plots;
+    if (ref.size() > 3 && ref.substr(ref.size() - 3) == ".js") ++scripts;
   }
-  EXPECT_GE(images, 8);
+  EXPECT_GE(plots, 4);  // the bars, and three plots of the one scene
+  EXPECT_EQ(scripts, 2);  // the viewer's data and code
 
   if (!fs::exists("/usr/bin/chromium")) GTEST_SKIP() << "Debian's chromium is not installed (scripts/setup)";
   const fs::path shot = binary().parent_path() / "report_screenshot.png";
