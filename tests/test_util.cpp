@@ -82,6 +82,12 @@ CommandResult run_denoisebench_stdout(const std::string& args) {
   return run_command_stdout(env_or("DNB_BINARY", "./denoisebench") + " " + args);
 }
 
+fs::path binary() { return fs::absolute(env_or("DNB_BINARY", "./denoisebench")); }
+
+CommandResult run_in(const TempDir& dir, const std::string& args) {
+  return run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
+}
+
 std::string source_dir() { return env_or("DNB_SOURCE_DIR", "."); }
 
 std::string slurp(const fs::path& p) {

@@ -36,6 +36,10 @@ CommandResult run_command(const std::string& command);
 // (--json), which a log line on stderr must not break.
 CommandResult run_denoisebench_stdout(const std::string& args);
 CommandResult run_command_stdout(const std::string& command);
+// The program as an absolute path: $DNB_BINARY, else ./denoisebench (ctest runs in the build folder).
+std::filesystem::path binary();
+// Runs the program with its own render cache in `dir` (DENOISEBENCH_CACHE=dir/cache).
+CommandResult run_in(const TempDir& dir, const std::string& args);
 // The source tree ($DNB_SOURCE_DIR).
 std::string source_dir();
 

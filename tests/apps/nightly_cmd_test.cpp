@@ -23,6 +23,8 @@ using ::testing::AllOf;
 using ::testing::HasSubstr;
 using nlohmann::json;
 
+using test::binary;
+using test::run_in;
 using test::slurp;
 using test::write;
 
@@ -65,11 +67,6 @@ json bench_json() {
     }
   return {{"context", {{"cpu_model", "Test CPU"}, {"nightly_reference_workload", "path tracing cornell-box 32x24"}}},
           {"benchmarks", runs}};
-}
-
-fs::path binary() {
-  const char* bin = std::getenv("DNB_BINARY");
-  return fs::absolute(bin && *bin ? bin : "./denoisebench");
 }
 
 class NightlyCommand : public ::testing::Test {

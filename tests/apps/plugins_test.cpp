@@ -20,18 +20,12 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 using ::testing::HasSubstr;
+using test::binary;
+using test::run_in;
 using test::slurp;
 using test::write;
 
-fs::path binary() {
-  const char* bin = std::getenv("DNB_BINARY");
-  return fs::absolute(bin && *bin ? bin : "./denoisebench");
-}
 std::string test_plugins() { return test::source_dir() + "/tests/apps/data/plugins"; }
-
-test::CommandResult run_in(const test::TempDir& dir, const std::string& args) {
-  return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
-}
 
 // A tiny matrix (one scene, 32x24 unless asked, 4 spp input, 64 spp reference) of the given methods.
 std::string config(const std::string& methods, const std::string& plugins_dir, const std::string& extra = "",

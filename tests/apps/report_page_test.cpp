@@ -20,6 +20,8 @@ namespace dnb {
 namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
+using test::binary;
+using test::run_in;
 using test::slurp;
 
 const char* kConfig = R"(name = "page"
@@ -42,15 +44,6 @@ method = "bilateral"
 group = "ablation"
 set = { sigma_space = 6.0 }
 )";
-
-fs::path binary() {
-  const char* bin = std::getenv("DNB_BINARY");
-  return fs::absolute(bin && *bin ? bin : "./denoisebench");
-}
-
-test::CommandResult run_in(const test::TempDir& dir, const std::string& args) {
-  return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
-}
 
 class ReportViewer : public ::testing::Test {
  protected:

@@ -24,6 +24,8 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
+using test::binary;
+using test::run_in;
 using test::slurp;
 using test::write;
 
@@ -46,17 +48,6 @@ method = "bilateral"
 group = "ablation"
 set = { sigma_space = 6.0 }
 )";
-
-// The program: $DNB_BINARY, else ./denoisebench (ctest runs in the build folder), as test_util.
-fs::path binary() {
-  const char* bin = std::getenv("DNB_BINARY");
-  return fs::absolute(bin && *bin ? bin : "./denoisebench");
-}
-
-// Runs the program with its own render cache inside the test folder.
-test::CommandResult run_in(const test::TempDir& dir, const std::string& args) {
-  return test::run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
-}
 
 TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
   test::TempDir dir;
