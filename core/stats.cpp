@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+
+#include <boost/math/distributions/normal.hpp>
 
 #include <boost/math/distributions/students_t.hpp>
 
@@ -68,6 +71,71 @@ double paired_t_test_p(const std::vector<double>& a, const std::vector<double>& 
   const double tstat = m / (sd / std::sqrt(double(d.size())));
   const boost::math::students_t t(double(d.size() - 1));
   return 2 * boost::math::cdf(boost::math::complement(t, std::abs(tstat)));
+}
+
+// Written here: neither Boost.Math nor the project's other libraries have Kendall's tau; the
+// O(n^2) pair count is plenty for tens of methods.
+KendallTau kendall_tau_b(const std::vector<double>& x, const std::vector<double>& y) {
+  KendallTau k;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  k.n = int(x.size());
+  if (x.size() != y.size() || x.size() < 2) return k.tau = nan, k.p_value = nan, k;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    for (std::size_t j = i + 1; j < x.size(); ++j) {
+      const double dx = x[i] - x[j], dy = y[i] - y[j];
+      if (dx == 0) ++k.ties_x;
+      if (dy == 0) ++k.ties_y;
+      if (dx == 0 || dy == 0) continue;
+      ((dx > 0) == (dy > 0) ? k.concordant : k.discordant) += 1;
+    }
+  const long long n = k.n, n0 = n * (n - 1) / 2;
+  if (k.ties_x == n0 || k.ties_y == n0) return k.tau = nan, k.p_value = nan, k;
+  k.tau = double(k.concordant - k.discordant) / std::sqrt(double(n0 - k.ties_x) * double(n0 - k.ties_y));
+  if (k.ties_x == 0 && k.ties_y == 0 && n <= 60) {
+    // counts[d]: permutations of n items with d inversions (Mahonian numbers), built one item
+    // at a time; as doubles (n <= 60: at most 60! ~ 8e81, well inside double's range).
+    std::vector<double> counts{1.0};
+    for (long long m = 2; m <= n; ++m) {
+      std::vector<double> next(counts.size() + std::size_t(m - 1), 0.0);
+      for (std::size_t d = 0; d < counts.size(); ++d)
+        for (long long add = 0; add < m; ++add) next[d + std::size_t(add)] += counts[d];
+      counts.swap(next);
+    }
+    double total = 0;
+    for (double c : counts) total += c;
+    // Two-sided: the permutations whose discordant count is at least as far from n0 / 2.
+    const double dev = std::abs(double(k.discordant) - double(n0) / 2.0);
+    double tail = 0;
+    for (std::size_t d = 0; d < counts.size(); ++d)
+      if (std::abs(double(d) - double(n0) / 2.0) >= dev - 1e-9) tail += counts[d];
+    k.p_value = std::min(1.0, tail / total);
+    k.exact = true;
+    return k;
+  }
+  // Normal approximation of S = C - D with ties (the tie groups' sizes t: v0 - vt - vu over 18,
+  // plus the two cross terms).
+  std::map<double, long long> gx, gy;
+  for (double v : x) ++gx[v];
+  for (double v : y) ++gy[v];
+  auto sum_t = [](const std::map<double, long long>& g, auto f) {
+    double s = 0;
+    for (const auto& [v, t] : g) s += f(double(t));
+    return s;
+  };
+  const double dn = double(n);
+  const double v0 = dn * (dn - 1) * (2 * dn + 5);
+  const double vt = sum_t(gx, [](double t) { return t * (t - 1) * (2 * t + 5); });
+  const double vu = sum_t(gy, [](double t) { return t * (t - 1) * (2 * t + 5); });
+  const double v1 = sum_t(gx, [](double t) { return t * (t - 1); }) * sum_t(gy, [](double t) { return t * (t - 1); });
+  const double v2 = sum_t(gx, [](double t) { return t * (t - 1) * (t - 2); }) *
+                    sum_t(gy, [](double t) { return t * (t - 1) * (t - 2); });
+  double var = (v0 - vt - vu) / 18.0 + v1 / (2 * dn * (dn - 1));
+  if (n > 2) var += v2 / (9 * dn * (dn - 1) * (dn - 2));
+  const double s = double(k.concordant - k.discordant);
+  if (!(var > 0)) return k.p_value = nan, k;
+  const boost::math::normal z;
+  k.p_value = std::min(1.0, 2 * boost::math::cdf(boost::math::complement(z, std::abs(s) / std::sqrt(var))));
+  return k;
 }
 
 }  // namespace dnb::stats

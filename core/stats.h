@@ -34,4 +34,20 @@ Interval t_interval(const std::vector<double>& v, double confidence = 0.95);
 // (no spread: the difference is certain), 1 when every difference is zero.
 double paired_t_test_p(const std::vector<double>& a, const std::vector<double>& b);
 
+// Kendall's rank correlation of paired values (x_i, y_i), tau-b (ties in either list count as
+// neither concordant nor discordant, and shrink the denominator: sqrt((n0 - tx)(n0 - ty)) with
+// n0 = n (n - 1) / 2). p_value: two-sided, for tau = 0 (independent rankings); exact from the
+// permutation distribution of the discordant count when there are no ties and n <= 60 (the
+// Mahonian numbers), else the normal approximation with the tie-corrected variance (Kendall
+// 1970, eq. 4.3); `exact` says which. NaN tau and p for fewer than two pairs, unequal lengths,
+// or a list whose values are all tied.
+struct KendallTau {
+  double tau = 0;
+  double p_value = 1;
+  bool exact = false;
+  int n = 0;
+  long long concordant = 0, discordant = 0, ties_x = 0, ties_y = 0;
+};
+KendallTau kendall_tau_b(const std::vector<double>& x, const std::vector<double>& y);
+
 }  // namespace dnb::stats

@@ -208,7 +208,20 @@ void write_report(const std::string& dir, const ReportOptions& opt) {
   if (!fs::exists(path)) throw InputError(fmt::format("'{}' not found: run `denoisebench run CONFIG -o {}` first", path, dir));
   const ResultsDocument res = ResultsDocument::load(path);
 
-  const auto tables = all_tables(res);
+  auto tables = all_tables(res);
+  if (!opt.ranking_against.empty()) {
+    const std::string other = opt.ranking_against + "/results.json";
+    if (!fs::exists(other))
+      throw InputError(fmt::format("--ranking-against: '{}' not found (a folder written by `denoisebench run`)", other));
+    const ResultsDocument o = ResultsDocument::load(other);
+    auto name = [](const ResultsDocument& d, const std::string& dir) {
+      return d.config.name.empty() ? fs::path(dir).filename().string() : d.config.name;
+    };
+    std::string here_name = name(res, dir), other_name = name(o, opt.ranking_against);
+    if (here_name == other_name)
+      here_name = fs::path(dir).filename().string(), other_name = fs::path(opt.ranking_against).filename().string();
+    tables.push_back({"ranking", ranking_table(res, o, here_name, other_name), true});
+  }
   for (const auto& t : tables) write_table(dir, t.stem, t.table);
   spdlog::info("tables written to {}", dir);
   const std::vector<std::string> plots = opt.plots ? run_plots(dir) : std::vector<std::string>{};

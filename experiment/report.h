@@ -79,12 +79,24 @@ inline const std::vector<std::string> kModernBaselines = {"svgf", "nfor", "oidn"
 // Per scene and method: the share of 16x16 tiles whose 8-bit mse is above the input frame's,
 // and above twice it (records' `blocks`; the mean over the seeds when there are several).
 Table worse_blocks_table(const ResultsDocument& results);
+
+// A method's score for ranking methods over a set of scenes: the geometric mean over the scenes
+// of (the method's metric / the unfiltered input's), each the mean over the input seeds, at the
+// table's spp. Methods (role Method: no ablations, no input) with a value on every scene only.
+std::map<std::string, double> ranking_scores(const ResultsDocument& results, const std::string& metric = "mse");
+// The methods both documents rank, each with its score and rank in each, and Kendall's tau-b
+// between the two rankings (stats::kendall_tau_b) in the note and a last row.
+Table ranking_table(const ResultsDocument& here, const ResultsDocument& other, const std::string& here_name,
+                    const std::string& other_name, const std::string& metric = "mse");
 // A metric's value as the tables print it ("n/a" when absent or non-finite).
 std::string format_metric(std::optional<double> value);
 
 struct ReportOptions {
   bool plots = true;   // run reports/plots.py
   bool images = true;  // PNGs, crops, error maps for the page
+  // Another results folder (e.g. the evaluation scenes' run) whose method ranking this run's is
+  // compared with: the `ranking` table and Kendall's tau (configs/generalisation.toml).
+  std::string ranking_against;
 };
 
 // Writes every file above into `dir` (which holds results.json).

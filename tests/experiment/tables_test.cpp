@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "experiment/report.h"
@@ -171,6 +172,57 @@ TEST(VersusModernTable, SaysAheadBehindOrNoSignificantDifferenceFromPairedSeeds)
   EXPECT_THAT(t.rows[0][col("nfor")], ::testing::StartsWith("no significant difference"));
   EXPECT_THAT(t.rows[0][col("oidn-x")], ::testing::StartsWith("behind (2.00"));
   EXPECT_THAT(t.rows[1][col("svgf")], ::testing::StartsWith("ahead"));
+}
+
+// The generalisation check's ranking: scores by hand (geometric means of method / input), one
+// swapped pair between the two runs, and what must not be ranked (an ablation, a method missing
+// a scene, a method only one run has).
+TEST(RankingTable, RanksByTheGeometricMeanOverScenesAndGivesKendallsTau) {
+  auto rec = [](const std::string& scene, const std::string& m, Role role, double mse) {
+    CellRecord r = record(m, role, 16, mse, 1.0);
+    r.scene = scene;
+    return r;
+  };
+  ResultsDocument a;
+  a.config.name = "generalisation";
+  a.config.scenes = {"s1", "s2"};
+  a.config.spp = {16};
+  for (const char* s : {"s1", "s2"}) a.records.push_back(rec(s, "input", Role::Input, 100));
+  // Scores: m1 sqrt(0.1 * 0.4) = 0.2, m2 0.3, m3 0.5, m4 0.05.
+  for (auto [m, x1, x2] : std::vector<std::tuple<std::string, double, double>>{
+           {"m1", 10, 40}, {"m2", 30, 30}, {"m3", 50, 50}, {"m4", 5, 5}}) {
+    a.records.push_back(rec("s1", m, Role::Method, x1));
+    a.records.push_back(rec("s2", m, Role::Method, x2));
+  }
+  a.records.push_back(rec("s1", "only_on_s1", Role::Method, 1));            // no value on s2: not ranked
+  a.records.push_back(rec("s1", "proposed-no-nlm", Role::Ablation, 1));     // ablations are not ranked
+  a.records.push_back(rec("s2", "proposed-no-nlm", Role::Ablation, 1));
+  ResultsDocument b;
+  b.config.name = "quick";
+  b.config.scenes = {"e"};
+  b.config.spp = {16};
+  b.records.push_back(rec("e", "input", Role::Input, 50));
+  // Scores: m1 0.2, m2 0.1, m3 0.8, m4 0.04, m5 (not in a) 0.02: m1 and m2 swap places.
+  for (auto [m, x] : std::vector<std::pair<std::string, double>>{{"m1", 10}, {"m2", 5}, {"m3", 40}, {"m4", 2}, {"m5", 1}})
+    b.records.push_back(rec("e", m, Role::Method, x));
+
+  const auto scores = ranking_scores(a);
+  ASSERT_EQ(scores.size(), 4u);
+  EXPECT_NEAR(scores.at("m1"), 0.2, 1e-12);
+  EXPECT_NEAR(scores.at("m4"), 0.05, 1e-12);
+
+  const Table t = ranking_table(a, b, "generalisation", "quick");
+  ASSERT_EQ(t.rows.size(), 5u);  // four methods and the tau row
+  EXPECT_EQ(t.header[1], "generalisation (rank)");
+  EXPECT_EQ(t.rows[0], (std::vector<std::string>{"m4", "0.05 (1)", "0.04 (1)"}));
+  EXPECT_EQ(t.rows[1], (std::vector<std::string>{"m1", "0.2 (2)", "0.2 (3)"}));
+  EXPECT_EQ(t.rows[2], (std::vector<std::string>{"m2", "0.3 (3)", "0.1 (2)"}));
+  EXPECT_EQ(t.rows[3], (std::vector<std::string>{"m3", "0.5 (4)", "0.8 (4)"}));
+  // Five concordant pairs and one discordant: tau = 4/6; exact p = 8/24 (see Stats.KendallTau...).
+  EXPECT_EQ(t.rows[4][0], "Kendall's tau-b");
+  EXPECT_EQ(t.rows[4][1], "0.667");
+  EXPECT_EQ(t.rows[4][2], "p = 0.33 (exact), n = 4");
+  EXPECT_THAT(t.note, ::testing::HasSubstr("Concordant pairs 5, discordant 1"));
 }
 
 }  // namespace
