@@ -127,6 +127,7 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
   if (out.baseline) {
     const metrics::WorseBlocks b = metrics::worse_blocks(out.image, *out.baseline, scene.reference->color);
     r.blocks = {{"block", b.block}, {"count", b.count}, {"worse", b.worse}, {"worse_twice", b.worse_twice}};
+    for (const auto& t : b.tiles) r.worse_tiles.push_back({double(t.x), double(t.y), double(t.w), double(t.h), t.ratio});
   }
   r.times = out.times;
   r.times.reference = scene.reference_info.seconds;

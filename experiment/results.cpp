@@ -114,6 +114,7 @@ json CellRecord::to_json() const {
   if (counters) r["counters"] = numbers_json(*counters);
   if (method_info) r["method_info"] = *method_info;
   if (blocks) r["blocks"] = numbers_json(*blocks);
+  if (!worse_tiles.empty()) r["worse_tiles"] = worse_tiles;
   return r;
 }
 
@@ -171,6 +172,20 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
     r.method_info = std::move(info);
   }
   if (j.contains("blocks")) r.blocks = number_map(object_or_empty(j, "blocks", where), where + ": blocks");
+  if (j.contains("worse_tiles")) {
+    const json& t = j.at("worse_tiles");
+    auto bad = [&] { return InputError(fmt::format("{}: worse_tiles: expected a list of [x, y, w, h, ratio] number lists", where)); };
+    if (!t.is_array()) throw bad();
+    for (const auto& e : t) {
+      if (!e.is_array() || e.size() != 5) throw bad();
+      std::array<double, 5> a{};
+      for (std::size_t k = 0; k < 5; ++k) {
+        if (!e[k].is_number()) throw bad();
+        a[k] = e[k].get<double>();
+      }
+      r.worse_tiles.push_back(a);
+    }
+  }
   return r;
 }
 

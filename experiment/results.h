@@ -40,6 +40,7 @@
 
 #include <cstdint>
 #include <ctime>
+#include <array>
 #include <map>
 #include <optional>
 #include <string>
@@ -140,6 +141,9 @@ struct CellRecord {
   // Method cells: metrics::worse_blocks against the input frame ("block", "count", "worse",
   // "worse_twice": shares of tiles whose 8-bit mse is above the input's, and above twice it).
   std::optional<std::map<std::string, double>> blocks;
+  // Method cells: the tiles where the method is worse than its input, worst first
+  // (metrics::WorseBlocks::tiles: x, y, w, h in pixels, then mse / input's mse); for the viewer.
+  std::vector<std::array<double, 5>> worse_tiles;
 
   // The metric's value, or nullopt when it is absent or non-finite.
   std::optional<double> metric(const std::string& name) const;

@@ -310,7 +310,13 @@ WorseBlocks worse_blocks(const Image& image, const Image& baseline, const Image&
       ++out.count;
       worse += ea > eb;  // the same pixel count on both sides: sums compare as means
       twice += ea > 2 * eb;
+      if (ea > eb)
+        out.tiles.push_back({x0, y0, std::min(block, w - x0), std::min(block, h - y0),
+                             eb > 0 ? std::min(ea / eb, WorseBlocks::kMaxRatio) : WorseBlocks::kMaxRatio});
     }
+  // Worst first; ties in reading order (stable), so the list is the same on every machine.
+  std::stable_sort(out.tiles.begin(), out.tiles.end(), [](const auto& p, const auto& q) { return p.ratio > q.ratio; });
+  if (out.tiles.size() > WorseBlocks::kMaxTiles) out.tiles.resize(WorseBlocks::kMaxTiles);
   out.worse = double(worse) / out.count;
   out.worse_twice = double(twice) / out.count;
   return out;

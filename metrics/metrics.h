@@ -133,6 +133,15 @@ struct WorseBlocks {
   int count = 0;                 // tiles
   double worse = 0;              // share of tiles with mse(image) > mse(baseline)
   double worse_twice = 0;        // share with mse(image) > 2 mse(baseline)
+  // The tiles where the image is worse, worst first (by mse(image) / mse(baseline); a tile whose
+  // baseline error is 0 counts as kMaxRatio), at most kMaxTiles of them: where to look.
+  struct Tile {
+    int x = 0, y = 0, w = 0, h = 0;
+    double ratio = 0;
+  };
+  static constexpr std::size_t kMaxTiles = 64;
+  static constexpr double kMaxRatio = 1e6;
+  std::vector<Tile> tiles;
 };
 // InputError unless the three are 3-channel images of one size with finite samples.
 WorseBlocks worse_blocks(const Image& image, const Image& baseline, const Image& reference, int block = 16);

@@ -151,6 +151,7 @@ var DNB = (function () {
     sc.view = {scale: 0, cx: data.width / 2, cy: data.height / 2};  // CSS px per image px; centre
     sc.split = 0.5;
     sc.showCrops = true;
+    sc.showWorse = true;
     sc.sides = {left: data.left, right: data.right, second: firstError(data) || data.right};
 
     var sec = el("section", {"class": "scene", id: "scene-" + data.name.replace(/[^A-Za-z0-9_-]/g, "_"), tabindex: "0",
@@ -201,6 +202,14 @@ var DNB = (function () {
     cropLab.appendChild(cropBox);
     cropLab.appendChild(document.createTextNode(" crops"));
     controls.appendChild(cropLab);
+    // The tiles where the method shown is worse than its input (records' worse_tiles): orange
+    // above the input's error, red above twice it.
+    var worseLab = el("label", {title: "16x16 tiles whose 8-bit error is above the input's (orange) or twice it (red)"});
+    var worseBox = el("input", {type: "checkbox", "class": "worse-tiles", checked: ""});
+    worseBox.addEventListener("change", function () { sc.showWorse = worseBox.checked; sc.draw(); });
+    worseLab.appendChild(worseBox);
+    worseLab.appendChild(document.createTextNode(" worse than input"));
+    controls.appendChild(worseLab);
     sec.appendChild(controls);
     sec.appendChild(el("p", {"class": "keys"}, "Wheel: zoom; drag: pan; drag the handle: move the split. Keys (pointer over the " +
       "scene): 1-9 right image, shift+1-9 left image, up/down next/previous right image, shift+up/down left, x swap, " +
@@ -367,6 +376,13 @@ var DNB = (function () {
       ctx.clip();
       ctx.setTransform(dpr * s, 0, 0, dpr * s, dpr * tx, dpr * ty);
       ctx.drawImage(picture(sc, entry, img), 0, 0);
+      if (sc.showWorse && entry.worse_tiles) {
+        ctx.lineWidth = 1.5 / s;
+        entry.worse_tiles.forEach(function (t) {
+          ctx.strokeStyle = t[4] > 2 ? "#ff1744" : "#ff9100";
+          ctx.strokeRect(t[0] + 0.5 / s, t[1] + 0.5 / s, t[2] - 1 / s, t[3] - 1 / s);
+        });
+      }
       ctx.restore();
     }
     if (v.which === "split") {

@@ -8,7 +8,7 @@ base64 in a small script file, because a page opened from file:// may load scrip
 fetch files; the page decodes them and applies exposure and tone mapping to the radiance.
 
   web/viewer/manifest.js      DNB_MANIFEST: scenes, images (label, kind, file, metrics from
-                              results.json), crops with per-method means of the error maps,
+                              results.json, the tiles where a method is worse than its input), crops with per-method means of the error maps,
                               colour maps, each method's colour (reports/method_style.py)
   web/viewer/s<i>/<j>.js      DNB.image("<i>/<j>", width, height, channels, "deflate", "<base64>"):
                               the half floats zlib-compressed (about a third smaller for noisy
@@ -130,6 +130,16 @@ def scene_records(res, scene, spp, seed):
     return out
 
 
+def worse_tiles(r, i):
+    """The record's tiles where the method is worse than its input ([x, y, w, h, ratio], worst first)."""
+    out = []
+    for k, t in enumerate(r.get("worse_tiles", [])):
+        if not (isinstance(t, list) and len(t) == 5 and all(isinstance(v, (int, float)) for v in t)):
+            raise BadInput(f"records[{i}].worse_tiles[{k}]: expected [x, y, w, h, ratio] numbers, got {t!r}")
+        out.append([int(t[0]), int(t[1]), int(t[2]), int(t[3]), float(t[4])])
+    return out
+
+
 def colour_map(name):
     import matplotlib
     cmap = matplotlib.colormaps[name]
@@ -167,7 +177,7 @@ def build_scene(dir_, res, scene_i, scene, spp, seed, pick_method):
         metrics = {k: finite(r["metrics"].get(k)) for k in ("mse", "relmse", "flip", "ssim", "psnr")}
         label = m if r.get("role") != "input" else f"input ({spp} spp)"
         add(px, key=key, label=label, method=m, kind="radiance", role=r.get("role"), metrics=metrics,
-            filter_seconds=finite(r.get("times", {}).get("filter")))
+            filter_seconds=finite(r.get("times", {}).get("filter")), worse_tiles=worse_tiles(r, i))
         if len(images) == 1:
             add(ref, key=ref_key, label=f"reference ({r['reference'].get('spp')} spp)", method="reference",
                 kind="radiance", role="reference", metrics={})

@@ -9,6 +9,7 @@ Talks the DevTools protocol over --remote-debugging-pipe (fds 3 and 4, NUL-separ
 it needs nothing beyond Python and Debian's chromium. Checks, each printed as "FAIL: ..." when it
 does not hold (exit 1), against results.json rather than the page's own data:
 
+  - a method with tiles worse than its input has them outlined (hiding them changes the view);
   - both image selectors of every scene list every image of the scene: the input, the reference,
     every method and variant record at the tables' spp and first seed, and each one's error maps;
   - choosing two other images changes the pixels of both sides of the split view;
@@ -32,6 +33,7 @@ import tempfile
 import time
 
 FAILS = []
+WORSE = {}  # scene -> {method: number of worse tiles}, from results.json (main)
 
 
 def fail(msg):
@@ -139,6 +141,20 @@ def expected_images(results_dir):
             if r["files"].get(k):
                 lst.append((r["method"], kind))
     return {s: sorted(v) for s, v in out.items()}
+
+
+def worse_tile_counts(results_dir):
+    """(scene -> {method: number of worse_tiles}) from results.json, at the page's spp and seed."""
+    with open(os.path.join(results_dir, "results.json")) as f:
+        res = json.load(f)
+    cfg = res["config"]
+    spp, seed = cfg["spp"][0], (cfg.get("seeds") or [None])[0]
+    out = {}
+    for r in res["records"]:
+        if r.get("role") in ("method", "ablation") and r["spp"] == spp and r.get("worse_tiles") and \
+                (seed is None or r.get("seed") in (None, seed)):
+            out.setdefault(r["scene"], {})[r["method"]] = len(r["worse_tiles"])
+    return out
 
 
 # Page-side helpers: a digest of a canvas region, each scene's state.
@@ -287,6 +303,29 @@ def check_viewer(ch, expected):
           e.value = '3'; e.dispatchEvent(new Event('input')); }})()""")
         ch.eval("window.__t.settled()")
         wait_ready(ch, name)
+        # The tiles where a method is worse than its input (results.json's worse_tiles) are
+        # outlined on it, and the box hides them.
+        for worse, count in sorted(WORSE.get(name, {}).items())[:1]:
+            on_page = ch.eval(f"""(function () {{ var d = DNB_MANIFEST.scenes[{i}];
+              for (var k = 0; k < d.images.length; k++) {{ var e = d.images[k];
+                if (e.kind === 'radiance' && e.method === {json.dumps(worse)}) return (e.worse_tiles || []).length; }}
+              return -1; }})()""")
+            if on_page != count:
+                fail(f"{name}: {worse} has {count} worse tiles in results.json, the page has {on_page}")
+            # On both sides (a tile may lie on either side of the split), the whole image in view.
+            if not choose(ch, i, "left", worse, "radiance") or not choose(ch, i, "right", worse, "radiance"):
+                fail(f"{name}: cannot choose {worse} on both sides")
+            ch.eval(f"document.querySelectorAll('section.scene')[{i}].querySelector('button.fit').click()")
+            ch.eval("window.__t.settled()")
+            wait_ready(ch, name)
+            on = split_digests(ch, i)
+            ch.eval(f"document.querySelectorAll('section.scene')[{i}].querySelector('input.worse-tiles').click()")
+            ch.eval("window.__t.settled()")
+            off = split_digests(ch, i)
+            ch.eval(f"document.querySelectorAll('section.scene')[{i}].querySelector('input.worse-tiles').click()")
+            ch.eval("window.__t.settled()")
+            if on == off:
+                fail(f"{name}: hiding the worse-than-input tiles of {worse} did not change the view")
 
 
 def check_widths(ch, width, shots):
@@ -345,6 +384,7 @@ def main():
     a = ap.parse_args()
     results_dir = os.path.abspath(a.results_dir)
     expected = expected_images(results_dir)
+    WORSE.update(worse_tile_counts(results_dir))
     if a.shots:
         os.makedirs(a.shots, exist_ok=True)
     profile = tempfile.mkdtemp(prefix="dnb-chromium-")

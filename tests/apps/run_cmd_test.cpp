@@ -355,6 +355,13 @@ TEST(RunCommand, SeveralSeedsGiveACellPerSeedAndTable1Intervals) {
       ASSERT_TRUE(rec.contains("blocks")) << rec.dump();
       EXPECT_EQ(rec["blocks"]["count"].get<int>(), 2 * 2);  // 32x24 in 16x16 tiles
       EXPECT_GE(rec["blocks"]["worse"].get<double>(), rec["blocks"]["worse_twice"].get<double>());
+      // ... and which tiles: as many as the share says (4 tiles here, under the list's cap).
+      const double worse = rec["blocks"]["worse"].get<double>();
+      const std::size_t listed = rec.contains("worse_tiles") ? rec["worse_tiles"].size() : 0;
+      EXPECT_EQ(listed, std::size_t(std::lround(worse * 4))) << rec.dump();
+      if (listed) {
+        EXPECT_GT(rec["worse_tiles"][0][4].get<double>(), 1.0) << rec.dump();
+      }
     }
   EXPECT_THAT(slurp(dir.file("out/worse_blocks.md")), ::testing::ContainsRegex("[0-9.]+% \\([0-9.]+%\\)"));
 }

@@ -312,6 +312,29 @@ TEST(WorseBlocks, CountsTilesAboveTheInputsErrorAndAboveTwiceIt) {
   b = worse_blocks(image, input, ref);
   EXPECT_DOUBLE_EQ(b.worse, 0.5);
   EXPECT_DOUBLE_EQ(b.worse_twice, 0.0);
+  // The worse tile is listed for the viewer, with its ratio 324 / 225.
+  ASSERT_EQ(b.tiles.size(), 1u);
+  EXPECT_EQ(b.tiles[0].x, 16);
+  EXPECT_EQ(b.tiles[0].y, 0);
+  EXPECT_EQ(b.tiles[0].w, 16);
+  EXPECT_EQ(b.tiles[0].h, 16);
+  EXPECT_NEAR(b.tiles[0].ratio, 324.0 / 225.0, 1e-9);
+  // Worst first: a third tile off by 0.2 (4x the input's error and more) comes before it; a
+  // partial tile (48 + 5 wide) has its own width; tiles no worse than the input are not listed.
+  const Image ref3(53, 16, 3, 0.5f);
+  Image input3(53, 16, 3, 0.6f), image3(53, 16, 3, 0.5f);
+  for (int y = 0; y < 16; ++y)
+    for (int c = 0; c < 3; ++c) {
+      for (int x = 0; x < 16; ++x) image3.at(x, y, c) = 0.62f;
+      for (int x = 48; x < 53; ++x) image3.at(x, y, c) = 0.7f;
+    }
+  b = worse_blocks(image3, input3, ref3);
+  ASSERT_EQ(b.tiles.size(), 2u);
+  EXPECT_EQ(b.tiles[0].x, 48);
+  EXPECT_EQ(b.tiles[0].w, 5);
+  EXPECT_GT(b.tiles[0].ratio, 2.0);
+  EXPECT_EQ(b.tiles[1].x, 0);
+  EXPECT_NEAR(b.tiles[1].ratio, 324.0 / 225.0, 1e-9);
   // Partial tiles at the borders count as tiles: 33x17 is 3x2 of them.
   EXPECT_EQ(worse_blocks(Image(33, 17, 3, 0.5f), Image(33, 17, 3, 0.5f), Image(33, 17, 3, 0.5f)).count, 6);
   EXPECT_THROW(worse_blocks(image, Image(8, 8, 3), ref), InputError);
