@@ -18,14 +18,22 @@ The reference is rendered with `denoisebench reference` when that command is ava
 with `denoisebench render` at --ref-spp and another seed. A noisy reference adds the same
 constant (its variance) to every candidate's expected MSE, so it does not move the minimum.
 
+Several training scenes (issue 25: the training room, the lamp room, the sun-lit court; every
+--scene, or every --frame/--reference pair, is one): the error minimised is then the geometric
+mean over the scenes of each scene's mse divided by its unfiltered input's, so that no scene
+weighs more for being noisier; with one scene that is the plain mse up to a constant.
+
 Writes OUT/sweep.json (every evaluation) and OUT/sweep.md (best parameters per method, their
-MSE, the MSE at the previous defaults). Example:
+error, the error at the previous defaults). Examples:
 
     scripts/sweep_params.py --scene veach-ajar --size 1024x768 --out results/sweep
     scripts/sweep_params.py --frame train.exr --reference train_ref.exr --methods guided
+    scripts/sweep_params.py --scene configs/sweep/training-room.toml --scene configs/sweep/lamp-room.toml \
+        --scene configs/sweep/sunlit-court.toml --size 512x384 --ref-spp 2048 --methods proposed --out results/sweep3
 """
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -50,12 +58,14 @@ GRIDS = {
         },
     },
     "proposed": {
-        "start": {"sigma_s": "4", "sigma_r": "0.4", "tree_height": "0", "adjust_outliers": "true",
-                  "sigma_nlm": "0.05", "sigma_normal": "0.3", "sigma_depth": "0.02", "nlm_dims": "3"},
+        "start": {"sigma_s": "4", "sigma_r": "0.4", "tree_height": "4", "adjust_outliers": "true",
+                  "sigma_nlm": "0.05", "sigma_normal": "0.3", "sigma_depth": "0.02", "nlm_dims": "3",
+                  "detail_guard": "3"},
         "grid": {
+            "detail_guard": ["0", "2", "3", "4", "6"],  # issue 25's thin features (proposed.cpp, guard_details)
             "sigma_s": ["2", "4", "8", "16"],
             "sigma_r": ["0.25", "0.4", "0.6"],
-            "tree_height": ["0", "3"],  # 4: 5x the time of 0 at 1024x768
+            "tree_height": ["0", "3", "4"],
             "adjust_outliers": ["false", "true"],
             "sigma_nlm": ["0.025", "0.05", "0.1", "0.2"],
             "sigma_normal": ["0.1", "0.3", "0.6", "1"],
@@ -226,6 +236,23 @@ class Evaluator:
         return err
 
 
+class SetEvaluator:
+    """Several training scenes: the geometric mean over them of mse / the input's mse."""
+
+    def __init__(self, evaluators, input_errs):
+        self.evaluators, self.input_errs = evaluators, input_errs
+        self.metric = "mse"
+
+    def __call__(self, method, params):
+        logs = []
+        for ev, ie in zip(self.evaluators, self.input_errs):
+            err = ev(method, params)
+            if not math.isfinite(err):
+                return float("inf")
+            logs.append(math.log(err / ie))
+        return math.exp(sum(logs) / len(logs))
+
+
 def descend(evaluate, method, spec, rounds, only=()):
     best = dict(spec["start"])
     best_err = evaluate(method, best)
@@ -249,13 +276,15 @@ def descend(evaluate, method, spec, rounds, only=()):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--scene", help="training scene (built-in name or file); not an evaluation scene")
+    ap.add_argument("--scene", action="append", default=[],
+                    help="training scene (built-in name or file; repeatable: a training set); not an evaluation scene")
     ap.add_argument("--size", default="1024x768")
     ap.add_argument("--spp", type=int, default=256, help="samples per pixel of the filter input")
     ap.add_argument("--ref-spp", type=int, default=4096, help="samples per pixel of the reference")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--frame", help="use this AOV frame instead of rendering one")
-    ap.add_argument("--reference", help="use this reference instead of rendering one")
+    ap.add_argument("--frame", action="append", default=[], help="use this AOV frame instead of rendering one (repeatable)")
+    ap.add_argument("--reference", action="append", default=[],
+                    help="use this reference instead of rendering one (repeatable, one per --frame)")
     ap.add_argument("--methods", default=",".join(GRIDS), help="comma-separated subset of " + ",".join(GRIDS))
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--only", default="", help="comma-separated parameters to sweep (default: all in the grid)")
@@ -268,49 +297,73 @@ def main():
     for m in methods:
         if m not in GRIDS:
             sys.exit(f"sweep_params: no grid for method '{m}' (have: {', '.join(GRIDS)})")
-    if a.scene and os.path.splitext(os.path.basename(a.scene))[0] in EVALUATION_SCENES:
-        sys.exit(f"sweep_params: '{a.scene}' is an evaluation scene; tune on another one")
-    if not (a.frame and a.reference) and not a.scene:
+    for sc in a.scene:
+        if os.path.splitext(os.path.basename(sc))[0] in EVALUATION_SCENES:
+            sys.exit(f"sweep_params: '{sc}' is an evaluation scene; tune on another one")
+    if len(a.frame) != len(a.reference):
+        sys.exit("sweep_params: give as many --reference as --frame")
+    if not a.frame and not a.scene:
         sys.exit("sweep_params: give --scene, or both --frame and --reference")
+    if a.frame and a.scene and len(a.frame) != len(a.scene):
+        sys.exit("sweep_params: with --frame and --scene, give one --scene per --frame")
     os.makedirs(a.out, exist_ok=True)
 
-    frame = a.frame or os.path.join(a.out, "train_frame.exr")
-    reference = a.reference or os.path.join(a.out, "train_reference.exr")
-    if not a.frame and not os.path.exists(frame):
-        print(f"rendering {a.scene} at {a.spp} spp ...", flush=True)
-        run([a.binary, "render", a.scene, "--spp", str(a.spp), "--size", a.size, "--seed", str(a.seed), "-o", frame])
-    if not a.reference and not os.path.exists(reference):
-        print(f"rendering the reference of {a.scene} at {a.ref_spp} spp ...", flush=True)
-        probe = subprocess.run([a.binary, "reference", "--help"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                               text=True)
-        if "not available" in probe.stdout:
-            run([a.binary, "render", a.scene, "--spp", str(a.ref_spp), "--size", a.size, "--seed",
-                 str(a.seed + 1000), "-o", reference])
-        else:
-            run([a.binary, "reference", a.scene, "--spp", str(a.ref_spp), "--size", a.size, "-o", reference])
+    # One (scene, frame, reference) per training scene.
+    sets = []
+    count = max(len(a.frame), len(a.scene))
+    for i in range(count):
+        scene = a.scene[i] if a.scene else None
+        tag = "" if count == 1 else f"_{i}"
+        frame = a.frame[i] if a.frame else os.path.join(a.out, f"train_frame{tag}.exr")
+        reference = a.reference[i] if a.reference else os.path.join(a.out, f"train_reference{tag}.exr")
+        if not a.frame and not os.path.exists(frame):
+            print(f"rendering {scene} at {a.spp} spp ...", flush=True)
+            run([a.binary, "render", scene, "--spp", str(a.spp), "--size", a.size, "--seed", str(a.seed), "-o", frame])
+        if not a.reference and not os.path.exists(reference):
+            print(f"rendering the reference of {scene} at {a.ref_spp} spp ...", flush=True)
+            probe = subprocess.run([a.binary, "reference", "--help"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                   text=True)
+            if "not available" in probe.stdout:
+                run([a.binary, "render", scene, "--spp", str(a.ref_spp), "--size", a.size, "--seed",
+                     str(a.seed + 1000), "-o", reference])
+            else:
+                run([a.binary, "reference", scene, "--spp", str(a.ref_spp), "--size", a.size, "-o", reference])
+        sets.append((scene, frame, reference))
 
     with tempfile.TemporaryDirectory() as tmp:
-        ev = Evaluator(a.binary, frame, reference, tmp, a.scene)
-        ev.budget = render_seconds(frame)
-        input_err = ev.metrics(frame)
+        evs, input_errs = [], []
+        for i, (scene, frame, reference) in enumerate(sets):
+            wd = os.path.join(tmp, str(i))
+            os.makedirs(wd)
+            ev = Evaluator(a.binary, frame, reference, wd, scene)
+            ev.budget = render_seconds(frame)
+            input_errs.append(ev.metrics(frame))
+            evs.append(ev)
+        one = len(evs) == 1
+        evaluate = evs[0] if one else SetEvaluator(evs, [e["mse"] for e in input_errs])
+        metric = "mse" if one else "mse_over_input_geomean"
         results = {}
         for m in methods:
-            best, best_err, start_err = descend(ev, m, GRIDS[m], a.rounds, [p for p in a.only.split(",") if p])
-            results[m] = {"best": best, ev.metric: best_err, "previous_defaults": GRIDS[m]["start"],
-                          "previous_" + ev.metric: start_err}
+            best, best_err, start_err = descend(evaluate, m, GRIDS[m], a.rounds, [p for p in a.only.split(",") if p])
+            results[m] = {"best": best, metric: best_err, "previous_defaults": GRIDS[m]["start"],
+                          "previous_" + metric: start_err}
+            if not one:  # each scene's mse at the best and at the previous defaults
+                results[m]["per_scene_mse"] = [{"scene": sc, "best": ev(m, best), "previous_defaults": ev(m, GRIDS[m]["start"])}
+                                               for (sc, _, _), ev in zip(sets, evs)]
 
-    summary = {"scene": a.scene, "frame": frame, "reference": reference, "size": a.size, "spp": a.spp,
-               "ref_spp": a.ref_spp, "metric": ev.metric, "input": input_err, "results": results,
-               "evaluations": ev.records}
+    summary = {"scenes": [sc for sc, _, _ in sets], "frames": [f for _, f, _ in sets],
+               "references": [r for _, _, r in sets], "size": a.size, "spp": a.spp, "ref_spp": a.ref_spp,
+               "metric": metric, "input": input_errs, "results": results,
+               "evaluations": [dict(r, scene=sc) for (sc, _, _), ev in zip(sets, evs) for r in ev.records]}
     with open(os.path.join(a.out, "sweep.json"), "w") as f:
         json.dump(summary, f, indent=2)
-    lines = [f"# Parameter sweep ({ev.metric}, lower is better)", "",
-             f"Training data: scene `{a.scene or '(given frame)'}`, frame `{frame}`, reference `{reference}`; "
-             f"unfiltered input {ev.metric} = {input_err.get(ev.metric, float('nan')):.6g}.", "",
-             f"| method | best parameters | {ev.metric} | at previous defaults |", "|---|---|---|---|"]
+    data = "; ".join(f"scene `{sc or '(given frame)'}`, frame `{fr}`, reference `{rf}`, unfiltered input mse "
+                     f"{ie.get('mse', float('nan')):.6g}" for (sc, fr, rf), ie in zip(sets, input_errs))
+    lines = [f"# Parameter sweep ({metric}, lower is better)", "", f"Training data: {data}.", "",
+             f"| method | best parameters | {metric} | at previous defaults |", "|---|---|---|---|"]
     for m, r in results.items():
         params = " ".join(f"{k}={v}" for k, v in sorted(r["best"].items()))
-        lines.append(f"| {m} | {params} | {r[ev.metric]:.6g} | {r['previous_' + ev.metric]:.6g} |")
+        lines.append(f"| {m} | {params} | {r[metric]:.6g} | {r['previous_' + metric]:.6g} |")
     with open(os.path.join(a.out, "sweep.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
