@@ -21,10 +21,12 @@
 // box and guides, the jobs that filter each level's layers and smooth its tint), run the jobs
 // concurrently (run_jobs), compose the levels bottom-up (compose_levels).
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <functional>
 
 #include <opencv2/imgproc.hpp>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <spdlog/spdlog.h>
@@ -32,6 +34,7 @@
 #include "core/errors.h"
 #include "denoisers/adaptive_manifold.h"
 #include "denoisers/adaptive_manifold_cl.h"
+#include "denoisers/hdr_mapping.h"
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"
 #include "denoisers/nlm_space.h"
@@ -51,6 +54,7 @@ class Proposed final : public Method {
         sigma_nlm_direct_(float(p.f("sigma_nlm_direct"))),
         nlm_direct_spp_exponent_(float(p.f("nlm_direct_spp_exponent"))),
         firefly_sigma_(float(p.f("firefly_sigma"))),
+        detail_guard_(float(p.f("detail_guard"))),
         use_nlm_(p.b("nlm_space")),
         use_geometry_(p.b("geometry")),
         use_edges_(p.b("edge_subpixels")),
@@ -85,6 +89,7 @@ class Proposed final : public Method {
     if (filter_color_) return {};
     auto l = illumination_layers();
     l.push_back(layer::kColor);
+    l.push_back(layer::kVariance);  // the detail guard's noise level
     return l;
   }
 
@@ -114,6 +119,7 @@ class Proposed final : public Method {
     if (colour_only) {
       const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
       r.image = filter_layer(f, 0, f.layer(layer::kColor), depth, plan.sigma_nlm, plan.am, r.stats, nullptr).image;
+      guard_details(f, r.image, r.stats);
       return r;
     }
     const AovFrame split = demodulated ? demodulate(f) : AovFrame();
@@ -122,6 +128,7 @@ class Proposed final : public Method {
     plan.jobs.insert(plan.jobs.begin(), plan.tint_jobs.begin(), plan.tint_jobs.end());
     run_jobs(r.stats, plan.jobs);
     r.image = compose_levels(fs, plan, r.stats);
+    guard_details(f, r.image, r.stats);
     return r;
   }
 
@@ -538,6 +545,74 @@ class Proposed final : public Method {
     });
   }
 
+  // The detail guard (not in the paper; issue 25's thin features): where the filter moved a
+  // pixel further from its input than the pixel's own noise explains, it removed signal, not
+  // noise (a 1-2 px dark groove or gap whose guide - NLM patch, normal, depth - looks like its
+  // neighbours', so the slice fills it with their light). Each channel's change is clamped to
+  // detail_guard standard deviations of the pixel's mean: F' = F + clamp(F' - F, +-k s).
+  // s comes from the variance layer (the variance of the mean, from pairs of stratified samples:
+  // docs/references.md) in two steps that keep it honest where one pixel's estimate is not:
+  //   - a floor: at least the 5x5 median of the neighbours' relative variance v / (F'^2 + e)
+  //     times the pixel's own F'^2 + e (spp / 2 degrees of freedom per pixel miss the heavy
+  //     tail of path-traced noise at low spp; relative, so that a dark groove does not get the
+  //     band of the bright wall around it);
+  //   - a calibration: s times max(1, 1.4826 median over 5x5 of |F' - F| / s), the robust
+  //     spread of the filter's changes in units of the pixels' own s. Where the variance is
+  //     underestimated over an area (rare bright paths that every pixel there missed; a frame
+  //     whose variance layer is too small), the filter's changes are large everywhere around
+  //     and the band widens with them; a feature of one or two pixels is less than half of the
+  //     window and leaves the median, so it keeps its narrow band. (The same median of |F' - F|
+  //     in absolute units was tried: it gives a dark groove the band of the bright, noisier wall
+  //     around it, and the groove is lost again.)
+  // A firefly's change stays inside its own wide band (its variance is of its own size), so the
+  // firefly cut is kept. A frame without variance or colour layers is left as filtered.
+  // Measured: docs/method-defaults.md, "Detail guard".
+  void guard_details(const AovFrame& f, Image& out, MethodStats& stats) const {
+    stats.counters["detail_guard_used"] = 0;
+    if (detail_guard_ <= 0 || !f.has(layer::kVariance) || !f.has(layer::kColor)) return;
+    const Image& x = f.layer(layer::kColor);
+    const Image& v = f.layer(layer::kVariance);
+    if (x.channels() != out.channels() || v.channels() != out.channels()) return;
+    ScopedPhase p(stats, "detail_guard");
+    auto finite_or_0 = [](float a) { return std::isfinite(a) ? a : 0.0f; };
+    // e: (1% of the frame's mean filtered value)^2, so the relative variance has no scale of its own.
+    double mean = 0;
+    for (std::size_t k = 0; k < out.size(); ++k) mean += finite_or_0(out.data()[k]);
+    const float e = float(std::pow(0.01 * mean / double(std::max<std::size_t>(out.size(), 1)), 2)) + 1e-20f;
+    const std::size_t n = out.size();
+    Image work(v.width(), v.height(), v.channels()), med(v.width(), v.height(), v.channels());
+    // (1) The floor from the neighbours' relative variance: sd = sqrt(max(v, median(rel) (F'^2 + e))).
+    tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) {
+      const float o = finite_or_0(out.data()[k]);
+      work.data()[k] = std::max(finite_or_0(v.data()[k]), 0.0f) / (o * o + e);
+    });
+    cv::medianBlur(as_mat(work), as_mat(med), 5);  // 32-bit float: OpenCV allows apertures 3 and 5
+    Image sd(v.width(), v.height(), v.channels());
+    tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) {
+      const float o = finite_or_0(out.data()[k]);
+      sd.data()[k] = std::sqrt(std::max(std::max(finite_or_0(v.data()[k]), 0.0f), med.data()[k] * (o * o + e)));
+      // (2) The filter's change in units of it, for the calibration.
+      const float z = std::abs(o - finite_or_0(x.data()[k])) / sd.data()[k];
+      work.data()[k] = std::isfinite(z) ? z : 0.0f;
+    });
+    cv::medianBlur(as_mat(work), as_mat(med), 5);
+    std::atomic<std::int64_t> clamped{0};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14), [&](const auto& r) {
+      std::int64_t c = 0;
+      for (std::size_t k = r.begin(); k != r.end(); ++k) {
+        const float in = x.data()[k], o = out.data()[k];
+        const float band = detail_guard_ * sd.data()[k] * std::max(1.0f, 1.4826f * med.data()[k]);
+        if (!std::isfinite(in) || !std::isfinite(o) || !std::isfinite(band)) continue;
+        const float g = std::clamp(o, in - band, in + band);
+        c += g != o;
+        out.data()[k] = g;
+      }
+      clamped += c;
+    });
+    stats.counters["detail_guard_used"] = 1;
+    stats.counters["detail_guard_clamped_samples"] = double(clamped.load());
+  }
+
   // Gaussian low-pass (OpenCV), mirrored border so that light near the frame's edge stays.
   static Image low_pass(const Image& im, float sigma) {
     Image out(im.width(), im.height(), im.channels());
@@ -557,7 +632,7 @@ class Proposed final : public Method {
 
   AmSettings am_;
   NlmSpaceSettings nlm_;
-  float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, sigma_nlm_direct_, nlm_direct_spp_exponent_, firefly_sigma_;
+  float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, sigma_nlm_direct_, nlm_direct_spp_exponent_, firefly_sigma_, detail_guard_;
   bool use_nlm_, use_geometry_, use_edges_, use_reflections_, reflection_sum_, filter_color_, opencl_;
   int tint_radius_;
   int reflection_downsample_;
@@ -591,6 +666,7 @@ MethodInfo proposed_method() {
               {"nlm_direct_spp_exponent", ParamType::Float, "0.25", "sigma_nlm_direct scales as (256 / frame spp)^this", 0.0, 4.0},
               {"firefly_ratio", ParamType::Float, "3", "cut a pixel brighter than this times its brightest neighbour; 0: off", 0.0, 1e6},
               {"firefly_sigma", ParamType::Float, "0", "the cut light comes back low-passed with this sigma, pixels; 0: dropped", 0.0, 1e4},
+              {"detail_guard", ParamType::Float, "3", "clamp each pixel's change to this many standard deviations of its mean (variance layer); 0: off", 0.0, 1e3},
               {"nlm_space", ParamType::Bool, "true", "ablation: false guides by the compressed illumination itself"},
               {"geometry", ParamType::Bool, "true", "ablation: false drops the normal and depth guides"},
               {"edge_subpixels", ParamType::Bool, "true", "ablation: false filters edge pixels like any other"},
