@@ -494,11 +494,12 @@ TEST(Proposed, AblationSwitchesChangeTheOutput) {
   }
 }
 
-// A flat plane (one normal, one depth) with a shadow edge at x = w / 2: direct light 1.0 on the
-// left, 0.1 on the right, indirect 0.2, albedo 0.5; `noise` relative Gaussian noise on direct and
-// indirect. Only the illumination shows the edge: the geometry guides cannot. `clean` gets the
-// noise-free colour.
-AovFrame shadow_frame(int w, int h, float noise, Image* clean, std::uint64_t seed) {
+// A flat plane (one normal, one depth), albedo 0.5 unless given, lit by `light(x)` = {direct,
+// indirect} with `noise` relative Gaussian noise on both; its colour, and the variance of the
+// pixel's mean as the tracer writes it (the detail guard reads it). `clean` gets the noise-free
+// colour.
+template <class Light>
+AovFrame lit_plane(int w, int h, float noise, Image* clean, std::uint64_t seed, Light light, float albedo = 0.5f) {
   AovFrame f = test::constant_frame(w, h);
   std::mt19937_64 rng(seed);
   std::normal_distribution<float> g(0.0f, 1.0f);
@@ -506,7 +507,7 @@ AovFrame shadow_frame(int w, int h, float noise, Image* clean, std::uint64_t see
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) {
-        const float dl = x < w / 2 ? 1.0f : 0.1f, il = 0.2f, albedo = 0.5f;
+        const auto [dl, il] = light(x);
         const float dn = std::max(0.0f, dl * (1 + noise * g(rng))), in = std::max(0.0f, il * (1 + noise * g(rng)));
         f.layer(layer::kDirect).at(x, y, c) = dn;
         f.layer(layer::kIndirect).at(x, y, c) = in;
@@ -514,16 +515,18 @@ AovFrame shadow_frame(int w, int h, float noise, Image* clean, std::uint64_t see
         f.layer(layer::kReflection).at(x, y, c) = 0;
         f.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = 0;
         f.layer(layer::kColor).at(x, y, c) = (dn + in) * albedo;
+        f.layer(layer::kVariance).at(x, y, c) = albedo * albedo * noise * noise * (dl * dl + il * il);
         clean->at(x, y, c) = (dl + il) * albedo;
       }
   return f;
 }
 
-// Two surfaces meeting at x = w / 2 (normals (0, 0, 1) and (1, 0, 0), depths 2 and 4) whose
-// direct light differs (0.5 and 0.2; indirect 0.2 on both, albedo 0.5), in a 1-spp frame with
-// 60% relative noise: there the NLM group's sigma, set for 1 spp, is wide enough that the NLM
-// vectors alone mix the two sides near the crease, while the normal and the depth separate them
-// exactly. `clean` gets the noise-free colour.
+// A shadow edge at x = w / 2: direct light 1.0 on the left, 0.1 on the right, indirect 0.2.
+// Only the illumination shows the edge: the geometry guides cannot.
+AovFrame shadow_frame(int w, int h, float noise, Image* clean, std::uint64_t seed) {
+  return lit_plane(w, h, noise, clean, seed, [w](int x) { return std::pair{x < w / 2 ? 1.0f : 0.1f, 0.2f}; });
+}
+
 AovFrame crease_frame(int w, int h, Image* clean, std::uint64_t seed) {
   AovFrame f = test::constant_frame(w, h);
   f.meta.spp = 1;
@@ -604,25 +607,10 @@ TEST(Proposed, EachAblatedPartLowersTheErrorWhereItMatters) {
 // tracer's), so the groove stays darker, and the wall around it is as smooth as without it.
 TEST(Proposed, DetailGuardKeepsAOnePixelGroove) {
   const int w = 96, h = 64, gx = 47;
-  AovFrame f = test::constant_frame(w, h);
-  std::mt19937_64 rng(21);
-  std::normal_distribution<float> g(0.0f, 1.0f);
-  Image clean(w, h, 3);
-  const float noise = 0.15f, albedo = 0.7f;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const float dl = x == gx ? 0.05f : 0.6f, il = x == gx ? 0.03f : 0.2f;
-        const float d = dl * (1 + noise * g(rng)), i = il * (1 + noise * g(rng));
-        f.layer(layer::kDirect).at(x, y, c) = d;
-        f.layer(layer::kIndirect).at(x, y, c) = i;
-        f.layer(layer::kAlbedo).at(x, y, c) = albedo;
-        f.layer(layer::kReflection).at(x, y, c) = 0;
-        f.layer(layer::at_level(1, layer::kTint)).at(x, y, c) = 0;
-        f.layer(layer::kColor).at(x, y, c) = (d + i) * albedo;
-        f.layer(layer::kVariance).at(x, y, c) = albedo * albedo * noise * noise * (dl * dl + il * il);
-        clean.at(x, y, c) = (dl + il) * albedo;
-      }
+  Image clean;
+  const AovFrame f = lit_plane(w, h, 0.15f, &clean, 21, [](int x) {
+    return x == gx ? std::pair{0.05f, 0.03f} : std::pair{0.6f, 0.2f};
+  }, 0.7f);
   auto groove = [&](const Image& im) {  // the groove's mean over its clean value
     double s = 0;
     for (int y = 4; y < h - 4; ++y) s += im.at(gx, y, 1) / clean.at(gx, y, 1);
