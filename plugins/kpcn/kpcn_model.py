@@ -17,10 +17,13 @@ predicts a k x k kernel per pixel and part; the kernel's weights are a softmax, 
 positive and sum to one, and the output is the weighted mean of the *linear* noisy part over
 the window:
 
-  out = T_eps * (K_d * Ld + B(Ld_x)) + (K_s * R + B(R_x)) + E
+  out = T_eps * (K_d * Ld) + K_s * R + E
 
-where Ld and R have had their fireflies cut first (split_fireflies, the harness's own rule) and
-B spreads the cut light (Ld_x, R_x) over a wide box, so no energy is lost.
+where Ld and R have had their fireflies cut first (split_fireflies, the harness's own rule), and
+the cut light is dropped, as `proposed` and the illumination baselines drop it by default. It
+used to be spread back over a 33 x 33 box (energy kept): on McGuire's Sponza at 16 spp (issue 25's
+generalisation run) the sun's fireflies came out as bright squares, mse 9349 against the input's
+941; dropped, 710 (the quick run's cornell-box 28.1 -> 27.6 at seed 1, sponza unchanged).
 
 A constant input stays constant whatever the weights (a normalised kernel of a constant), no
 output is negative, and the output is a convex combination of the input's own values: a learned
@@ -48,7 +51,6 @@ ALBEDO_EPS = 0.00316  # KPCN's demodulation epsilon
 FEATURES = 14
 DILATIONS = (1, 1, 2, 4, 8, 1, 1)
 FIREFLY_RATIO = 3.0   # as the harness's baselines' firefly_ratio default
-EXCESS_RADIUS = 16    # the cut light spread over 33 x 33 pixels
 LAYERS = ["color", "albedo", "reflection", "emission", "normal", "depth", "variance"]
 
 
@@ -86,7 +88,7 @@ class Kpcn(nn.Module):
         kd, ks = self.kernels(batch["features"])
         d = apply_kernel(batch["diffuse_src"], kd, self.kernel)
         s = apply_kernel(batch["specular_src"], ks, self.kernel)
-        return batch["albedo_eps"] * (d + batch["diffuse_excess"]) + s + batch["specular_excess"] + batch["emission"]
+        return batch["albedo_eps"] * d + s + batch["emission"]
 
 
 def apply_kernel(src, weights, kernel):
@@ -106,8 +108,7 @@ def split_fireflies(layer, ratio=FIREFLY_RATIO):
     scaled down to that bound. Returns (kept, excess = layer - kept). Why here too: a kernel's
     weights are a softmax, never exactly 0, so a firefly a hundred thousand times brighter than
     its surroundings (the sun reached by a diffuse bounce) would print the kernel's shape around
-    itself whatever the network learns. The excess is not dropped: `prepare` spreads it with a
-    wide box (its expected light belongs to the surface around it), as `proposed` does."""
+    itself whatever the network learns. `prepare` drops the excess (module docstring)."""
     h, w = layer.shape[:2]
     lum = layer @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
     if h * w <= 1:
@@ -124,20 +125,6 @@ def split_fireflies(layer, ratio=FIREFLY_RATIO):
     return kept, layer - kept
 
 
-def box_blur(img, radius):
-    """Mean over the (2r+1)^2 window clipped to the frame (summed-area table, in double)."""
-    h, w = img.shape[:2]
-    s = np.zeros((h + 1, w + 1, img.shape[2]))
-    s[1:, 1:] = np.cumsum(np.cumsum(img, axis=0, dtype=np.float64), axis=1)
-    y0 = np.clip(np.arange(h) - radius, 0, h)
-    y1 = np.clip(np.arange(h) + radius + 1, 0, h)
-    x0 = np.clip(np.arange(w) - radius, 0, w)
-    x1 = np.clip(np.arange(w) + radius + 1, 0, w)
-    total = s[y1][:, x1] - s[y0][:, x1] - s[y1][:, x0] + s[y0][:, x0]
-    count = ((y1 - y0)[:, None] * (x1 - x0)[None, :])[:, :, None]
-    return (total / count).astype(np.float32)
-
-
 def _hwc(frame, name):
     a = np.asarray(frame[name], dtype=np.float32)
     return a if a.ndim == 3 else a[:, :, None]
@@ -150,8 +137,8 @@ def prepare(frame):
     refl, emis = _hwc(frame, "reflection"), _hwc(frame, "emission")
     normal, depth, var = _hwc(frame, "normal"), _hwc(frame, "depth"), _hwc(frame, "variance")
     t_eps = albedo + ALBEDO_EPS
-    diffuse, diffuse_excess = split_fireflies(np.maximum(color - refl - emis, 0.0) / t_eps)
-    specular, specular_excess = split_fireflies(np.maximum(refl, 0.0))
+    diffuse, _ = split_fireflies(np.maximum(color - refl - emis, 0.0) / t_eps)
+    specular, _ = split_fireflies(np.maximum(refl, 0.0))
     # The noise as a relative quantity, one channel: the variance of the pixel's mean over its
     # (mean colour^2 + 1e-2), log-transformed (scale-free features generalise across exposures).
     rel_var = np.log1p(var.mean(axis=2, keepdims=True) / (color.mean(axis=2, keepdims=True) ** 2 + 1e-2))
@@ -169,8 +156,6 @@ def prepare(frame):
         "specular_src": chw(specular),
         "albedo_eps": chw(t_eps),
         "emission": chw(emis),
-        "diffuse_excess": chw(box_blur(diffuse_excess, EXCESS_RADIUS)),
-        "specular_excess": chw(box_blur(specular_excess, EXCESS_RADIUS)),
         "features": chw(np.concatenate([np.log1p(diffuse), np.log1p(specular)] + common, axis=2)),
     }
 
@@ -214,7 +199,7 @@ def denoise_planes(model, planes, tile=384):
             src = window(planes, ty, y1, tx, x1, m)
             d = apply_kernel(src["diffuse_src"], kd, model.kernel)
             s = apply_kernel(src["specular_src"], ks, model.kernel)
-            res = src["albedo_eps"] * (d + src["diffuse_excess"]) + s + src["specular_excess"] + src["emission"]
+            res = src["albedo_eps"] * d + s + src["emission"]
             out[:, ty:y1, tx:x1] = res[0].numpy()
     return np.ascontiguousarray(np.transpose(out, (1, 2, 0)))
 
