@@ -420,10 +420,10 @@ MethodInfo nfor_method() {
       .params =
           {
               {"radius", ParamType::Int, "9", "regression window radius (the paper's 19x19 window: 9)", 1.0, 20.0},
-              {"patch_radius", ParamType::Int, "3", "NL-means patch radius of the regression weights", 0.0, 5.0},
-              {"k_small", ParamType::Float, "0.5", "NL-means bandwidth of the first candidate filter", 1e-3, 100.0},
-              {"k_large", ParamType::Float, "1", "NL-means bandwidth of the second candidate filter", 1e-3, 100.0},
-              {"second_pass", ParamType::Bool, "true", "regress the selected result once more (paper 5.4)"},
+              {"patch_radius", ParamType::Int, "1", "NL-means patch radius of the regression weights", 0.0, 5.0},
+              {"k_small", ParamType::Float, "0.75", "NL-means bandwidth of the first candidate filter", 1e-3, 100.0},
+              {"k_large", ParamType::Float, "2", "NL-means bandwidth of the second candidate filter", 1e-3, 100.0},
+              {"second_pass", ParamType::Bool, "false", "regress the selected result once more (paper 5.4)"},
               firefly_ratio_param(),
           },
       .create = [](const Params& p) { return std::make_unique<Nfor>(p); },

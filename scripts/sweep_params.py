@@ -131,12 +131,12 @@ GRIDS = {
     # NFOR (issue 27): the paper's values to start from. Not run yet: one evaluation at 1024x768
     # takes about a minute (docs/method-defaults.md, "nfor"), so the descent takes an hour or more.
     "nfor": {
-        "start": {"radius": "9", "patch_radius": "3", "k_small": "0.5", "k_large": "1", "second_pass": "true"},
+        "start": {"radius": "9", "patch_radius": "1", "k_small": "0.75", "k_large": "2", "second_pass": "false"},
         "grid": {
             "radius": ["5", "7", "9", "12"],
             "patch_radius": ["1", "2", "3"],
-            "k_small": ["0.25", "0.5", "0.75"],
-            "k_large": ["1", "1.5", "2"],
+            "k_small": ["0.25", "0.5", "0.75", "1"],
+            "k_large": ["1", "1.5", "2", "3"],
             "second_pass": ["true", "false"],
         },
     },
