@@ -378,18 +378,19 @@ std::map<std::string, double> ranking_scores(const ResultsDocument& res, const s
   const int spp = res.table_spp();
   const auto scenes = res.scenes();
   if (scenes.empty()) return out;
+  auto seed_mean = [&](const std::string& s, const std::string& m) {
+    const auto v = values_of(seed_values(res, s, m, spp, metric));
+    return v.empty() ? 0.0 : stats::mean(v);
+  };
+  std::vector<double> input;  // per scene, once for every method
+  for (const auto& s : scenes) input.push_back(seed_mean(s, "input"));
   for (const auto& m : res.methods(Role::Method)) {
     double log_sum = 0;
     bool complete = true;
-    for (const auto& s : scenes) {
-      const auto mv = values_of(seed_values(res, s, m, spp, metric));
-      const auto iv = values_of(seed_values(res, s, "input", spp, metric));
-      const double a = mv.empty() ? 0.0 : stats::mean(mv), b = iv.empty() ? 0.0 : stats::mean(iv);
-      if (!(a > 0) || !(b > 0)) {
-        complete = false;
-        break;
-      }
-      log_sum += std::log(a / b);
+    for (std::size_t i = 0; i < scenes.size() && complete; ++i) {
+      const double a = seed_mean(scenes[i], m), b = input[i];
+      complete = a > 0 && b > 0;
+      if (complete) log_sum += std::log(a / b);
     }
     if (complete) out[m] = std::exp(log_sum / double(scenes.size()));
   }

@@ -296,7 +296,7 @@ WorseBlocks worse_blocks(const Image& image, const Image& baseline, const Image&
   const int w = image.width(), h = image.height();
   WorseBlocks out;
   out.block = block;
-  int worse = 0, twice = 0;
+  int twice = 0;
   for (int y0 = 0; y0 < h; y0 += block)
     for (int x0 = 0; x0 < w; x0 += block) {
       double ea = 0, eb = 0;
@@ -308,16 +308,15 @@ WorseBlocks worse_blocks(const Image& image, const Image& baseline, const Image&
             eb += db * db;
           }
       ++out.count;
-      worse += ea > eb;  // the same pixel count on both sides: sums compare as means
-      twice += ea > 2 * eb;
+      twice += ea > 2 * eb;  // the same pixel count on both sides: sums compare as means
       if (ea > eb)
         out.tiles.push_back({x0, y0, std::min(block, w - x0), std::min(block, h - y0),
                              eb > 0 ? std::min(ea / eb, WorseBlocks::kMaxRatio) : WorseBlocks::kMaxRatio});
     }
+  out.worse = double(out.tiles.size()) / out.count;  // every worse tile, before the list is cut
   // Worst first; ties in reading order (stable), so the list is the same on every machine.
   std::stable_sort(out.tiles.begin(), out.tiles.end(), [](const auto& p, const auto& q) { return p.ratio > q.ratio; });
   if (out.tiles.size() > WorseBlocks::kMaxTiles) out.tiles.resize(WorseBlocks::kMaxTiles);
-  out.worse = double(worse) / out.count;
   out.worse_twice = double(twice) / out.count;
   return out;
 }
