@@ -4,6 +4,7 @@
 
 #include "tracer/reference.h"
 #include "tracer/render.h"
+#include "tracer/scene.h"
 #include "tracer/scene_loader.h"
 
 namespace dnb {
@@ -20,6 +21,8 @@ CacheKey render_key(const char* kind, const Scene& scene, int width, int height,
       .add("spp", spp)
       .add("seed", seed)
       .add("max_depth", max_depth);
+  // Only the images of scenes with a sun changed (kSunVersion): the others stay cached.
+  if (scene.sun.enabled) key.add("sun", kSunVersion);
   return key;
 }
 

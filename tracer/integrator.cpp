@@ -144,9 +144,10 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
     SurfaceHit hit;
     ++ctx.rays;
     if (!scene_.intersect(ray, hit)) {
-      Vec3 Le = scene_.escaped_radiance(ray.dir);
+      const bool in_sun = scene_.in_sun(ray.dir);  // once, for the radiance and the density
+      Vec3 Le = scene_.escaped_radiance(ray.dir, in_sun);
       if (!is_black(Le)) {
-        float w = prev_pdf > 0 ? power_heuristic(prev_pdf, scene_.escaped_light_pdf(ray.dir, prev_n)) : 1.0f;
+        float w = prev_pdf > 0 ? power_heuristic(prev_pdf, scene_.escaped_light_pdf(ray.dir, prev_n, in_sun)) : 1.0f;
         *sink += beta * Le * w;
       }
       break;

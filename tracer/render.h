@@ -25,6 +25,11 @@ inline constexpr const char* kTracerVersion = "dnb-tracer-4";
 // same (part of the frame cache key, not the references'). "halves-1": the half buffers
 // half0.* and half1.* (core/aov_frame.h).
 inline constexpr const char* kFrameLayers = "halves-1";
+// Bumped whenever only the images of scenes with a sun change (part of their cache keys, frames
+// and references, beside kTracerVersion; scenes without a sun keep theirs). "sun-rim-1": a sun
+// sample that rounds to just outside the disc is a sky direction (Scene::in_sun), no longer the
+// sun's radiance at the sky's density.
+inline constexpr const char* kSunVersion = "sun-rim-1";
 
 struct RenderSettings {
   int width = 1024;

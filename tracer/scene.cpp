@@ -277,9 +277,11 @@ void Scene::occluded(const rt::Ray* rays, int n, std::uint8_t* hidden) const {
   }
 }
 
-Vec3 Scene::escaped_radiance(Vec3 dir) const {
+bool Scene::in_sun(Vec3 dir) const { return sun.enabled && dot(dir, sun.direction) >= sun.cos_max; }
+
+Vec3 Scene::escaped_radiance(Vec3 dir, bool in_sun) const {
   Vec3 L = sky.radiance(dir);
-  if (sun.enabled && dot(dir, sun.direction) >= sun.cos_max) L += sun.radiance;
+  if (in_sun) L += sun.radiance;
   return L;
 }
 
@@ -338,14 +340,18 @@ bool Scene::sample_light(Vec3 p, Vec3 n, float u0, float u1, float u2, LightSamp
     Frame f(sun.direction);
     out.wi = f.to_world(sample_cone(u1, u2, sun.cos_max));
     out.dist = 1e30f;
-    out.radiance = sun.radiance + sky.radiance(out.wi);
-    out.pdf = escaped_light_pdf(out.wi, n);
+    // The disc's radiance only where the direction is in the disc by the test every other use
+    // makes: a sample that rounded to just outside it is a sky direction, with the sky's density.
+    const bool inside = in_sun(out.wi);
+    out.radiance = escaped_radiance(out.wi, inside);
+    out.pdf = escaped_light_pdf(out.wi, n, inside);
     return true;
   }
   out.wi = Frame(n).to_world(sample_cosine_hemisphere(u1, u2));
   out.dist = 1e30f;
-  out.radiance = escaped_radiance(out.wi);
-  out.pdf = escaped_light_pdf(out.wi, n);
+  const bool inside = in_sun(out.wi);
+  out.radiance = escaped_radiance(out.wi, inside);
+  out.pdf = escaped_light_pdf(out.wi, n, inside);
   return out.pdf > 0;
 }
 
@@ -380,11 +386,11 @@ float Scene::light_pdf(Vec3 from, const SurfaceHit& hit) const {
   return sel * dist2 / (cos_l * area);
 }
 
-float Scene::escaped_light_pdf(Vec3 dir, Vec3 n) const {
+float Scene::escaped_light_pdf(Vec3 dir, Vec3 n, bool in_sun) const {
   // The sun and the sky are both sampled, and both contribute along a direction inside the
   // sun's disc: the density is the sum over the two strategies' choices.
   float pdf = 0;
-  if (sun_select_ > 0 && dot(dir, sun.direction) >= sun.cos_max) pdf += sun_select_ / sun.solid_angle();
+  if (sun_select_ > 0 && in_sun) pdf += sun_select_ / sun.solid_angle();
   if (sky_select_ > 0) pdf += sky_select_ * std::max(0.0f, dot(dir, n)) * kInvPi;
   return pdf;
 }

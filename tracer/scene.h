@@ -194,8 +194,14 @@ class Scene {
   // blocked, else 0. Shadow rays from one point towards the lights are coherent, and a packet
   // traverses them together.
   void occluded(const rt::Ray* rays, int n, std::uint8_t* hidden) const;
+  // Whether `dir` is inside the sun's disc. Every use of the disc asks this once per direction
+  // and passes the answer on, so that a direction's radiance and its density never disagree at
+  // the rim: a cone sample turned into world space may round to just outside the disc, and two
+  // inlined copies of the test may round differently (-O1 against -O3 contraction).
+  bool in_sun(rt::Vec3 dir) const;
   // Radiance arriving along a ray that escapes the scene (sky plus the sun's disc).
-  rt::Vec3 escaped_radiance(rt::Vec3 dir) const;
+  rt::Vec3 escaped_radiance(rt::Vec3 dir) const { return escaped_radiance(dir, in_sun(dir)); }
+  rt::Vec3 escaped_radiance(rt::Vec3 dir, bool in_sun) const;
 
   // Chooses an emitter (emissive triangle, sun or sky; see Scene::commit for the probabilities)
   // and a point or direction on it, for a shading point `p` with shading normal `n` (the sky is
@@ -205,7 +211,8 @@ class Scene {
   // The solid-angle density with which sample_light() from `from` would have produced the
   // emitter point `hit`, and the same for an escaped direction from a point of normal n.
   float light_pdf(rt::Vec3 from, const rt::SurfaceHit& hit) const;
-  float escaped_light_pdf(rt::Vec3 dir, rt::Vec3 n) const;
+  float escaped_light_pdf(rt::Vec3 dir, rt::Vec3 n) const { return escaped_light_pdf(dir, n, in_sun(dir)); }
+  float escaped_light_pdf(rt::Vec3 dir, rt::Vec3 n, bool in_sun) const;
   bool has_lights() const { return total_light_weight_ > 0; }
 
   rt::Vec3 bounds_min() const { return bmin_; }

@@ -54,5 +54,22 @@ TEST(CacheKeys, ReferenceKeyPartsAndOrderArePinned) {
                 "\nwidth=64\nheight=48\nspp=256\nseed=9\nmax_depth=8\nblock_spp=32\ntracer=" + kTracerVersion + "\n");
 }
 
+// A scene with a sun carries kSunVersion after max_depth in both keys (its images changed alone,
+// tracer/render.h); the keys above, without a sun, do not.
+TEST(CacheKeys, OnlyScenesWithASunCarryTheSunVersion) {
+  test::TempDir dir;
+  auto scene = load_scene(test::write_text(
+      dir.file("sun.toml"),
+      "[camera]\neye = [0, 1, 3]\nlook_at = [0, 0, 0]\nvfov = 40\n[sun]\ndirection = [0, 1, 1]\n"
+      "irradiance = [3, 3, 3]\n[materials.m]\nalbedo = [0.5, 0.5, 0.5]\n[[objects]]\ntype = \"quad\"\n"
+      "material = \"m\"\nsize = [10, 10]\n"));
+  const std::string sun = std::string("max_depth=8\nsun=") + kSunVersion + "\n";
+  const RenderSettings f{.width = 8, .height = 6, .spp = 4, .seed = 1, .threads = 1, .max_depth = 8,
+                         .reflection_levels = 1, .edge_subpixels = false, .on_progress = {}};
+  EXPECT_NE(frame_cache_key(*scene, f).canonical().find(sun + "reflection_levels=1"), std::string::npos);
+  const ReferenceSettings r{.width = 8, .height = 6, .spp = 16, .seed = 9, .max_depth = 8, .block_spp = 16};
+  EXPECT_NE(reference_cache_key(*scene, r).canonical().find(sun + "block_spp=16"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace dnb

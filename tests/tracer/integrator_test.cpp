@@ -311,6 +311,41 @@ TEST(SunAndSky, PlaneUnderOpenSkyMatchesClosedForm) {
   EXPECT_EQ(imean, 0.0);
 }
 
+// A light sample towards the sun and a BSDF sample along the same direction must agree on
+// whether the direction is in the sun's disc: the sample's radiance and density are then the
+// escaped radiance and density of its direction. Near the disc's rim, a cone sample turned into
+// world space can round to just outside it; the sample used to carry the sun's radiance with a
+// density that left the sun out (the sky's alone, ~1e5 times smaller), a firefly of ~1e5 with
+// weight 1. Under -O1 (the sanitizer build) this made SunAndSky above read 31 against 1.48.
+TEST(SunAndSky, ALightSampleAgreesWithItsDirectionAtTheDiscsRim) {
+  test::TempDir dir;
+  const std::string text =
+      "[camera]\neye = [0.0, 1.0, 1.0]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 10.0\n"
+      "[sky]\ntype = \"constant\"\ncolor = [0.8, 0.8, 0.8]\n"
+      "[sun]\ndirection = [0.3, 1.0, 0.7]\nirradiance = [3.0, 3.0, 3.0]\n"
+      "[materials.plane]\nalbedo = [0.5, 0.5, 0.5]\n"
+      "[[objects]]\ntype = \"quad\"\nmaterial = \"plane\"\nsize = [1000.0, 1000.0]\n";
+  auto scene = load_scene(test::write_text(dir.file("sun.toml"), text));
+  const Vec3 p(0.0f), n(0, 1, 0);
+  int sun_samples = 0, outside = 0, mismatches = 0;
+  // u1 near 1 puts the sample on the rim; every u0 of the grid picks the sun or the sky.
+  for (int i = 0; i < 64; ++i)
+    for (int j = 0; j < 512; ++j)
+      for (int k = 0; k < 8; ++k) {
+        const float u0 = (i + 0.5f) / 64, u1 = 1.0f - std::ldexp(float(j + 1), -20), u2 = (k + 0.5f) / 8;
+        rt::LightSample ls;
+        if (!scene->sample_light(p, n, u0, u1, u2, ls)) continue;
+        const Vec3 L = scene->escaped_radiance(ls.wi);
+        const float pdf = scene->escaped_light_pdf(ls.wi, n);
+        const bool in_sun = ls.radiance.x > 10.0f;  // the sun's radiance is ~1e5, the sky's 0.8
+        sun_samples += in_sun || ls.pdf > 100.0f;
+        outside += scene->sun.enabled && rt::dot(ls.wi, scene->sun.direction) < scene->sun.cos_max;
+        mismatches += L.x != ls.radiance.x || pdf != ls.pdf;
+      }
+  ASSERT_GT(sun_samples, 1000) << "the grid must reach the sun";
+  EXPECT_EQ(mismatches, 0) << outside << " samples rounded to outside the disc";
+}
+
 TEST(Decomposition, HoldsPerSamplePath) {
   auto scene = load_scene("cornell-box");
   rt::PathTracer::Options o;
