@@ -1,6 +1,8 @@
 // The scratch-memory pool (see buffer_pool.h).
 #include "denoisers/buffer_pool.h"
 
+#include <limits>
+
 namespace dnb {
 
 BufferPool& BufferPool::get() {
@@ -37,7 +39,15 @@ std::vector<float> pooled(std::size_t n, float fill) {
 
 std::vector<float> pooled_uninitialised(std::size_t n) {
   std::vector<float> v = BufferPool::get().take(n);
+#ifdef DNB_POISON_POOL
+  // Sanitizer builds (CMake's DNB_SANITIZE): every "overwritten in full" buffer starts as NaN, so
+  // that a read of a value its user did not write shows as NaN in the output. AddressSanitizer
+  // cannot see such a read: the memory is allocated, only stale (a fresh buffer reads as zeros,
+  // a recycled one as the last user's values, so the output would depend on what ran before).
+  v.assign(n, std::numeric_limits<float>::quiet_NaN());
+#else
   v.resize(n);
+#endif
   return v;
 }
 
