@@ -16,19 +16,24 @@ std::string format_duration(double s) {
 
 Progress::Progress(std::string what, std::int64_t total, std::string unit, double interval_seconds)
     : what_(std::move(what)), unit_(std::move(unit)), total_(total), interval_(interval_seconds),
-      start_(std::chrono::steady_clock::now()), last_print_(start_) {}
+      start_(std::chrono::steady_clock::now()), last_print_(start_.time_since_epoch().count()) {}
 
 double Progress::elapsed_seconds() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
 void Progress::add(std::int64_t n) {
+  using clock = std::chrono::steady_clock;
   std::int64_t done = done_.fetch_add(n) + n;
-  auto now = std::chrono::steady_clock::now();
-  if (std::chrono::duration<double>(now - last_print_).count() < interval_) return;
+  const auto now = clock::now();
+  const auto since_last = [&] {
+    return std::chrono::duration<double>(now - clock::time_point(clock::duration(last_print_.load(std::memory_order_relaxed))))
+        .count();
+  };
+  if (since_last() < interval_) return;
   std::unique_lock lock(mutex_, std::try_to_lock);
-  if (!lock.owns_lock() || std::chrono::duration<double>(now - last_print_).count() < interval_) return;
-  last_print_ = now;
+  if (!lock.owns_lock() || since_last() < interval_) return;
+  last_print_.store(now.time_since_epoch().count(), std::memory_order_relaxed);
   print(done, false);
 }
 

@@ -26,7 +26,10 @@ class Progress {
   double interval_;
   std::atomic<std::int64_t> done_{0};
   std::chrono::steady_clock::time_point start_;
-  std::chrono::steady_clock::time_point last_print_;
+  // When the last line was printed, in steady_clock ticks: read by every add() without the lock
+  // (the quick test whether a line is due), written under it; atomic, since a plain time_point
+  // read there raced with the write (ThreadSanitizer, ReferenceCli's checkpoint test).
+  std::atomic<std::chrono::steady_clock::rep> last_print_;
   std::mutex mutex_;
   bool finished_ = false;
 };
