@@ -196,6 +196,25 @@ TEST(ExrIo, FuzzHeaderAttributeLargerThanTheFileIsRefusedByName) {
 // out of step and finds a "string" of 1.7 GB, which it allocated. The C core refuses the header.
 // A second input of that kind that OpenEXR's C core accepted (it reads the channel list within
 // its declared size; the C++ reader reads it up to its terminator): refused by the size walk.
+// Found by fuzz/frame_fuzz.cpp: a 1.8 KB frame whose dataWindow attribute declares 17 bytes for
+// a box2i (16). OpenEXR's C core reports it and reads on (exr_start_read succeeds), so the check
+// passed it; the C++ reader then read the rest out of step and took 7 s and 2 GB before
+// "unexpected end of file". Any complaint of the core now refuses the file, naming it.
+TEST(ExrIo, FuzzAttributeSizeTheCoreReadsPastIsRefusedFromTheHeader) {
+  const std::string path = std::string(DNB_TEST_SOURCE_DIR) + "/tests/core/data/fuzz-frame-attribute-size-read-past.exr";
+  ASSERT_TRUE(fs::exists(path)) << path;
+  for (auto read : {+[](const std::string& p) { (void)read_frame(p); }, +[](const std::string& p) { (void)read_rgb(p); }}) {
+    try {
+      read(path);
+      FAIL() << "an attribute of the wrong size was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("not a readable OpenEXR header: Attribute 'dataWindow': Invalid size 17"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(ExrIo, FuzzHeaderReadOutOfStepIsRefused) {
   for (const char* name : {"fuzz-frame-out-of-step-header.exr", "fuzz-frame-channel-list-out-of-step.exr"}) {
   const std::string path = std::string(DNB_TEST_SOURCE_DIR) + "/tests/core/data/" + name;
