@@ -267,7 +267,10 @@ Mesh obj_triangles(const tinyobj::ObjReader& reader, const fs::path& path, const
 fs::path find_file_ignoring_case(const fs::path& dir, std::string name) {
   std::replace(name.begin(), name.end(), '\\', '/');
   fs::path exact = dir / name;
-  if (fs::exists(exact)) return exact;
+  // The error_code forms throughout: a name the system refuses (too long) is a file not found,
+  // not a std::filesystem_error escaping the loader (found by fuzz/scene_fuzz.cpp).
+  std::error_code ec;
+  if (fs::exists(exact, ec)) return exact;
   fs::path folder = exact.parent_path();
   std::string want = exact.filename().string();
   auto lower = [](std::string s) {
@@ -275,7 +278,6 @@ fs::path find_file_ignoring_case(const fs::path& dir, std::string name) {
     return s;
   };
   want = lower(want);
-  std::error_code ec;
   if (fs::is_directory(folder, ec))
     for (const auto& e : fs::directory_iterator(folder, ec))
       if (lower(e.path().filename().string()) == want) return e.path();

@@ -359,12 +359,13 @@ std::vector<std::string> builtin_scene_names() {
 std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const SceneLoadOptions& options) {
   fs::path path;
   std::string name;
-  if (fs::is_regular_file(name_or_path)) {
+  std::error_code ec;  // a name the system refuses (too long) is no such scene, not an exception
+  if (fs::is_regular_file(name_or_path, ec)) {
     path = name_or_path;
     name = path.stem().string();
   } else {
     fs::path p = builtin_dir() / (name_or_path + ".toml");
-    if (name_or_path.find('/') != std::string::npos || name_or_path.ends_with(".toml") || !fs::is_regular_file(p))
+    if (name_or_path.find('/') != std::string::npos || name_or_path.ends_with(".toml") || !fs::is_regular_file(p, ec))
       throw InputError(fmt::format("scene '{}': no such scene file or built-in scene (built-in: {})", name_or_path,
                                    fmt::join(builtin_scene_names(), ", ")));
     path = p;

@@ -190,5 +190,20 @@ TEST(SceneValues, NonFiniteObjVerticesNameTheLine) {
   EXPECT_TRUE(names(msg, "1e39")) << msg;
 }
 
+// Found by fuzz/scene_fuzz.cpp (CI's one-minute run): a mesh or material file name longer than
+// the system allows made std::filesystem throw its own error out of the loader ("File name too
+// long"). It is a file not found: an InputError naming the scene.
+TEST(SceneValues, FuzzAFileNameTooLongForTheSystemIsAnInputError) {
+  test::TempDir dir;
+  const std::string long_name(5000, 'm');
+  std::string scene = obj_scene();
+  scene.replace(scene.find("t.obj"), 5, long_name + ".obj");
+  const std::string msg = error_of([&] { load_scene(test::write_text(dir.file("s.toml"), scene)); });
+  EXPECT_TRUE(names(msg, dir.file("s.toml"))) << msg;
+  test::write_text(dir.file("t.obj"), "mtllib " + long_name + ".mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_NO_THROW(load_scene(test::write_text(dir.file("s2.toml"), obj_scene())));  // a missing MTL is no error
+  EXPECT_FALSE(error_of([&] { load_scene(long_name); }).empty());
+}
+
 }  // namespace
 }  // namespace dnb
