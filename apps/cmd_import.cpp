@@ -6,6 +6,7 @@
 
 #include "apps/args.h"
 #include "apps/commands.h"
+#include "core/atomic_file.h"
 #include "core/exr_io.h"
 #include "interop/import.h"
 #include "methods/denoise.h"
@@ -33,6 +34,9 @@ void add_import(CLI::App& app, Action& action) {
   cmd->callback([&action, o] {
     action = [o] {
       require_exr_output(o->output);
+      // The frame and its edge file both replace what is there: neither may be the input.
+      require_output_is_not_input(o->output, {{"input", o->input}});
+      require_output_is_not_input(edges_path(o->output), {{"input", o->input}});
       const interop::ImportMapping mapping = interop::mapping_for(o->format);
       interop::Imported im = interop::import_frame(o->input, mapping, {.spp = o->spp, .prefix = o->layer});
       write_frame(im.frame, o->output);

@@ -200,6 +200,25 @@ FolderLock::~FolderLock() {
   if (fd_ >= 0) ::close(fd_);  // releases the flock
 }
 
+void create_folder(const std::string& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw WorkError(fmt::format("cannot create folder '{}': {}", dir, ec.message()));
+}
+
+void require_output_is_not_input(const std::string& output,
+                                 const std::vector<std::pair<std::string, std::string>>& inputs) {
+  for (const auto& [what, input] : inputs) {
+    std::error_code ec;
+    // fs::equivalent compares device and inode: the same file also through a symbolic or hard
+    // link. An output that does not exist yet cannot be an existing input (ec is set, false).
+    if (!input.empty() && fs::equivalent(output, input, ec) && !ec)
+      throw InputError(fmt::format("'{}': is the {} '{}' itself: writing it would replace the input; choose another "
+                                   "output file",
+                                   output, what, input));
+  }
+}
+
 std::string read_text_file(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(fmt::format("cannot read '{}': {}", path, std::strerror(errno)));

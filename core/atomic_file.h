@@ -13,6 +13,8 @@
 
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace dnb {
 
@@ -84,6 +86,17 @@ class FolderLock {
  private:
   int fd_ = -1;
 };
+
+// Creates `dir` and its parents where missing (an output folder); WorkError "cannot create
+// folder 'DIR': REASON" (the system's) otherwise, e.g. when a file holds one of the names.
+void create_folder(const std::string& dir);
+
+// Refuses an output that is one of the command's inputs (the same file, also through a link):
+// writing it would replace the input, which is then lost (`denoise am f.exr -o f.exr`). Each
+// input is (what it is, its path), e.g. {"frame", "f.exr"}; inputs that do not exist are
+// skipped. InputError "'OUT': is the FRAME 'IN' itself: ..." otherwise.
+void require_output_is_not_input(const std::string& output,
+                                 const std::vector<std::pair<std::string, std::string>>& inputs);
 
 // Reads a whole file. Throws InputError naming the path when it cannot be read.
 std::string read_text_file(const std::string& path);

@@ -11,7 +11,10 @@
 namespace dnb {
 
 ConfigFile ConfigFile::load(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw InputError(fmt::format("'{}': no such file", path));
+  std::error_code ec;  // a name the system refuses (too long) is no such file, not an exception
+  if (!std::filesystem::exists(path, ec)) throw InputError(fmt::format("'{}': no such file", path));
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw InputError(fmt::format("'{}': not a regular file (a folder, a device or a pipe): expected a TOML file", path));
   ConfigFile f;
   f.path_ = path;
   try {

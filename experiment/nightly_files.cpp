@@ -373,7 +373,7 @@ void append_history(const std::string& path, const Summary& current, const Verdi
       auto it = r.find(header[i]);
       return it == r.end() ? std::string() : it->second;
     });
-  if (!fs::path(path).parent_path().empty()) fs::create_directories(fs::path(path).parent_path());
+  if (!fs::path(path).parent_path().empty()) create_folder(fs::path(path).parent_path().string());
   write_text_atomic(path, out);
 }
 

@@ -62,7 +62,7 @@ Summary accept_run(const std::string& run_dir, const std::string& baseline_dir, 
   } else if (fs::exists(run_dir + "/summary.json")) {
     s.git_revision = Summary::from_json(json_file::read(run_dir + "/summary.json"), run_dir + "/summary.json").git_revision;
   }
-  fs::create_directories(baseline_dir);
+  create_folder(baseline_dir);
   const std::string gates_path = baseline_dir + "/gates.json";
   if (!fs::exists(gates_path)) {
     Gates g;
@@ -107,7 +107,7 @@ Gates derive_tolerances(const std::vector<std::string>& quality_dirs, const std:
   Gates previous;
   if (fs::exists(gates_path)) previous = Gates::from_json(json_file::read(gates_path), gates_path);
   const Gates g = derive_gates(q, quality_dirs, p, perf_files, previous, options);
-  fs::create_directories(baseline_dir);
+  create_folder(baseline_dir);
   json_file::write(gates_path, g.to_json());
   return g;
 }

@@ -123,7 +123,7 @@ void write_viewer(const std::string& dir) {
   auto last = [&] { return p.log_tail().empty() ? std::string("(no message)") : p.log_tail().back(); };
   if (st && st->exited && st->code == 2) throw InputError(last());
   if (!st || !st->ok()) throw WorkError(fmt::format("'{}' {}: {}", script, st ? st->describe() : "timed out", last()));
-  fs::create_directories(dir + "/web/viewer");
+  create_folder(dir + "/web/viewer");
   fs::copy_file(reports_dir() + "/viewer.js", dir + "/web/viewer/viewer.js", fs::copy_options::overwrite_existing);
 }
 

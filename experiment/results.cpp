@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <set>
+#include <utility>
 
+#include "core/bounds.h"
 #include "core/json_file.h"
 
 using nlohmann::json;
@@ -62,6 +66,27 @@ template <class T>
 std::optional<T> optional_value(const json& j, const std::string& key, const std::string& where) {
   if (!j.contains(key)) return std::nullopt;
   return jf::get<T>(j, key, where);
+}
+
+// Counts and durations are never negative in a file a run wrote: a negative one was edited in,
+// and would be a wrong number in a table.
+double non_negative(double v, const std::string& key, const std::string& where) {
+  if (!(v >= 0)) throw InputError(fmt::format("{}: key '{}': expected a value >= 0, got {}", where, key, v));
+  return v;
+}
+
+// A file a record names is inside the results folder: a relative path that never climbs out
+// (the report reads and copies these files; a shared results.json must not make it read others).
+const std::string& inside_folder(const std::string& path, const std::string& key, const std::string& where) {
+  const std::filesystem::path p(path);
+  bool climbs = false;
+  for (const auto& part : p)
+    if (part == "..") climbs = true;
+  if (p.is_absolute() || climbs)
+    throw InputError(fmt::format("{}: key '{}': '{}' is outside the results folder (expected a path relative to it, "
+                                 "without '..')",
+                                 where, key, path));
+  return path;
 }
 
 json numbers_json(const std::map<std::string, double>& m) {
@@ -125,9 +150,12 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   r.scene_hash = jf::get_or<std::string>(j, "scene_hash", "", where);
   r.method = jf::get<std::string>(j, "method", where);
   r.role = role_from_string(jf::get<std::string>(j, "role", where), where);
-  r.spp = jf::get<int>(j, "spp", where);
+  r.spp = int(non_negative(jf::get<int>(j, "spp", where), "spp", where));
   r.width = jf::get<int>(j, "width", where);
   r.height = jf::get<int>(j, "height", where);
+  for (const auto& [key, side] : {std::pair{"width", r.width}, std::pair{"height", r.height}})
+    if (side < bounds::kSide.min || side > bounds::kSide.max)
+      throw InputError(fmt::format("{}: key '{}': {}", where, key, bound_violation(bounds::kSide, std::to_string(side))));
   r.seed = optional_value<std::uint64_t>(j, "seed", where);
   r.cell_key = jf::get_or<std::string>(j, "cell_key", "", where);
 
@@ -137,25 +165,30 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
 
   const json times = jf::get<json>(j, "times", where);
   const std::string tw = where + ": times";
-  r.times.input_render = jf::number(times, "input_render", tw);
-  r.times.filter = jf::number(times, "filter", tw);
-  r.times.total = jf::number(times, "total", tw);
+  r.times.input_render = non_negative(jf::number(times, "input_render", tw), "input_render", tw);
+  r.times.filter = non_negative(jf::number(times, "filter", tw), "filter", tw);
+  r.times.total = non_negative(jf::number(times, "total", tw), "total", tw);
   r.times.reference = optional_number(times, "reference", tw);
   r.times.filter_runs = optional_value<std::vector<double>>(times, "filter_runs", tw);
   r.times.setup = optional_number(times, "setup_seconds", tw);
+  if (r.times.reference) non_negative(*r.times.reference, "reference", tw);
+  if (r.times.setup) non_negative(*r.times.setup, "setup_seconds", tw);
+  if (r.times.filter_runs)
+    for (double t : *r.times.filter_runs) non_negative(t, "filter_runs", tw);
 
   const json ref = jf::get<json>(j, "reference", where);
   const std::string rw = where + ": reference";
-  r.reference.spp = jf::get<int>(ref, "spp", rw);
+  r.reference.spp = int(non_negative(jf::get<int>(ref, "spp", rw), "spp", rw));
   r.reference.seed = optional_value<std::uint64_t>(ref, "seed", rw);
-  r.reference.seconds = jf::number(ref, "seconds", rw);
+  r.reference.seconds = non_negative(jf::number(ref, "seconds", rw), "seconds", rw);
   r.reference.cache_hit = optional_value<bool>(ref, "cache_hit", rw);
-  r.reference.image = jf::get_or<std::string>(ref, "image", "", rw);
+  r.reference.image = inside_folder(jf::get_or<std::string>(ref, "image", "", rw), "image", rw);
   r.reference.unconverged_share = optional_number(ref, "unconverged_share", rw);
   r.reference.unconverged_rse = optional_number(ref, "unconverged_rse", rw);
   r.reference.estimated_error = optional_value<std::map<std::string, double>>(ref, "estimated_error", rw);
 
   r.files = jf::get_or<std::map<std::string, std::string>>(j, "files", {}, where);
+  for (const auto& [k, f] : r.files) inside_folder(f, k, where + ": files");
   r.input_cache_hit = optional_value<bool>(j, "input_cache_hit", where);
   r.base_method = jf::get_or<std::string>(j, "base_method", "", where);
   r.kind = jf::get_or<std::string>(j, "kind", "", where);
@@ -382,8 +415,17 @@ ResultsDocument ResultsDocument::from_json(const json& j, const std::string& whe
   d.written = optional_value<std::int64_t>(j, "written", where);
   const json records = jf::get<json>(j, "records", where);
   if (!records.is_array()) throw InputError(fmt::format("{}: key 'records': expected an array", where));
-  for (std::size_t i = 0; i < records.size(); ++i)
-    d.records.push_back(CellRecord::from_json(records[i], fmt::format("{}: records[{}]", where, i)));
+  std::set<std::pair<std::string, std::optional<std::uint64_t>>> cells;
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    const std::string rw = fmt::format("{}: records[{}]", where, i);
+    d.records.push_back(CellRecord::from_json(records[i], rw));
+    // A run keeps one record per cell and seed (a rerun replaces it): a second one was pasted in
+    // and would count twice in a mean.
+    const CellRecord& r = d.records.back();
+    if (!r.cell_key.empty() && !cells.emplace(r.cell_key, r.seed).second)
+      throw InputError(fmt::format("{}: key 'cell_key': cell {} (seed {}) has a record already", rw, r.cell_key,
+                                   r.seed ? std::to_string(*r.seed) : std::string("none")));
+  }
   const json failures = jf::get_or<json>(j, "failures", json::array(), where);
   if (!failures.is_array()) throw InputError(fmt::format("{}: key 'failures': expected an array", where));
   for (std::size_t i = 0; i < failures.size(); ++i)

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "core/atomic_file.h"
 #include "core/exr_io.h"
 #include "core/hash.h"
 #include "core/progress.h"
@@ -64,7 +65,7 @@ SceneCells scene_cells(const std::string& out_dir, const std::string& name, cons
   s.width = ref.color.width();
   s.height = ref.color.height();
   s.reference = &ref;
-  fs::create_directories(out_dir + "/" + s.image_dir);
+  create_folder(out_dir + "/" + s.image_dir);
   ReferenceInfo& info = s.reference_info;
   info.image = s.image_dir + "/reference.exr";
   const std::string dest = out_dir + "/" + info.image;
@@ -309,7 +310,7 @@ void run_file_scene(const ExperimentConfig& c, const RunOptions& opt, const Scen
 }  // namespace
 
 ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt) {
-  fs::create_directories(opt.out_dir + "/images");
+  create_folder(opt.out_dir + "/images");
   Cache cache(opt.cache_dir.empty() ? Cache::default_dir() : opt.cache_dir);
   ResultsStore store(opt.out_dir, results_header(c));
   const std::int64_t methods = std::int64_t(c.methods.size());

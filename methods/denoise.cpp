@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
+#include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/version.h"
@@ -21,6 +22,7 @@ DenoiseOutcome denoise_file(const DenoiseRequest& q) {
   std::unique_ptr<tbb::global_control> limit;
   if (q.threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, q.threads);
 
+  require_output_is_not_input(q.output, {{"frame", q.frame}, {"frame's edge file", edges_path(q.frame)}});
   AovFrame frame = interop::read_frame_as(q.frame, q.input_format);
   if (const auto missing = frame.missing_channels(method->required_layers()); !missing.empty()) {
     std::vector<std::string> layers;

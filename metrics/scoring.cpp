@@ -162,7 +162,7 @@ ScoreOutcome score(const ScoreRequest& q) {
   // Error-map file names: the image's stem, numbered when two images share one.
   std::map<std::string, int> stem_count;
   for (const auto& p : q.images) ++stem_count[fs::path(p).stem().string()];
-  if (!q.error_maps_dir.empty()) fs::create_directories(q.error_maps_dir);
+  if (!q.error_maps_dir.empty()) create_folder(q.error_maps_dir);
   for (std::size_t k = 0; k < images.size(); ++k) {
     const ScoredFile& im = images[k];
     check_pair(im.rgb, ref.rgb, "'" + im.path + "'", "'" + ref.path + "'");

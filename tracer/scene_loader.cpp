@@ -365,7 +365,13 @@ std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const S
     name = path.stem().string();
   } else {
     fs::path p = builtin_dir() / (name_or_path + ".toml");
-    if (name_or_path.find('/') != std::string::npos || name_or_path.ends_with(".toml") || !fs::is_regular_file(p, ec))
+    const bool builtin =
+        name_or_path.find('/') == std::string::npos && !name_or_path.ends_with(".toml") && fs::is_regular_file(p, ec);
+    if (!builtin && fs::exists(name_or_path, ec))  // a folder, a device or a pipe: not a file to read a scene from
+      throw InputError(fmt::format("scene '{}': exists but is not a regular file (expected a scene TOML file or the name "
+                                   "of a built-in scene)",
+                                   name_or_path));
+    if (!builtin)
       throw InputError(fmt::format("scene '{}': no such scene file or built-in scene (built-in: {})", name_or_path,
                                    fmt::join(builtin_scene_names(), ", ")));
     path = p;

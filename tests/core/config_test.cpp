@@ -65,6 +65,17 @@ TEST(Config, MissingFileIsAnInputError) {
   EXPECT_NE(msg.find("/nonexistent/x.toml"), std::string::npos);
 }
 
+// A folder or a device is not a config: it read as an empty file, and the error then blamed a
+// missing key on line 1 of a folder (hostile-user pass, issue 20).
+TEST(Config, AFolderOrADeviceIsNotAConfigFile) {
+  test::TempDir dir;
+  for (const std::string path : {dir.path().string(), std::string("/dev/null")}) {
+    std::string msg = error_of([&] { ConfigFile::load(path); });
+    EXPECT_NE(msg.find("'" + path + "': not a regular file"), std::string::npos) << msg;
+  }
+  EXPECT_NE(error_of([] { ConfigFile::load(std::string(5000, 'c') + ".toml"); }).find("no such file"), std::string::npos);
+}
+
 // An integer too large for the type read is an error, never a wrapped value.
 TEST(Config, IntegerOutOfIntRangeIsAnErrorNotAWrap) {
   auto cfg = ConfigFile::parse("a = 1\nsegments = 99999999999\n", "s.toml");

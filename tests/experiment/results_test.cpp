@@ -73,6 +73,8 @@ ResultsDocument document() {
   input.method = "input";
   input.role = Role::Input;
   input.spp = 16;
+  input.width = 64;
+  input.height = 48;
   input.metrics = {{"mse", 90.0}};
   input.files = {{"image", "images/c/input_16.exr"}, {"frame", "frames/c/input_16.exr"},
                  {"frame_edges", "frames/c/input_16.edges.exr"}};
@@ -182,6 +184,44 @@ TEST(ResultsDocument, RefusesOlderAndMalformedFilesNamingTheFileAndKey) {
   j = document().to_json();
   j.erase("records");
   EXPECT_THAT(error_of(j), HasSubstr("'records'"));
+}
+
+// Found by a hostile-user pass (issue 20): a results.json edited by hand was reported as if a run
+// had written it. Negative counts and times, a cell counted twice, and file names outside the
+// folder (which the report would read and copy into its page) are refused, naming the key.
+TEST(ResultsDocument, RefusesNumbersNoRunWritesAndFilesOutsideTheFolder) {
+  json j = document().to_json();
+  j["records"][1]["times"]["filter"] = -5;
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]: times"), HasSubstr("'filter'"), HasSubstr(">= 0")));
+  j = document().to_json();
+  j["records"][1]["times"]["filter_runs"] = {0.1, -0.2};
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]: times"), HasSubstr("'filter_runs'")));
+  j = document().to_json();
+  j["records"][0]["spp"] = -3;
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[0]"), HasSubstr("'spp'"), HasSubstr(">= 0")));
+  j = document().to_json();
+  j["records"][1]["reference"]["seconds"] = -1;
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]: reference"), HasSubstr("'seconds'")));
+  j = document().to_json();
+  j["records"][1]["width"] = 0;
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]"), HasSubstr("'width'"), HasSubstr("1..32768")));
+  j = document().to_json();
+  j["records"][1]["files"]["image"] = "../../../etc/passwd";
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]: files"), HasSubstr("'image'"), HasSubstr("outside the results folder")));
+  j = document().to_json();
+  j["records"][0]["files"]["frame"] = "/etc/passwd";
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[0]: files"), HasSubstr("'frame'"), HasSubstr("outside")));
+  j = document().to_json();
+  j["records"][1]["reference"]["image"] = "images/../../ref.exr";
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[1]: reference"), HasSubstr("'image'"), HasSubstr("outside")));
+  j = document().to_json();
+  j["records"].push_back(j["records"][1]);
+  EXPECT_THAT(error_of(j), AllOf(HasSubstr("records[2]"), HasSubstr("'cell_key'"), HasSubstr("k1"), HasSubstr("seed 7")));
+  // The same cell under another seed is another record, not a duplicate.
+  j = document().to_json();
+  j["records"].push_back(j["records"][1]);
+  j["records"][2]["seed"] = 8;
+  EXPECT_EQ(error_of(j), "no error");
 }
 
 TEST(ResultsDocument, LoadNamesAMissingOrBrokenFile) {

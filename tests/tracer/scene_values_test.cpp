@@ -19,6 +19,7 @@
 namespace dnb {
 namespace {
 
+namespace fs = std::filesystem;
 std::string error_of(const std::function<void()>& f) { return test::error_of<InputError>(f); }
 
 bool names(const std::string& msg, const std::string& what) { return msg.find(what) != std::string::npos; }
@@ -203,6 +204,23 @@ TEST(SceneValues, FuzzAFileNameTooLongForTheSystemIsAnInputError) {
   test::write_text(dir.file("t.obj"), "mtllib " + long_name + ".mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n");
   EXPECT_NO_THROW(load_scene(test::write_text(dir.file("s2.toml"), obj_scene())));  // a missing MTL is no error
   EXPECT_FALSE(error_of([&] { load_scene(long_name); }).empty());
+}
+
+// A folder or a device named as the scene was "no such scene file" (it exists): now it says what
+// it is. A folder beside the program named like a built-in scene does not hide the built-in one.
+TEST(SceneValues, AFolderOrADeviceIsNotASceneFile) {
+  test::TempDir dir;
+  fs::create_directory(dir.file("s.toml"));
+  for (const std::string path : {dir.file("s.toml"), std::string("/dev/null")}) {
+    const std::string msg = error_of([&] { load_scene(path); });
+    EXPECT_NE(msg.find("scene '" + path + "': exists but is not a regular file"), std::string::npos) << msg;
+  }
+  const fs::path here = fs::current_path();
+  fs::create_directory(dir.file("cornell-box"));
+  fs::current_path(dir.path());
+  const std::string msg = error_of([&] { load_scene("cornell-box"); });
+  fs::current_path(here);
+  EXPECT_EQ(msg, "(no error)") << msg;
 }
 
 }  // namespace
