@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cerrno>
 #include <cstdint>
 #include <cstdlib>
@@ -21,6 +22,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/atomic_file.h"
+#include "core/bounds.h"
 #include "core/hash.h"
 #include "core/errors.h"
 
@@ -161,9 +163,10 @@ std::string layout_error(exr_const_context_t ctx, std::uint64_t file_size) {
     exr_attr_box2i_t dw{};
     if (exr_get_data_window(ctx, p, &dw) != EXR_ERR_SUCCESS) return fmt::format("part {} has no dataWindow", p);
     const std::int64_t w = std::int64_t(dw.max.x) - dw.min.x + 1, h = std::int64_t(dw.max.y) - dw.min.y + 1;
-    if (w < 1 || h < 1 || w > Image::kMaxSide || h > Image::kMaxSide)
-      return fmt::format("dataWindow ({}, {}) - ({}, {}) of part {} is {}x{} pixels: expected 1..{} on each side", dw.min.x,
-                         dw.min.y, dw.max.x, dw.max.y, p, w, h, Image::kMaxSide);
+    if (w < bounds::kSide.min || h < bounds::kSide.min || w > bounds::kSide.max || h > bounds::kSide.max)
+      return fmt::format("dataWindow ({}, {}) - ({}, {}) of part {} is {}x{} pixels: expected {}..{} on each side ({})",
+                         dw.min.x, dw.min.y, dw.max.x, dw.max.y, p, w, h, bounds::kSide.min, bounds::kSide.max,
+                         bounds::kSide.why);
     std::int32_t chunks = 0;
     if (exr_get_chunk_count(ctx, p, &chunks) == EXR_ERR_SUCCESS && std::uint64_t(chunks) * 8 > file_size)
       return fmt::format("part {}'s offset table alone needs {} bytes ({} chunks) and the file has {}: truncated",
@@ -429,11 +432,72 @@ double physical_memory_bytes() {
   return pages > 0 && page > 0 ? double(pages) * double(page) : 0.0;
 }
 
+double parse_memory_size(const std::string& text, const std::string& what) {
+  std::size_t used = 0;
+  double value = -1;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  double scale = 1;
+  if (used > 0 && used + 1 == text.size()) {
+    const std::string units = "KMGT";
+    const auto k = units.find(char(std::toupper(static_cast<unsigned char>(text.back()))));
+    if (k != std::string::npos) scale = std::ldexp(1.0, 10 * int(k + 1)), ++used;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(value) || value <= 0)
+    throw InputError(fmt::format("{} '{}': expected a size in bytes above 0, or with K, M, G or T (e.g. 4G)", what, text));
+  return value * scale;
+}
+
+namespace {
+
+// A cgroup memory limit file's value in bytes, or 0 when it has none ("max", missing, or v1's
+// "unlimited", a number near 2^63).
+double cgroup_limit(const std::string& file) {
+  std::ifstream f(file);
+  std::string v;
+  if (!(f >> v) || v == "max") return 0;
+  char* end = nullptr;
+  const double bytes = std::strtod(v.c_str(), &end);
+  return (end && *end == 0 && bytes > 0 && bytes < 0x1p62) ? bytes : 0;
+}
+
+double cgroup_memory_limit() {
+  double limit = 0;
+  auto lower = [&](double l) {
+    if (l > 0 && (limit == 0 || l < limit)) limit = l;
+  };
+  lower(cgroup_limit("/sys/fs/cgroup/memory/memory.limit_in_bytes"));  // v1, the mount's own cgroup
+  lower(cgroup_limit("/sys/fs/cgroup/memory.max"));                     // v2, the mount's root
+  std::ifstream self("/proc/self/cgroup");
+  for (std::string line; std::getline(self, line);) {
+    if (!line.starts_with("0::/")) continue;  // v2: limits of the process's cgroup and its parents
+    for (std::filesystem::path p = line.substr(3); p.has_relative_path(); p = p.parent_path())
+      lower(cgroup_limit("/sys/fs/cgroup" + p.string() + "/memory.max"));
+  }
+  return limit;
+}
+
+}  // namespace
+
+double memory_budget_bytes() {
+  double budget = physical_memory_bytes();
+  auto lower = [&](double l) {
+    if (l > 0 && (budget == 0 || l < budget)) budget = l;
+  };
+  lower(cgroup_memory_limit());
+  if (const char* env = std::getenv("DENOISEBENCH_MEMORY_LIMIT"); env && *env)
+    lower(parse_memory_size(env, "$DENOISEBENCH_MEMORY_LIMIT"));
+  return budget;
+}
+
 void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes) {
   const double need = 2.0 * double(width) * double(height) * double(channels) * sizeof(float);
   if (available_bytes > 0 && need > available_bytes)
-    throw InputError(fmt::format("'{}': decoding {}x{} with {} channels needs about {:.1f} GiB, more than this "
-                                 "machine's {:.1f} GiB of memory",
+    throw InputError(fmt::format("'{}': decoding {}x{} with {} channels needs about {:.1f} GiB, more than the "
+                                 "{:.1f} GiB this process may use (memory, cgroup limit, $DENOISEBENCH_MEMORY_LIMIT)",
                                  path, width, height, channels, need / double(1ull << 30),
                                  available_bytes / double(1ull << 30)));
 }
@@ -443,7 +507,7 @@ AovFrame read_frame(const std::string& path, const std::vector<std::string>& req
   const OIIO::ImageSpec spec = in->spec();
   if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat AOV frame", path));
   Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
-  check_decode_memory(path, spec.width, spec.height, spec.nchannels, physical_memory_bytes());
+  check_decode_memory(path, spec.width, spec.height, spec.nchannels, memory_budget_bytes());
   const int w = spec.width, h = spec.height, nch = spec.nchannels;
   std::vector<float> buf(std::size_t(w) * h * nch);
   if (!in->read_image(0, 0, 0, nch, TypeDesc::FLOAT, buf.data()))
@@ -518,7 +582,7 @@ Image read_rgb(const std::string& path) {
   const OIIO::ImageSpec spec = in->spec();
   if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat RGB image", path));
   Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
-  check_decode_memory(path, spec.width, spec.height, 3, physical_memory_bytes());
+  check_decode_memory(path, spec.width, spec.height, 3, memory_budget_bytes());
   int idx[3];
   const char* want[3] = {"R", "G", "B"};
   for (int c = 0; c < 3; ++c) {
@@ -564,7 +628,7 @@ ExrChannels read_exr_channels(const std::string& path, bool with_pixels) {
     const OIIO::ImageSpec spec = in->spec();
     if (spec.deep) throw InputError(fmt::format("'{}': part {} is a deep image, expected flat channels", path, part));
     Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
-    if (with_pixels) check_decode_memory(path, spec.width, spec.height, spec.nchannels, physical_memory_bytes());
+    if (with_pixels) check_decode_memory(path, spec.width, spec.height, spec.nchannels, memory_budget_bytes());
     if (part == 0) {
       out.width = spec.width;
       out.height = spec.height;

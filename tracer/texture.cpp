@@ -8,6 +8,7 @@
 
 #include "core/config.h"
 #include "core/errors.h"
+#include "core/exr_io.h"
 
 namespace dnb::rt {
 namespace {
@@ -163,6 +164,9 @@ std::unique_ptr<Texture> load_image_texture(const std::string& path) {
       throw InputError(fmt::format("texture '{}': {}x{} with {} channels is not accepted (each side 1..{}, at most "
                                    "{} texels: they are held as float RGB, 768 MB at the bound)",
                                    path, s.width, s.height, s.nchannels, bounds::kSide.max, bounds::kMaxTexels));
+    // Within the bound, 64 channels of 8192 x 8192 still decode to 16 GiB: refused when it does
+    // not fit the memory this process may use (the frame readers' rule).
+    check_decode_memory(path, s.width, s.height, s.nchannels, memory_budget_bytes());
   }
   if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT))
     throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
