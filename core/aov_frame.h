@@ -29,6 +29,8 @@ inline constexpr const char* kIndirectVariance = "indirect_variance";
 inline constexpr const char* kEdge = "edge";            // 1 for pixels of G, Y
 inline constexpr const char* kSamples = "samples";      // finite samples accumulated, Y
 inline constexpr const char* kTint = "tint";            // only at reflection levels
+// Reflection levels a frame may hold, refl1 .. refl8 (the tracer's bound, tracer/integrator.h).
+inline constexpr int kMaxLevels = 8;
 // "refl<k>.<base>" for reflection level k >= 1; level 0 returns base itself.
 std::string at_level(int level, const std::string& base);
 // Half buffers (issue 27): the level-0 layers below over half of the samples only: half 0 the

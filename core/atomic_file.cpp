@@ -43,6 +43,7 @@ AtomicOutput::AtomicOutput(std::string destination) : dest_(std::move(destinatio
 }
 
 AtomicOutput::~AtomicOutput() {
+  if (stream_fd_ >= 0) ::close(stream_fd_);
   if (!committed_) {
     std::error_code ec;
     fs::remove(temp_, ec);
@@ -84,6 +85,37 @@ void AtomicOutput::write(const void* data, std::size_t size) {
     p += n;
     left -= std::size_t(n);
   }
+  if (::fsync(fd) != 0) {
+    const std::string why = reason();
+    ::close(fd);
+    throw WorkError(fmt::format("cannot write '{}': fsync failed: {}", dest_, why));
+  }
+  if (::close(fd) != 0) throw WorkError(fmt::format("cannot write '{}': close failed: {}", dest_, reason()));
+  written_ = true;
+}
+
+void AtomicOutput::write_at(const void* data, std::size_t size, std::uint64_t offset) {
+  if (stream_fd_ < 0) {
+    stream_fd_ = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (stream_fd_ < 0) throw WorkError(fmt::format("cannot write '{}': {}", dest_, reason()));
+  }
+  const char* p = static_cast<const char*>(data);
+  std::size_t left = size;
+  while (left > 0) {
+    const ssize_t n = ::pwrite(stream_fd_, p, left, off_t(offset + (size - left)));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      throw WorkError(fmt::format("cannot write '{}' ({} of {} bytes at offset {} written): {}", dest_, size - left, size,
+                                  offset, n < 0 ? reason() : "no progress"));
+    p += n;
+    left -= std::size_t(n);
+  }
+}
+
+void AtomicOutput::finish_writes() {
+  if (stream_fd_ < 0) throw WorkError(fmt::format("cannot write '{}': nothing was written", dest_));
+  const int fd = stream_fd_;
+  stream_fd_ = -1;
   if (::fsync(fd) != 0) {
     const std::string why = reason();
     ::close(fd);

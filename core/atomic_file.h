@@ -11,6 +11,7 @@
 // the bytes to write(); the temporary file is then written by this class alone.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <utility>
@@ -34,6 +35,12 @@ class AtomicOutput {
   // (e.g. "No space left on device") otherwise.
   void write(const void* data, std::size_t size);
   void write(const std::string& bytes) { write(bytes.data(), bytes.size()); }
+  // For writers that stream and seek (OpenImageIO through an IOProxy: OpenEXR writes its chunk
+  // offset table last, at the front): writes `size` bytes at `offset` of the temporary file, every
+  // pwrite(2) checked; finish_writes() then fsyncs and closes it (both checked). WorkError naming
+  // the destination and the system's reason, as write(). Not to be mixed with write().
+  void write_at(const void* data, std::size_t size, std::uint64_t offset);
+  void finish_writes();
   // Renames the temporary file over the destination and fsyncs the folder. When write() was not
   // used (another library wrote temp_path() itself), the file is fsynced first and must not be
   // empty. WorkError with the system's reason on any failure.
@@ -44,6 +51,7 @@ class AtomicOutput {
   std::string temp_;
   bool written_ = false;
   bool committed_ = false;
+  int stream_fd_ = -1;  // write_at's open temporary file, until finish_writes()
 };
 
 // Writes `content` to `path` atomically and durably. Throws WorkError naming the path and the

@@ -228,31 +228,64 @@ std::string layer_of(const std::string& channel) {
   return dot == std::string::npos ? std::string(layer::kColor) : channel.substr(0, dot);
 }
 
-// Encodes through OpenImageIO into memory, so that AtomicOutput writes the file and checks every
-// write: OpenEXR's own file writer can lose data to a full disk and still close successfully
-// (a 4096-byte unreadable frame with exit status 0).
-template <class WriteFn>
-std::vector<unsigned char> encode(const std::string& path, const std::string& temp_path, const OIIO::ImageSpec& spec,
-                                  WriteFn&& write_pixels) {
-  auto o = OIIO::ImageOutput::create(temp_path);
-  if (!o) throw WorkError(fmt::format("'{}': no image writer: {}", path, OIIO::geterror()));
-  if (!o->supports("ioproxy")) throw WorkError(fmt::format("'{}': the {} writer cannot encode to memory", path, o->format_name()));
-  std::vector<unsigned char> bytes;
-  OIIO::Filesystem::IOVecOutput memory(bytes);
-  if (!o->set_ioproxy(&memory) || !o->open(temp_path, spec) || !write_pixels(*o) || !o->close())
-    throw WorkError(fmt::format("'{}': write failed: {}", path, o->geterror()));
-  return bytes;
-}
+// An OpenImageIO output stream into an AtomicOutput's temporary file: every write goes through
+// AtomicOutput::write_at (checked, with the system's reason kept for the error message).
+// OpenEXR's own file writer can lose data to a full disk and still close successfully (a
+// 4096-byte unreadable frame with exit status 0). Encoding into memory first, as this did
+// before, held the whole encoded image (a 1920x1080 frame's
+// 370 MB of encoded bytes, and twice that while the vector grew).
+class AtomicProxy final : public OIIO::Filesystem::IOProxy {
+ public:
+  explicit AtomicProxy(AtomicOutput& out) : IOProxy("", Write), out_(out) {}
+  const char* proxytype() const override { return "denoisebench-atomic"; }
+  size_t write(const void* buf, size_t size) override {
+    const size_t n = pwrite(buf, size, m_pos);
+    m_pos += int64_t(n);
+    return n;
+  }
+  size_t pwrite(const void* buf, size_t size, int64_t offset) override {
+    if (!error_.empty() || offset < 0) return 0;
+    try {
+      out_.write_at(buf, size, std::uint64_t(offset));
+    } catch (const WorkError& e) {
+      error_ = e.what();  // OpenImageIO sees a short write and fails; the caller reports this
+      return 0;
+    }
+    end_ = std::max(end_, std::uint64_t(offset) + size);
+    return size;
+  }
+  size_t size() const override { return size_t(end_); }
+  const std::string& error() const { return error_; }
 
-// The image written to its temporary file (every byte checked), not yet committed.
-std::unique_ptr<AtomicOutput> stage_image(const std::string& path, OIIO::ImageSpec spec, const float* data,
-                                          const char* compression = "zip") {
+ private:
+  AtomicOutput& out_;
+  std::uint64_t end_ = 0;
+  std::string error_;
+};
+
+// The image written to its temporary file by `write_pixels` (every byte checked, fsynced), not
+// yet committed.
+template <class WriteFn>
+std::unique_ptr<AtomicOutput> stage_image_with(const std::string& path, OIIO::ImageSpec spec, const char* compression,
+                                               WriteFn&& write_pixels) {
   auto out = std::make_unique<AtomicOutput>(path);
   spec.attribute("compression", compression);
-  const auto bytes =
-      encode(path, out->temp_path(), spec, [&](OIIO::ImageOutput& o) { return o.write_image(TypeDesc::FLOAT, data); });
-  out->write(bytes.data(), bytes.size());
+  auto o = OIIO::ImageOutput::create(out->temp_path());
+  if (!o) throw WorkError(fmt::format("'{}': no image writer: {}", path, OIIO::geterror()));
+  if (!o->supports("ioproxy")) throw WorkError(fmt::format("'{}': the {} writer cannot stream", path, o->format_name()));
+  AtomicProxy proxy(*out);
+  const bool ok = o->set_ioproxy(&proxy) && o->open(out->temp_path(), spec) && write_pixels(*o) && o->close();
+  if (!proxy.error().empty()) throw WorkError(proxy.error());  // the system's reason (a full disk)
+  if (!ok) throw WorkError(fmt::format("'{}': write failed: {}", path, o->geterror()));
+  o.reset();
+  out->finish_writes();
   return out;
+}
+
+std::unique_ptr<AtomicOutput> stage_image(const std::string& path, OIIO::ImageSpec spec, const float* data,
+                                          const char* compression = "zip") {
+  return stage_image_with(path, std::move(spec), compression,
+                          [&](OIIO::ImageOutput& o) { return o.write_image(TypeDesc::FLOAT, data); });
 }
 
 void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, const float* data) {
@@ -387,19 +420,31 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
   }
   if (names.empty()) throw WorkError(fmt::format("'{}': frame has no layers to write", path));
   const int nch = int(names.size());
-  // Interleaved row by row (a row of the output stays in cache while every channel is copied into
-  // it; one pass per channel over the whole frame was most of the write's time at 1024x768).
-  // Not value-initialised: every element is written below (zeroing 70 MB first cost ~10%).
-  std::unique_ptr<float[]> buf(new float[std::size_t(w) * h * nch]);
-  tbb::parallel_for(0, h, [&](int y) {
-    float* row = buf.get() + std::size_t(y) * w * nch;
-    for (int c = 0; c < nch; ++c) {
-      const Image& img = *sources[c];
-      const int sc = source_channel[c], ic = img.channels();
-      const float* src = img.data() + std::size_t(y) * w * ic + sc;
-      for (int x = 0; x < w; ++x) row[std::size_t(x) * nch + c] = src[std::size_t(x) * ic];
+  // Interleaved a strip of rows at a time, each strip handed to the writer before the next: a
+  // whole interleaved copy of a 1920x1080 frame (109 channels) was another 0.9 GB at the peak.
+  // Row by row within a strip (a row of the output stays in cache while every channel is copied
+  // into it); not value-initialised, every element is written.
+  const int strip_rows = int(std::clamp<std::int64_t>((std::int64_t(1) << 24) / (std::int64_t(w) * nch), 16, 64));
+  std::unique_ptr<float[]> strip(new float[std::size_t(w) * std::min(strip_rows, h) * nch]);
+  auto interleave = [&](int y0, int y1) {
+    tbb::parallel_for(y0, y1, [&](int y) {
+      float* row = strip.get() + std::size_t(y - y0) * w * nch;
+      for (int c = 0; c < nch; ++c) {
+        const Image& img = *sources[c];
+        const int sc = source_channel[c], ic = img.channels();
+        const float* src = img.data() + std::size_t(y) * w * ic + sc;
+        for (int x = 0; x < w; ++x) row[std::size_t(x) * nch + c] = src[std::size_t(x) * ic];
+      }
+    });
+  };
+  auto write_strips = [&](OIIO::ImageOutput& o) {
+    for (int y0 = 0; y0 < h; y0 += strip_rows) {
+      const int y1 = std::min(h, y0 + strip_rows);
+      interleave(y0, y1);
+      if (!o.write_scanlines(y0, y1, 0, TypeDesc::FLOAT, strip.get())) return false;
     }
-  });
+    return true;
+  };
   OIIO::ImageSpec spec(w, h, nch, TypeDesc::FLOAT);
   spec.channelnames = names;
   const bool with_edges = frame.edges && options.edges;
@@ -408,7 +453,7 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
     put_meta(spec, frame.meta, w, h, 0);
     spec.attribute("compression", options.compress ? "zip" : "none");
     auto o = OIIO::ImageOutput::create(path);
-    if (!o || !o->open(path, spec) || !o->write_image(TypeDesc::FLOAT, buf.get()) || !o->close())
+    if (!o || !o->open(path, spec) || !write_strips(*o) || !o->close())
       throw WorkError(fmt::format("'{}': write failed: {}", path, o ? o->geterror() : OIIO::geterror()));
     return;
   }
@@ -422,7 +467,7 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
     edges = stage_edges(*frame.edges, w, h, edges_path(path), digest);
     spec.attribute(std::string(kAttrPrefix) + "edges_sha256", digest);
   }
-  auto image = stage_image(path, spec, buf.get(), options.compress ? "zip" : "none");
+  auto image = stage_image_with(path, spec, options.compress ? "zip" : "none", write_strips);
   if (edges) edges->commit();
   image->commit();
 }
@@ -493,8 +538,9 @@ double memory_budget_bytes() {
   return budget;
 }
 
-void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes) {
-  const double need = 2.0 * double(width) * double(height) * double(channels) * sizeof(float);
+void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes,
+                         int copies) {
+  const double need = double(copies) * double(width) * double(height) * double(channels) * sizeof(float);
   if (available_bytes > 0 && need > available_bytes)
     throw InputError(fmt::format("'{}': decoding {}x{} with {} channels needs about {:.1f} GiB, more than the "
                                  "{:.1f} GiB this process may use (memory, cgroup limit, $DENOISEBENCH_MEMORY_LIMIT)",
@@ -502,17 +548,13 @@ void check_decode_memory(const std::string& path, int width, int height, int cha
                                  available_bytes / double(1ull << 30)));
 }
 
-AovFrame read_frame(const std::string& path, const std::vector<std::string>& required) {
+AovFrame read_frame(const std::string& path, const std::vector<std::string>& required,
+                    const std::vector<std::string>& only) {
   auto in = open_input(path);
   const OIIO::ImageSpec spec = in->spec();
   if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat AOV frame", path));
   Image::check_size(spec.width, spec.height, spec.nchannels, path.c_str());
-  check_decode_memory(path, spec.width, spec.height, spec.nchannels, memory_budget_bytes());
   const int w = spec.width, h = spec.height, nch = spec.nchannels;
-  std::vector<float> buf(std::size_t(w) * h * nch);
-  if (!in->read_image(0, 0, 0, nch, TypeDesc::FLOAT, buf.data()))
-    throw InputError(fmt::format("'{}': cannot read pixels: {}", path, in->geterror()));
-  in->close();
 
   AovFrame frame(w, h);
   std::size_t edge_pixels = 0;
@@ -521,23 +563,52 @@ AovFrame read_frame(const std::string& path, const std::vector<std::string>& req
   } catch (const InputError& e) {
     throw InputError(fmt::format("'{}': {}", path, e.what()));
   }
+  // The layers to keep, each with the file's channel index of its channels.
   std::map<std::string, std::vector<std::string>> groups;
   for (const auto& ch : spec.channelnames) groups[layer_of(ch)].push_back(ch);
+  struct Wanted {
+    std::string name;
+    std::vector<int> idx;
+  };
+  std::vector<Wanted> wanted;
+  int kept_channels = 0;
   for (const auto& [name, chans] : groups) {
-    const int n = int(chans.size());
-    auto expected = channel_names(name, n);
+    if (!only.empty() && std::find(only.begin(), only.end(), name) == only.end()) continue;
+    const auto expected = channel_names(name, int(chans.size()));
     std::vector<int> idx;
     for (const auto& e : expected) idx.push_back(spec.channelindex(e));
-    if (std::find(idx.begin(), idx.end(), -1) != idx.end()) {
-      // Not a layer we know (e.g. an alpha channel): skip it, unless it was asked for.
-      continue;
-    }
-    Image img(w, h, n);
-    float* dst = img.data();
-    for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
-      for (int c = 0; c < n; ++c) dst[i * n + c] = buf[i * nch + idx[c]];
-    frame.set(name, std::move(img));
+    // Not a layer we know (e.g. an alpha channel): skipped, unless it was asked for (below).
+    if (std::find(idx.begin(), idx.end(), -1) != idx.end()) continue;
+    kept_channels += int(idx.size());
+    wanted.push_back({name, std::move(idx)});
   }
+  // The kept layers, and strips of the file's interleaved rows decoded one after another: a
+  // whole interleaved copy of a 1920x1080 frame (109 channels) was another 0.9 GB at the peak.
+  check_decode_memory(path, w, h, std::max(kept_channels, 1), memory_budget_bytes(), 1);
+  // Rows per read: up to 4 of OpenEXR's 16-row zip chunks, fewer for very wide files of many
+  // channels (the strip stays under 64 MB).
+  const int kStrip = int(std::clamp<std::int64_t>((std::int64_t(1) << 24) / (std::int64_t(w) * nch), 1, 64));
+  std::vector<Image> images;
+  images.reserve(wanted.size());
+  for (const auto& l : wanted) images.emplace_back(w, h, int(l.idx.size()));
+  if (!wanted.empty()) {
+    std::vector<float> strip(std::size_t(w) * std::min(kStrip, h) * nch);
+    for (int y0 = 0; y0 < h; y0 += kStrip) {
+      const int y1 = std::min(h, y0 + kStrip);
+      if (!in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, nch, TypeDesc::FLOAT, strip.data()))
+        throw InputError(fmt::format("'{}': cannot read pixels: {}", path, in->geterror()));
+      tbb::parallel_for(std::size_t(0), wanted.size(), [&](std::size_t k) {
+        const std::vector<int>& idx = wanted[k].idx;
+        const int n = int(idx.size());
+        float* dst = images[k].data() + std::size_t(y0) * w * n;
+        const std::size_t pixels = std::size_t(y1 - y0) * w;
+        for (std::size_t i = 0; i < pixels; ++i)
+          for (int c = 0; c < n; ++c) dst[i * n + c] = strip[i * nch + idx[c]];
+      });
+    }
+  }
+  in->close();
+  for (std::size_t k = 0; k < wanted.size(); ++k) frame.set(wanted[k].name, std::move(images[k]));
   for (const auto& r : required) {
     if (!frame.has(r)) {
       auto want = channel_names(r, default_channels(r));

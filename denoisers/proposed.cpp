@@ -90,6 +90,9 @@ class Proposed final : public Method {
     auto l = illumination_layers();
     l.push_back(layer::kColor);
     l.push_back(layer::kVariance);  // the detail guard's noise level
+    if (use_reflections_)  // every layer has_level() asks for, at every level a frame may hold
+      for (int k = 1; k <= layer::kMaxLevels; ++k)
+        for (const char* base : kLevelLayers) l.push_back(layer::at_level(k, base));
     return l;
   }
 
@@ -412,9 +415,10 @@ class Proposed final : public Method {
     return std::pow(256.0 / double(spp), exponent);
   }
 
+  static constexpr const char* kLevelLayers[] = {layer::kDirect,   layer::kIndirect, layer::kAlbedo, layer::kReflection,
+                                                  layer::kEmission, layer::kNormal,   layer::kDepth,  layer::kTint};
   static bool has_level(const AovFrame& f, int k) {
-    for (const char* base : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
-                             layer::kNormal, layer::kDepth, layer::kTint})
+    for (const char* base : kLevelLayers)
       if (!f.has(layer::at_level(k, base))) return false;
     return true;
   }

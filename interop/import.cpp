@@ -334,7 +334,7 @@ AovFrame read_frame_as(const std::string& path, const std::string& format, const
   }
   if (f == "native") {
     if (report) *report = ImportReport{.format = "native"};
-    return read_frame(path, required);
+    return read_frame(path, required, options.layers);
   }
   Imported im = import_frame(path, mapping_for(f), options);
   for (const auto& w : im.report.warnings) spdlog::warn("'{}': {}", path, w);

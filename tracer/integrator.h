@@ -62,13 +62,14 @@
 
 #include <cstdint>
 
+#include "core/aov_frame.h"
 #include "tracer/math.h"
 #include "tracer/scene.h"
 
 namespace dnb::rt {
 
 // The largest --reflection-levels accepted.
-constexpr int kMaxReflectionLevels = 8;
+constexpr int kMaxReflectionLevels = layer::kMaxLevels;
 
 // The layers of one level of one sample path (see the comment at the top).
 struct LevelSample {

@@ -138,6 +138,25 @@ TEST_P(FilterInvariants, BitIdenticalOutputWhateverTheThreadCount) {
   EXPECT_TRUE(a.image == c.image) << "the one-thread run differs from the " << threads << "-thread run";
 }
 
+// A method reads no layer beyond its required_layers() and optional_layers(): `denoise` reads
+// only those from the file (methods/denoise.cpp, to keep a 1920x1080 frame's 0.9 GB of layers
+// out of memory), so a layer the lists forget would change its output there and not in `run`.
+// The frame keeps only the listed layers (and the edge sub-pixels) and must give the same bits.
+TEST_P(FilterInvariants, ReadsNoLayerItDoesNotDeclare) {
+  const AovFrame full = test::planes_frame(48, 32, 0.3f);
+  auto m = method();
+  std::vector<std::string> listed = m->required_layers();
+  for (const auto& l : m->optional_layers()) listed.push_back(l);
+  AovFrame only(full.width(), full.height());
+  only.meta = full.meta;
+  only.edges = full.edges;
+  for (const auto& [name, image] : full.layers())
+    if (std::find(listed.begin(), listed.end(), name) != listed.end()) only.set(name, image);
+  ASSERT_LT(only.layers().size(), full.layers().size()) << "the frame holds no layer beyond the lists: no test";
+  const MethodResult a = run(full), b = run(only);
+  EXPECT_TRUE(a.image == b.image) << GetParam() << " reads a layer outside its required and optional lists";
+}
+
 // With its defaults, a filter lowers the error of a noisy flat frame (the constant frame with
 // 10% relative Gaussian noise on direct and indirect, the colour composed from them) against the
 // noise-free one. Flat, because there is nothing a filter could rightly keep: whether it keeps
