@@ -549,7 +549,7 @@ void check_decode_memory(const std::string& path, int width, int height, int cha
 }
 
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required,
-                    const std::vector<std::string>& only) {
+                    const std::optional<std::vector<std::string>>& only) {
   auto in = open_input(path);
   const OIIO::ImageSpec spec = in->spec();
   if (spec.deep) throw InputError(fmt::format("'{}': is a deep image, expected a flat AOV frame", path));
@@ -573,7 +573,7 @@ AovFrame read_frame(const std::string& path, const std::vector<std::string>& req
   std::vector<Wanted> wanted;
   int kept_channels = 0;
   for (const auto& [name, chans] : groups) {
-    if (!only.empty() && std::find(only.begin(), only.end(), name) == only.end()) continue;
+    if (only && std::find(only->begin(), only->end(), name) == only->end()) continue;
     const auto expected = channel_names(name, int(chans.size()));
     std::vector<int> idx;
     for (const auto& e : expected) idx.push_back(spec.channelindex(e));

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,12 +38,12 @@ struct FrameWriteOptions {
 void write_frame(const AovFrame& frame, const std::string& path, const FrameWriteOptions& options = {});
 
 // Reads a frame. `required` lists layer names that must be present; a missing one is an
-// InputError naming the file and the missing channels. `only`, when not empty, lists the layers
-// to keep (the others are decoded strip by strip and dropped: a filter that needs 8 of a
-// frame's 40 layers holds only those). The edge file is read when the frame's header says it
+// InputError naming the file and the missing channels. `only`, when given, lists the layers to
+// keep (the others are decoded strip by strip and dropped: a filter that needs 8 of a frame's
+// 40 layers holds only those; an empty list keeps none, for a method that needs the size only). The edge file is read when the frame's header says it
 // has one; a header that names one which is missing is an error.
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required = {},
-                    const std::vector<std::string>& only = {});
+                    const std::optional<std::vector<std::string>>& only = std::nullopt);
 // Refuses (InputError naming the file) an image whose decoding would need more than
 // `available_bytes`: the readers hold its channels as floats, `copies` times (read_frame: once,
 // as layers, decoding a strip at a time; readers of a whole interleaved image: twice), about

@@ -84,8 +84,8 @@ ImportMapping mapping_for(const std::string& format);
 struct ImportOptions {
   int spp = 0;         // > 0: the frame's sample count (over any the file records)
   std::string prefix = {};  // non-empty: instead of the mapping's (e.g. a Cycles view layer "Layer2.")
-  // read_frame_as, native frames: when not empty, only these layers are kept (read_frame's `only`).
-  std::vector<std::string> layers = {};
+  // read_frame_as, native frames: when given, only these layers are kept (read_frame's `only`).
+  std::optional<std::vector<std::string>> layers = std::nullopt;
 };
 
 struct ImportReport {

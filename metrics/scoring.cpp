@@ -100,7 +100,8 @@ ScoredFile read_scored_file(const std::string& path, const ReadOptions& o) {
     return f;
   }
   interop::ImportReport report;
-  AovFrame frame = interop::read_frame_as(path, o.input_format, {.layers = {layer::kColor, layer::kVariance}}, {layer::kColor},
+  AovFrame frame = interop::read_frame_as(path, o.input_format, {.layers = std::vector<std::string>{layer::kColor, layer::kVariance}},
+                                          {layer::kColor},
                                           &report);
   if (report.format != "native") f.note = fmt::format("the colour of a {} frame", report.format);
   f.rgb = std::move(frame.layer(layer::kColor));

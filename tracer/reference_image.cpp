@@ -25,7 +25,8 @@ namespace {
 Reference read_cached(const CacheEntry& entry) {
   Reference ref;
   ref.path = entry.file("reference.exr");
-  AovFrame f = read_frame(ref.path, {layer::kColor, layer::kVariance}, {layer::kColor, layer::kVariance});
+  AovFrame f = read_frame(ref.path, {layer::kColor, layer::kVariance},
+                          std::vector<std::string>{layer::kColor, layer::kVariance});
   ref.color = f.layer(layer::kColor);
   ref.variance = f.layer(layer::kVariance);
   ref.meta = f.meta;
