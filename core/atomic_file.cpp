@@ -70,28 +70,8 @@ void sync_folder(const std::string& path) {
 }  // namespace
 
 void AtomicOutput::write(const void* data, std::size_t size) {
-  const int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw WorkError(fmt::format("cannot write '{}': {}", dest_, reason()));
-  const char* p = static_cast<const char*>(data);
-  std::size_t left = size;
-  while (left > 0) {
-    const ssize_t n = ::write(fd, p, left);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const std::string why = n < 0 ? reason() : "no progress";
-      ::close(fd);
-      throw WorkError(fmt::format("cannot write '{}' ({} of {} bytes written): {}", dest_, size - left, size, why));
-    }
-    p += n;
-    left -= std::size_t(n);
-  }
-  if (::fsync(fd) != 0) {
-    const std::string why = reason();
-    ::close(fd);
-    throw WorkError(fmt::format("cannot write '{}': fsync failed: {}", dest_, why));
-  }
-  if (::close(fd) != 0) throw WorkError(fmt::format("cannot write '{}': close failed: {}", dest_, reason()));
-  written_ = true;
+  write_at(data, size, 0);  // opens (and truncates) the temporary file also for size 0
+  finish_writes();
 }
 
 void AtomicOutput::write_at(const void* data, std::size_t size, std::uint64_t offset) {
