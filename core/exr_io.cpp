@@ -538,14 +538,23 @@ double memory_budget_bytes() {
   return budget;
 }
 
-void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes,
-                         int copies) {
-  const double need = double(copies) * double(width) * double(height) * double(channels) * sizeof(float);
+namespace {
+// InputError when decoding `path` (width x height, `channels` in the file) needs more than
+// `available_bytes` (0: unknown, nothing refused).
+void refuse_decode_beyond(const std::string& path, int width, int height, int channels, double need,
+                          double available_bytes) {
   if (available_bytes > 0 && need > available_bytes)
     throw InputError(fmt::format("'{}': decoding {}x{} with {} channels needs about {:.1f} GiB, more than the "
                                  "{:.1f} GiB this process may use (memory, cgroup limit, $DENOISEBENCH_MEMORY_LIMIT)",
                                  path, width, height, channels, need / double(1ull << 30),
                                  available_bytes / double(1ull << 30)));
+}
+}  // namespace
+
+void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes,
+                         int copies) {
+  refuse_decode_beyond(path, width, height, channels,
+                       double(copies) * double(width) * double(height) * double(channels) * sizeof(float), available_bytes);
 }
 
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required,
@@ -582,20 +591,30 @@ AovFrame read_frame(const std::string& path, const std::vector<std::string>& req
     kept_channels += int(idx.size());
     wanted.push_back({name, std::move(idx)});
   }
-  // The kept layers, and strips of the file's interleaved rows decoded one after another: a
-  // whole interleaved copy of a 1920x1080 frame (109 channels) was another 0.9 GB at the peak.
-  check_decode_memory(path, w, h, std::max(kept_channels, 1), memory_budget_bytes(), 1);
   // Rows per read: up to 4 of OpenEXR's 16-row zip chunks, fewer for very wide files of many
-  // channels (the strip stays under 64 MB).
-  const int kStrip = int(std::clamp<std::int64_t>((std::int64_t(1) << 24) / (std::int64_t(w) * nch), 1, 64));
+  // channels (the strip stays under 64 MB). A tiled file (another renderer's; OpenImageIO's
+  // read_scanlines divides by zero on one) is read in strips of whole tile rows.
+  const bool tiled = spec.tile_width > 0 && spec.tile_height > 0;
+  int strip_rows = int(std::clamp<std::int64_t>((std::int64_t(1) << 24) / (std::int64_t(w) * nch), 1, 64));
+  if (tiled) strip_rows = int(std::min<std::int64_t>(h, std::int64_t(std::max(1, strip_rows / spec.tile_height)) * spec.tile_height));
+  strip_rows = std::min(strip_rows, h);
+  // The kept layers, and one strip of the file's interleaved rows at a time: a whole interleaved
+  // copy of a 1920x1080 frame (109 channels) was another 0.9 GB at the peak. The budget counts
+  // the strip too (a file of tall tiles may need the whole image in one).
+  refuse_decode_beyond(path, w, h, nch,
+                       (double(w) * h * kept_channels + double(w) * strip_rows * nch) * sizeof(float),
+                       memory_budget_bytes());
   std::vector<Image> images;
   images.reserve(wanted.size());
   for (const auto& l : wanted) images.emplace_back(w, h, int(l.idx.size()));
   if (!wanted.empty()) {
-    std::vector<float> strip(std::size_t(w) * std::min(kStrip, h) * nch);
-    for (int y0 = 0; y0 < h; y0 += kStrip) {
-      const int y1 = std::min(h, y0 + kStrip);
-      if (!in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, nch, TypeDesc::FLOAT, strip.data()))
+    std::vector<float> strip(std::size_t(w) * strip_rows * nch);
+    for (int y0 = 0; y0 < h; y0 += strip_rows) {
+      const int y1 = std::min(h, y0 + strip_rows);
+      const bool read = tiled ? in->read_tiles(0, 0, spec.x, spec.x + w, y0 + spec.y, y1 + spec.y, spec.z, spec.z + 1, 0, nch,
+                                               TypeDesc::FLOAT, strip.data())
+                              : in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, nch, TypeDesc::FLOAT, strip.data());
+      if (!read)
         throw InputError(fmt::format("'{}': cannot read pixels: {}", path, in->geterror()));
       tbb::parallel_for(std::size_t(0), wanted.size(), [&](std::size_t k) {
         const std::vector<int>& idx = wanted[k].idx;
