@@ -270,10 +270,12 @@ std::unique_ptr<AtomicOutput> stage_image_with(const std::string& path, OIIO::Im
                                                WriteFn&& write_pixels) {
   auto out = std::make_unique<AtomicOutput>(path);
   spec.attribute("compression", compression);
+  // Declared before the writer, so that it outlives it: a writer destroyed after a failure
+  // closes its file and still writes through the proxy (ASan: a use after free otherwise).
+  AtomicProxy proxy(*out);
   auto o = OIIO::ImageOutput::create(out->temp_path());
   if (!o) throw WorkError(fmt::format("'{}': no image writer: {}", path, OIIO::geterror()));
   if (!o->supports("ioproxy")) throw WorkError(fmt::format("'{}': the {} writer cannot stream", path, o->format_name()));
-  AtomicProxy proxy(*out);
   const bool ok = o->set_ioproxy(&proxy) && o->open(out->temp_path(), spec) && write_pixels(*o) && o->close();
   if (!proxy.error().empty()) throw WorkError(proxy.error());  // the system's reason (a full disk)
   if (!ok) throw WorkError(fmt::format("'{}': write failed: {}", path, o->geterror()));
