@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
-#include <cmath>
 #include <cerrno>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -232,8 +232,8 @@ std::string layer_of(const std::string& channel) {
 // AtomicOutput::write_at (checked, with the system's reason kept for the error message).
 // OpenEXR's own file writer can lose data to a full disk and still close successfully (a
 // 4096-byte unreadable frame with exit status 0). Encoding into memory first, as this did
-// before, held the whole encoded image (a 1920x1080 frame's
-// 370 MB of encoded bytes, and twice that while the vector grew).
+// before, held the whole encoded image: a 1920x1080 frame's 370 MB, twice that while the vector
+// grew.
 class AtomicProxy final : public OIIO::Filesystem::IOProxy {
  public:
   explicit AtomicProxy(AtomicOutput& out) : IOProxy("", Write), out_(out) {}
@@ -511,32 +511,25 @@ double cgroup_limit(const std::string& file) {
   return (end && *end == 0 && bytes > 0 && bytes < 0x1p62) ? bytes : 0;
 }
 
-double cgroup_memory_limit() {
-  double limit = 0;
-  auto lower = [&](double l) {
-    if (l > 0 && (limit == 0 || l < limit)) limit = l;
-  };
-  lower(cgroup_limit("/sys/fs/cgroup/memory/memory.limit_in_bytes"));  // v1, the mount's own cgroup
-  lower(cgroup_limit("/sys/fs/cgroup/memory.max"));                     // v2, the mount's root
-  std::ifstream self("/proc/self/cgroup");
-  for (std::string line; std::getline(self, line);) {
-    if (!line.starts_with("0::/")) continue;  // v2: limits of the process's cgroup and its parents
-    for (std::filesystem::path p = line.substr(3); p.has_relative_path(); p = p.parent_path())
-      lower(cgroup_limit("/sys/fs/cgroup" + p.string() + "/memory.max"));
-  }
-  return limit;
+// Lowers `budget` to `limit` when the limit is known (> 0) and lower; 0 is "unknown" for both.
+void lower_to(double& budget, double limit) {
+  if (limit > 0 && (budget == 0 || limit < budget)) budget = limit;
 }
 
 }  // namespace
 
 double memory_budget_bytes() {
   double budget = physical_memory_bytes();
-  auto lower = [&](double l) {
-    if (l > 0 && (budget == 0 || l < budget)) budget = l;
-  };
-  lower(cgroup_memory_limit());
+  lower_to(budget, cgroup_limit("/sys/fs/cgroup/memory/memory.limit_in_bytes"));  // v1, the mount's own cgroup
+  lower_to(budget, cgroup_limit("/sys/fs/cgroup/memory.max"));                     // v2, the mount's root
+  std::ifstream self("/proc/self/cgroup");
+  for (std::string line; std::getline(self, line);) {
+    if (!line.starts_with("0::/")) continue;  // v2: limits of the process's cgroup and its parents
+    for (std::filesystem::path p = line.substr(3); p.has_relative_path(); p = p.parent_path())
+      lower_to(budget, cgroup_limit("/sys/fs/cgroup" + p.string() + "/memory.max"));
+  }
   if (const char* env = std::getenv("DENOISEBENCH_MEMORY_LIMIT"); env && *env)
-    lower(parse_memory_size(env, "$DENOISEBENCH_MEMORY_LIMIT"));
+    lower_to(budget, parse_memory_size(env, "$DENOISEBENCH_MEMORY_LIMIT"));
   return budget;
 }
 
@@ -553,10 +546,9 @@ void refuse_decode_beyond(const std::string& path, int width, int height, int ch
 }
 }  // namespace
 
-void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes,
-                         int copies) {
-  refuse_decode_beyond(path, width, height, channels,
-                       double(copies) * double(width) * double(height) * double(channels) * sizeof(float), available_bytes);
+void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes) {
+  refuse_decode_beyond(path, width, height, channels, 2.0 * double(width) * double(height) * double(channels) * sizeof(float),
+                       available_bytes);
 }
 
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required,

@@ -40,18 +40,18 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
 // Reads a frame. `required` lists layer names that must be present; a missing one is an
 // InputError naming the file and the missing channels. `only`, when given, lists the layers to
 // keep (the others are decoded strip by strip and dropped: a filter that needs 8 of a frame's
-// 40 layers holds only those; an empty list keeps none, for a method that needs the size only). The edge file is read when the frame's header says it
-// has one; a header that names one which is missing is an error.
+// 40 layers holds only those; an empty list keeps none, for a method that needs the size only).
+// The edge file is read when the frame's header says it has one; a header that names one which
+// is missing is an error.
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required = {},
                     const std::optional<std::vector<std::string>>& only = std::nullopt);
 // Refuses (InputError naming the file) an image whose decoding would need more than
-// `available_bytes`: the readers hold its channels as floats, `copies` times (read_frame: once,
-// as layers, decoding a strip at a time; readers of a whole interleaved image: twice), about
-// copies x width x height x channels x 4 bytes. A small file may declare the largest size
-// Image::check_size allows (2^28 pixels, 1024 channels: 2 TiB), which a compressed EXR of
-// zeros can even hold. The readers pass memory_budget_bytes().
-void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes,
-                         int copies = 2);
+// `available_bytes`: the readers of a whole image hold its channels as floats, interleaved and
+// then as layers, about 2 x width x height x channels x 4 bytes (read_frame, which decodes a
+// strip at a time, counts its layers and one strip instead). A small file may declare the
+// largest size Image::check_size allows (2^28 pixels, 1024 channels: 2 TiB), which a compressed
+// EXR of zeros can even hold. The readers pass memory_budget_bytes().
+void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes);
 double physical_memory_bytes();  // 0 when unknown (then nothing is refused)
 // The memory a decode may plan on: the machine's physical memory, lowered by the memory limit
 // of the cgroup the process runs in (a container, a Slurm job: cgroup v2 memory.max along the

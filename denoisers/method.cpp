@@ -242,6 +242,13 @@ static std::string frame_label(const AovFrame& f) {
   return f.meta.scene.empty() ? std::string("the frame") : fmt::format("frame of '{}'", f.meta.scene);
 }
 
+std::vector<std::string> Method::read_layers() const {
+  std::vector<std::string> out = required_layers();
+  for (auto& name : optional_layers())
+    if (std::find(out.begin(), out.end(), name) == out.end()) out.push_back(std::move(name));
+  return out;
+}
+
 MethodResult run_method(Method& method, const MethodInput& input) {
   MethodInput in = input;
   AovFrame repaired;
@@ -259,9 +266,9 @@ MethodResult run_method(Method& method, const MethodInput& input) {
       throw InputError(fmt::format("{} lacks channel{} {} required by this method", frame_label(f),
                                    missing.size() > 1 ? "s" : "", fmt::join(missing, ", ")));
     // Repair non-finite samples in a copy, only when there are any (no copy in the common case).
-    std::vector<std::string> checked = required;
-    for (const auto& name : method.optional_layers())
-      if (f.has(name) && std::find(checked.begin(), checked.end(), name) == checked.end()) checked.push_back(name);
+    std::vector<std::string> checked;  // the required layers (all present) and the optional ones present
+    for (const auto& name : method.read_layers())
+      if (f.has(name)) checked.push_back(name);
     bool any = false;
     for (const auto& name : checked) {
       const Image& img = f.layer(name);

@@ -130,6 +130,8 @@ class Method {
   // Layers this method uses when the frame has them and does without otherwise (recording in its
   // stats what it did). run_method checks and repairs those present exactly like required ones.
   virtual std::vector<std::string> optional_layers() const { return {}; }
+  // Every layer the method may read: required_layers() then optional_layers(), each once.
+  std::vector<std::string> read_layers() const;
   // Must return a 3-channel image of the frame's size (or input.width x input.height) with
   // finite samples, and give the bit-identical image for the same input whatever the thread
   // count. May throw InputError (bad input) or WorkError (failure).

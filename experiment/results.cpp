@@ -74,15 +74,15 @@ double non_negative(double v, const std::string& key, const std::string& where) 
   if (!(v >= 0)) throw InputError(fmt::format("{}: key '{}': expected a value >= 0, got {}", where, key, v));
   return v;
 }
+double non_negative_number(const json& j, const std::string& key, const std::string& where) {
+  return non_negative(jf::number(j, key, where), key, where);
+}
 
 // A file a record names is inside the results folder: a relative path that never climbs out
 // (the report reads and copies these files; a shared results.json must not make it read others).
 const std::string& inside_folder(const std::string& path, const std::string& key, const std::string& where) {
   const std::filesystem::path p(path);
-  bool climbs = false;
-  for (const auto& part : p)
-    if (part == "..") climbs = true;
-  if (p.is_absolute() || climbs)
+  if (p.is_absolute() || std::find(p.begin(), p.end(), "..") != p.end())
     throw InputError(fmt::format("{}: key '{}': '{}' is outside the results folder (expected a path relative to it, "
                                  "without '..')",
                                  where, key, path));
@@ -165,9 +165,9 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
 
   const json times = jf::get<json>(j, "times", where);
   const std::string tw = where + ": times";
-  r.times.input_render = non_negative(jf::number(times, "input_render", tw), "input_render", tw);
-  r.times.filter = non_negative(jf::number(times, "filter", tw), "filter", tw);
-  r.times.total = non_negative(jf::number(times, "total", tw), "total", tw);
+  r.times.input_render = non_negative_number(times, "input_render", tw);
+  r.times.filter = non_negative_number(times, "filter", tw);
+  r.times.total = non_negative_number(times, "total", tw);
   r.times.reference = optional_number(times, "reference", tw);
   r.times.filter_runs = optional_value<std::vector<double>>(times, "filter_runs", tw);
   r.times.setup = optional_number(times, "setup_seconds", tw);
@@ -180,7 +180,7 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   const std::string rw = where + ": reference";
   r.reference.spp = int(non_negative(jf::get<int>(ref, "spp", rw), "spp", rw));
   r.reference.seed = optional_value<std::uint64_t>(ref, "seed", rw);
-  r.reference.seconds = non_negative(jf::number(ref, "seconds", rw), "seconds", rw);
+  r.reference.seconds = non_negative_number(ref, "seconds", rw);
   r.reference.cache_hit = optional_value<bool>(ref, "cache_hit", rw);
   r.reference.image = inside_folder(jf::get_or<std::string>(ref, "image", "", rw), "image", rw);
   r.reference.unconverged_share = optional_number(ref, "unconverged_share", rw);

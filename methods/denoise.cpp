@@ -1,6 +1,5 @@
 #include "methods/denoise.h"
 
-#include <algorithm>
 #include <memory>
 
 #include <fmt/format.h>
@@ -27,10 +26,7 @@ DenoiseOutcome denoise_file(const DenoiseRequest& q) {
   // Only the layers the method reads (FilterInvariants.ReadsNoLayerItDoesNotDeclare holds every
   // method to its lists): a 1920x1080 frame holds 109 channels, 0.9 GB, most of which a filter
   // never looks at.
-  std::vector<std::string> reads = method->required_layers();
-  for (const auto& l : method->optional_layers())
-    if (std::find(reads.begin(), reads.end(), l) == reads.end()) reads.push_back(l);
-  AovFrame frame = interop::read_frame_as(q.frame, q.input_format, {.layers = reads});
+  AovFrame frame = interop::read_frame_as(q.frame, q.input_format, {.layers = method->read_layers()});
   if (const auto missing = frame.missing_channels(method->required_layers()); !missing.empty()) {
     std::vector<std::string> layers;
     for (const auto& l : method->required_layers())

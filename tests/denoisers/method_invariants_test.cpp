@@ -145,8 +145,7 @@ TEST_P(FilterInvariants, BitIdenticalOutputWhateverTheThreadCount) {
 TEST_P(FilterInvariants, ReadsNoLayerItDoesNotDeclare) {
   const AovFrame full = test::planes_frame(48, 32, 0.3f);
   auto m = method();
-  std::vector<std::string> listed = m->required_layers();
-  for (const auto& l : m->optional_layers()) listed.push_back(l);
+  const std::vector<std::string> listed = m->read_layers();
   AovFrame only(full.width(), full.height());
   only.meta = full.meta;
   only.edges = full.edges;
