@@ -1,6 +1,8 @@
 // denoisebench run CONFIG.toml [-o RESULTS_DIR] [--no-cache] [--seed S]: the experiment matrix
 // (experiment/runner.h). --seed replaces the config's input seed (the nightly's noise
-// measurement runs one config with several seeds).
+// measurement runs one config with several seeds). Under `mpirun -np N` the matrix spreads over
+// the ranks and rank 0 writes the results folder (experiment/runner.cpp, docs/cluster.md).
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -10,18 +12,42 @@
 
 #include "apps/args.h"
 #include "apps/commands.h"
+#include "core/errors.h"
 #include "experiment/runner.h"
 #include "methods/plugins.h"
+#include "tracer/mpi_context.h"
 
 namespace dnb::app {
 
+namespace {
+
+struct Opts {
+  std::string config, out, cache_dir;
+  bool no_cache = false;
+  std::optional<std::uint64_t> seed;
+};
+
+int run(const Opts& o, const std::vector<std::string>& plugin_folders) {
+  load_plugins(plugin_folders);
+  experiment::ExperimentConfig c = experiment::load_config(o.config);
+  if (o.seed) c.seed = *o.seed;
+  experiment::RunOptions opt;
+  opt.out_dir = o.out.empty() ? "results/" + c.name : o.out;
+  opt.use_cache = !o.no_cache;
+  opt.cache_dir = o.cache_dir;
+  const auto doc = experiment::run_experiment(c, opt);
+  if (doc.failures.empty()) return 0;
+  // The run kept every other cell; the failed ones are listed in results.json and tried
+  // again by the next run into the folder.
+  for (const auto& f : doc.failures) spdlog::error("failed cell: {} / {} / {} spp: {}", f.scene, f.method, f.spp, f.reason);
+  spdlog::error("{} of the run's cells failed (listed in {}/results.json, key 'failures')", doc.failures.size(), opt.out_dir);
+  return 1;
+}
+
+}  // namespace
+
 void add_run(CLI::App& app, Action& action) {
   auto* cmd = app.add_subcommand("run", "Run an experiment matrix from a config (scenes x methods x spp)");
-  struct Opts {
-    std::string config, out, cache_dir;
-    bool no_cache = false;
-    std::optional<std::uint64_t> seed;
-  };
   auto o = std::make_shared<Opts>();
   cmd->add_option("CONFIG", o->config, "experiment config (TOML), e.g. configs/quick.toml")->required();
   cmd->add_option("-o,--output", o->out, "results folder (default: results/<config name>)");
@@ -32,20 +58,19 @@ void add_run(CLI::App& app, Action& action) {
   auto plugins = add_plugins_option(cmd);
   cmd->callback([&action, o, plugins] {
     action = [o, plugins] {
-      load_plugins(*plugins);
-      experiment::ExperimentConfig c = experiment::load_config(o->config);
-      if (o->seed) c.seed = *o->seed;
-      experiment::RunOptions opt;
-      opt.out_dir = o->out.empty() ? "results/" + c.name : o->out;
-      opt.use_cache = !o->no_cache;
-      opt.cache_dir = o->cache_dir;
-      const auto doc = experiment::run_experiment(c, opt);
-      if (doc.failures.empty()) return 0;
-      // The run kept every other cell; the failed ones are listed in results.json and tried
-      // again by the next run into the folder.
-      for (const auto& f : doc.failures) spdlog::error("failed cell: {} / {} / {} spp: {}", f.scene, f.method, f.spp, f.reason);
-      spdlog::error("{} of the run's cells failed (listed in {}/results.json, key 'failures')", doc.failures.size(), opt.out_dir);
-      return 1;
+      mpi::Session mpi_session;  // under mpirun: the matrix spreads over the ranks
+      // Rank 0 speaks for the job; other ranks only warn.
+      if (!mpi::is_root()) spdlog::set_level(std::max(spdlog::get_level(), spdlog::level::warn));
+      try {
+        return run(*o, *plugins);
+      } catch (const std::exception& e) {
+        // One rank's error would leave the others waiting in a collective: end the whole job.
+        if (mpi::size() > 1) {
+          spdlog::error("rank {}: {}", mpi::rank(), e.what());
+          mpi::abort_job(dynamic_cast<const InputError*>(&e) ? 2 : 1);
+        }
+        throw;
+      }
     };
   });
 }

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <tuple>
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "core/atomic_file.h"
@@ -75,7 +76,10 @@ CellRecord base_record(const CellPlan& plan, const SceneCells& scene) {
   return r;
 }
 
-// A finished record that has the plan's required files and whose every file is still in the folder.
+}  // namespace
+
+std::string cell_key(const CellPlan& plan) { return sha256_hex(plan.identity.dump()); }
+
 const CellRecord* reusable(const std::string& key, const CellPlan& plan, const CellContext& c) {
   const CellRecord* old = c.store->finished(key);
   if (!old) return nullptr;
@@ -86,38 +90,46 @@ const CellRecord* reusable(const std::string& key, const CellPlan& plan, const C
   return old;
 }
 
-}  // namespace
-
 void skip_cell(const CellContext& c, SkippedCell skip) {
   spdlog::warn("cell {} / {} / {} spp skipped: {}", skip.scene, skip.method, skip.spp, skip.reason);
   c.store->skip(std::move(skip));
   c.progress->add(1);
 }
 
-std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
-  const std::string key = sha256_hex(plan.identity.dump());
-  if (const CellRecord* old = reusable(key, plan, c)) {
-    c.store->reuse(*old);
-    c.progress->add(1);
-    return *old;
+ComputedCell compute_cell(const CellPlan& plan, const std::string& scene_name, const std::string& key) {
+  ComputedCell done;
+  if (plan.skip_reason) {
+    done.skipped = SkippedCell{scene_name, plan.method, plan.spp, *plan.skip_reason};
+    return done;
   }
-  CellOutput out;
   try {
-    out = plan.compute();
+    done.output = plan.compute();
   } catch (const MethodUnavailable& e) {
     if (!plan.contain_failures) throw;
     // Not a failure: the method cannot run on this machine (its message says how to make it).
-    skip_cell(c, SkippedCell{scene.scene, plan.method, plan.spp, e.what()});
-    return std::nullopt;
+    done.skipped = SkippedCell{scene_name, plan.method, plan.spp, e.what()};
   } catch (const std::exception& e) {
     if (!plan.contain_failures || !(dynamic_cast<const WorkError*>(&e) || dynamic_cast<const InputError*>(&e))) throw;
-    FailedCell f{scene.scene, plan.method, plan.spp, key, e.what(), {}};
+    FailedCell f{scene_name, plan.method, plan.spp, key, e.what(), {}};
     if (auto* pe = dynamic_cast<const PluginError*>(&e)) f.reason = pe->reason(), f.log_tail = pe->log_tail();
-    spdlog::error("cell {} / {} / {} spp failed: {}", scene.scene, plan.method, plan.spp, e.what());
-    c.store->fail(std::move(f));
+    spdlog::error("cell {} / {} / {} spp failed: {}", scene_name, plan.method, plan.spp, e.what());
+    done.failed = std::move(f);
+  }
+  return done;
+}
+
+std::optional<CellRecord> store_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c,
+                                     const std::string& key, ComputedCell computed) {
+  if (computed.skipped) {
+    skip_cell(c, std::move(*computed.skipped));
+    return std::nullopt;
+  }
+  if (computed.failed) {
+    c.store->fail(std::move(*computed.failed));
     c.progress->add(1);
     return std::nullopt;
   }
+  CellOutput& out = *computed.output;
   CellRecord r = base_record(plan, scene);
   const std::string stem = scene.image_dir + "/" + plan.stem;
   write_rgb(out.image, c.out_dir + "/" + stem + ".exr");
@@ -139,6 +151,104 @@ std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene
   c.store->add(r);
   c.progress->add(1);
   return r;
+}
+
+std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c) {
+  const std::string key = cell_key(plan);
+  if (plan.skip_reason) return store_cell(plan, scene, c, key, compute_cell(plan, scene.scene, key));
+  if (const CellRecord* old = reusable(key, plan, c)) {
+    c.store->reuse(*old);
+    c.progress->add(1);
+    return *old;
+  }
+  return store_cell(plan, scene, c, key, compute_cell(plan, scene.scene, key));
+}
+
+// ---- the spool of a distributed run ----
+
+std::string spool_dir(const std::string& out_dir) { return out_dir + "/.spool"; }
+
+namespace {
+
+std::string spooled(const std::string& out_dir, const std::string& key, const char* suffix) {
+  return spool_dir(out_dir) + "/" + key + suffix;
+}
+
+template <class T>
+nlohmann::json optional_json(const std::optional<T>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+
+template <class T>
+std::optional<T> json_optional(const nlohmann::json& j, const char* name) {
+  if (!j.contains(name) || j.at(name).is_null()) return std::nullopt;
+  return j.at(name).get<T>();
+}
+
+}  // namespace
+
+bool is_spooled(const std::string& out_dir, const std::string& key) {
+  return fs::exists(spooled(out_dir, key, ".json"));
+}
+
+void write_spooled(const std::string& out_dir, const std::string& key, const ComputedCell& computed) {
+  nlohmann::json j = nlohmann::json::object();
+  if (computed.skipped) j["skipped"] = computed.skipped->to_json();
+  if (computed.failed) j["failed"] = computed.failed->to_json();
+  if (const auto& out = computed.output) {
+    // Images as float EXR: read back bit for bit. The JSON last: it marks the entry complete.
+    write_rgb(out->image, spooled(out_dir, key, ".exr"));
+    if (out->baseline) write_rgb(*out->baseline, spooled(out_dir, key, ".baseline.exr"));
+    const CellTimes& t = out->times;
+    j["output"] = {{"times", {{"input_render", t.input_render}, {"filter", t.filter}, {"total", t.total},
+                              {"filter_runs", optional_json(t.filter_runs)}, {"setup", optional_json(t.setup)}}},
+                   {"input_cache_hit", optional_json(out->input_cache_hit)},
+                   {"phases", optional_json(out->phases)},
+                   {"counters", optional_json(out->counters)},
+                   {"method_info", optional_json(out->method_info)},
+                   {"frame_file", out->frame_file},
+                   {"baseline", out->baseline.has_value()}};
+  }
+  write_text_atomic(spooled(out_dir, key, ".json"), j.dump());
+}
+
+std::optional<ComputedCell> read_spooled(const std::string& out_dir, const std::string& key) {
+  const std::string path = spooled(out_dir, key, ".json");
+  if (!fs::exists(path)) return std::nullopt;
+  ComputedCell c;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(read_text_file(path));
+    if (j.contains("skipped")) c.skipped = SkippedCell::from_json(j.at("skipped"), path);
+    if (j.contains("failed")) c.failed = FailedCell::from_json(j.at("failed"), path);
+    if (j.contains("output")) {
+      const nlohmann::json& o = j.at("output");
+      CellOutput out;
+      out.image = read_rgb(spooled(out_dir, key, ".exr"));
+      if (o.at("baseline").get<bool>()) out.baseline = read_rgb(spooled(out_dir, key, ".baseline.exr"));
+      const nlohmann::json& t = o.at("times");
+      out.times.input_render = t.at("input_render").get<double>();
+      out.times.filter = t.at("filter").get<double>();
+      out.times.total = t.at("total").get<double>();
+      out.times.filter_runs = json_optional<std::vector<double>>(t, "filter_runs");
+      out.times.setup = json_optional<double>(t, "setup");
+      out.input_cache_hit = json_optional<bool>(o, "input_cache_hit");
+      out.phases = json_optional<std::map<std::string, double>>(o, "phases");
+      out.counters = json_optional<std::map<std::string, double>>(o, "counters");
+      out.method_info = json_optional<std::map<std::string, std::string>>(o, "method_info");
+      out.frame_file = o.at("frame_file").get<std::string>();
+      c.output = std::move(out);
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("'{}': not a spooled cell of this build ({}); remove it to compute the cell again", path, e.what()));
+  }
+  if (int(c.output.has_value()) + int(c.failed.has_value()) + int(c.skipped.has_value()) != 1)
+    throw InputError(fmt::format("'{}': a spooled cell holds exactly one of 'output', 'failed', 'skipped'", path));
+  return c;
+}
+
+void remove_spooled(const std::string& out_dir, const std::string& key) {
+  // The JSON first: without it the entry no longer counts, whatever else is left.
+  for (const char* suffix : {".json", ".exr", ".baseline.exr"}) fs::remove(spooled(out_dir, key, suffix));
 }
 
 }  // namespace dnb::experiment

@@ -75,6 +75,16 @@ struct CellPlan {
   std::vector<std::string> required_files = {"image"};
   // The inputs' seed of this cell, when the run has several (else the scene's).
   std::optional<std::uint64_t> seed;
+  // A cell of the config that cannot exist here (a renderer-type method on a scene read from
+  // files): recorded as skipped with this reason, never computed.
+  std::optional<std::string> skip_reason;
+};
+
+// What computing a plan came to: its output, or the failure or skip it is recorded as.
+struct ComputedCell {
+  std::optional<CellOutput> output;
+  std::optional<FailedCell> failed;
+  std::optional<SkippedCell> skipped;
 };
 
 // Where every cell goes.
@@ -84,13 +94,38 @@ struct CellContext {
   Progress* progress = nullptr;
 };
 
-// Runs one plan through the steps above; returns its record (reused or new), or nullopt when the
-// cell failed and was recorded as failed (contain_failures).
 // Records a cell of the config that cannot run here as skipped (results.json "skipped", with
 // its reason; logged), and counts it done.
 void skip_cell(const CellContext& c, SkippedCell skip);
 
+// The cell key of a plan: the SHA-256 of its identity.
+std::string cell_key(const CellPlan& plan);
+// A finished record of `key` that has the plan's required files and whose every file is still
+// in the folder, or nullptr.
+const CellRecord* reusable(const std::string& key, const CellPlan& plan, const CellContext& c);
+// The compute step: the plan's compute(), with a contained failure (contain_failures) or a
+// method unavailable here caught and returned as what it is recorded as. Other errors propagate.
+ComputedCell compute_cell(const CellPlan& plan, const std::string& scene_name, const std::string& key);
+// The write, score and store steps of a computed cell; returns its record, or nullopt for a
+// failed or skipped one.
+std::optional<CellRecord> store_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& context,
+                                     const std::string& key, ComputedCell computed);
+
+// Runs one plan through the steps above (reuse, else compute and store); returns its record
+// (reused or new), or nullopt when the cell failed or was skipped.
 std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& context);
+
+// The spool of a distributed run (experiment/runner.cpp): a rank that computes a cell writes
+// what it computed into the results folder's .spool/ (its image, and a method cell's baseline,
+// as EXR; the rest as JSON, written last, so that an entry is complete when its JSON exists);
+// rank 0 stores it with store_cell and removes it. A rank that dies loses only the cell it was
+// computing: the next run finds the others in the spool.
+std::string spool_dir(const std::string& out_dir);
+void write_spooled(const std::string& out_dir, const std::string& key, const ComputedCell& computed);
+bool is_spooled(const std::string& out_dir, const std::string& key);
+// The entry of `key`, or nullopt when there is none. InputError naming the file when it is damaged.
+std::optional<ComputedCell> read_spooled(const std::string& out_dir, const std::string& key);
+void remove_spooled(const std::string& out_dir, const std::string& key);
 
 // Scores `image` against the reference with every metric and writes the error maps the report
 // shows (flip, relmse) beside the image; their paths go into `files`.

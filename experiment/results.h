@@ -5,7 +5,8 @@
 //   {
 //     "format": "denoisebench-results", "schema_version": 2,
 //     "config":  {...},           what was run (RunConfig below)
-//     "machine": {...},           hostname, cpu, hardware_threads (provenance)
+//     "machine": {...},           hostname, cpu, hardware_threads, ranks (the MPI ranks the run
+//                                 was spread over, 1 for one process; absent in older files)
 //     "build":   {...},           version, git revision, compiler, build id (provenance)
 //     "git_revision": "...", "written": <unix time>,
 //     "records": [ CellRecord, ... ]   one per cell: scene x method x input spp, the input

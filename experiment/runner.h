@@ -9,6 +9,9 @@
 //                (denoisers/method.h), timed by time_method()
 // results.json, results.csv and finished_cells.json are rewritten atomically after every cell
 // (experiment/store.h), so an interrupted run resumes without redoing finished cells.
+// Under mpirun the cells of each scene are dealt over the ranks and rank 0 stores them: the same
+// folder as one process writes (runner.cpp, "Several MPI ranks"; docs/cluster.md). The caller
+// holds an mpi::Session; run_experiment returns an empty document on every rank but 0.
 #pragma once
 
 #include <string>
