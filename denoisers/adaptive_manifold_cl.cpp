@@ -152,7 +152,7 @@ class ClRun : private am_detail::AmRunShape {
     cl::Buffer out(ctx, CL_MEM_WRITE_ONLY, sizeof(float) * N * C_);
     cl::Kernel k(prog_, "finish");
     set(k, W_, H_, acc_, src_, min_d2_, int(s_.adjust_outliers), float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)), out);
-    q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(W_, H_));
+    launch(k, W_, H_);
     Image img(W_, H_, C_);
     q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data());
     if (query_out && !queries_.empty()) {
@@ -183,6 +183,15 @@ class ClRun : private am_detail::AmRunShape {
     (k.setArg(i++, std::forward<A>(args)), ...);
   }
 
+  // Enqueues `k` over gx x gy work-items in work-groups of kGroup x 1, the global size rounded up
+  // (every kernel returns early past its image). Without a local size PoCL's CPU driver may
+  // choose work-groups of one item, which it cannot vectorise across.
+  void launch(cl::Kernel& k, std::size_t gx, std::size_t gy = 1) {
+    const std::size_t lx = std::min<std::size_t>(kGroup, gx);
+    st_.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((gx + lx - 1) / lx * lx, gy), cl::NDRange(lx, 1));
+  }
+  static constexpr std::size_t kGroup = 32;
+
   float src_value(int x, int y, int c) {
     float v = 0;
     const std::size_t N = std::size_t(W_) * H_;
@@ -199,8 +208,8 @@ class ClRun : private am_detail::AmRunShape {
     cl::Kernel rows(prog_, "rf_rows"), cols(prog_, "rf_cols");
     set(rows, w, h, p, ah_, std::max(w - 1, 1), constant);
     set(cols, w, h, p, av_, constant);
-    st_.queue.enqueueNDRangeKernel(rows, cl::NullRange, cl::NDRange(h, n));
-    st_.queue.enqueueNDRangeKernel(cols, cl::NullRange, cl::NDRange(w, n));
+    launch(rows, h, n);
+    launch(cols, w, n);
   }
 
   void node(int id, int level, cl::Buffer eta, bool eta_full) {
@@ -213,13 +222,13 @@ class ClRun : private am_detail::AmRunShape {
       cl::Kernel k(prog_, "splat");
       set(k, W_, H_, sw_, sh_, df_, guide_, src_, eta, int(eta_full), tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, inv_sr2_, w_,
           min_d2_, int(s_.adjust_outliers), splat, int(split), id, label_, cov_);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(sw_, sh_));
+      launch(k, sw_, sh_);
     }
     std::vector<float> v(D_, 0.0f);
     if (split) {
       cl::Kernel k(prog_, "cov_rows");
       set(k, sw_, sh_, cov_, cov_rows_);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(sh_, D_ * D_));
+      launch(k, sh_, D_ * D_);
       std::vector<float> rows(std::size_t(sh_) * D_ * D_);
       q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data());
       std::vector<double> cov(D_ * D_, 0.0);
@@ -234,26 +243,26 @@ class ClRun : private am_detail::AmRunShape {
       small = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * n * D_);
       cl::Kernel k(prog_, "downsample");
       set(k, W_, H_, sw_, sh_, df_, eta, small);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(sw_, sh_));
+      launch(k, sw_, sh_);
     }
     // Blur along the manifold.
     {
       const double ss = s_.sigma_s / df_, sr = s_.sigma_r / std::sqrt(2.0);
       cl::Kernel k(prog_, "dt_weights");
       set(k, sw_, sh_, std::max(sw_ - 1, 1), small, float((ss / sr) * (ss / sr)), float(-std::sqrt(2.0) / ss), ah_, av_);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(sw_, sh_));
+      launch(k, sw_, sh_);
       recursive(splat, sw_, sh_, C_ + 1, 0.0f);
     }
     if (!queries_.empty()) {
       cl::Kernel k(prog_, "query");
       set(k, int(queries_.size()), W_, H_, sw_, sh_, qxy_, qguide_, eta, int(eta_full), splat, tx0_, tx1_, tfx_, ty0_,
           ty1_, tfy_, inv_sr2_, qacc_, qmin_);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(queries_.size()));
+      launch(k, queries_.size());
     }
     {
       cl::Kernel k(prog_, "slice");
       set(k, W_, H_, sw_, sh_, splat, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, w_, acc_);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(W_, H_));
+      launch(k, W_, H_);
     }
     if (!split) return;
     cl::Buffer vb = buffer(ctx, v);
@@ -263,14 +272,14 @@ class ClRun : private am_detail::AmRunShape {
       cl::Kernel k(prog_, "split");
       set(k, W_, H_, sw_, sh_, df_, guide_, eta, int(eta_full), tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, vb, w_, label_, id,
           kids[0], kids[1]);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(sw_, sh_));
+      launch(k, sw_, sh_);
     }
     for (int c = 0; c < 2; ++c) {
       low_pass(kids[c], sw_, sh_, D_ + 1, s_.sigma_s / df_);
       cl::Buffer child(ctx, CL_MEM_READ_WRITE, sizeof(float) * n * D_);
       cl::Kernel k(prog_, "divide_eta");
       set(k, int(n), kids[c], small, child);
-      q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(n));
+      launch(k, n);
       node(2 * id + c, level + 1, child, false);
     }
   }
