@@ -455,6 +455,12 @@ Table table2(const ResultsDocument& res) {
                       i ? fmt_time(i->times.total) : "n/a", any ? fmt_time(any->reference.seconds) : "n/a"});
   }
   t.note = "Wall-clock seconds on the machine named in results.json; filter times are medians of repeated runs after a warm-up for methods under a second. n/a: the method was not in the run.";
+  // A run spread over MPI ranks timed each cell on the rank that computed it, with other ranks
+  // sharing the machine (or on other machines): say so beside the seconds.
+  if (const int ranks = res.machine.value("ranks", 1); ranks > 1)
+    t.note += fmt::format(" This run was spread over {} MPI ranks: each cell was timed on the rank that computed it, "
+                          "possibly beside other ranks on the same machine, so times are not those of one process.",
+                          ranks);
   return t;
 }
 

@@ -227,3 +227,18 @@ TEST(RankingTable, RanksByTheGeometricMeanOverScenesAndGivesKendallsTau) {
 
 }  // namespace
 }  // namespace dnb::experiment
+
+namespace dnb::experiment {
+namespace {
+
+TEST(Table2, SaysWhenItsTimesComeFromSeveralMpiRanks) {
+  ResultsDocument d;
+  EXPECT_THAT(table2(d).note, ::testing::Not(::testing::HasSubstr("MPI ranks")));
+  d.machine = {{"hostname", "h"}, {"ranks", 1}};
+  EXPECT_THAT(table2(d).note, ::testing::Not(::testing::HasSubstr("MPI ranks")));
+  d.machine["ranks"] = 3;
+  EXPECT_THAT(table2(d).note, ::testing::HasSubstr("spread over 3 MPI ranks"));
+}
+
+}  // namespace
+}  // namespace dnb::experiment
