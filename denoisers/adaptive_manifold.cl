@@ -65,13 +65,17 @@ __kernel void splat(int W, int H, int sw, int sh, int df, __global const float* 
     for (int k = 0; k < DIMS * DIMS; ++k) cov[((size_t)sy * sw + sx) * DIMS * DIMS + k] = cv[k];
 }
 
-// Row sums of the per-block covariances: one work-item per (reduced row, entry).
+// Row sums of the per-block covariances: one work-item per reduced row, reading the row's blocks
+// in memory order (each block's D x D entries are contiguous) into private sums.
 __kernel void cov_rows(int sw, int sh, __global const float* cov, __global float* rows) {
-  const int sy = get_global_id(0), k = get_global_id(1);
-  if (sy >= sh || k >= DIMS * DIMS) return;
-  float s = 0;
-  for (int sx = 0; sx < sw; ++sx) s += cov[((size_t)sy * sw + sx) * DIMS * DIMS + k];
-  rows[(size_t)sy * DIMS * DIMS + k] = s;
+  const int sy = get_global_id(0);
+  if (sy >= sh) return;
+  float s[DIMS * DIMS];
+  for (int k = 0; k < DIMS * DIMS; ++k) s[k] = 0;
+  __global const float* r = cov + (size_t)sy * sw * DIMS * DIMS;
+  for (int sx = 0; sx < sw; ++sx)
+    for (int k = 0; k < DIMS * DIMS; ++k) s[k] += r[(size_t)sx * DIMS * DIMS + k];
+  for (int k = 0; k < DIMS * DIMS; ++k) rows[(size_t)sy * DIMS * DIMS + k] = s[k];
 }
 
 // Box average of the full-resolution first manifold onto the reduced grid.
@@ -122,18 +126,42 @@ __kernel void rf_rows(int w, int h, __global float* p, __global const float* ah,
   for (int x = w - 2; x >= 0; --x) r[x] += (fixed_a != 0 ? fixed_a : a[x]) * (r[x + 1] - r[x]);
 }
 
-// Recursive filter along columns: one work-item per (column, plane).
+// Recursive filter along columns: one work-item per 8 columns of a plane, as float8 (a CPU
+// device such as PoCL vectorises across work-items only where a kernel has no loop of its own;
+// this one is a loop over rows, so it is written for 8 lanes; a GPU loses nothing by it). The last
+// work-item of a row of fewer than 8 columns runs them one by one.
 __kernel void rf_cols(int w, int h, __global float* p, __global const float* av, float fixed_a) {
-  const int x = get_global_id(0), c = get_global_id(1);
-  if (x >= w) return;
+  const int x0 = 8 * get_global_id(0), c = get_global_id(1);
+  if (x0 >= w) return;
   __global float* q = p + (size_t)c * h * w;
-  for (int y = 1; y < h; ++y) {
-    const float k = fixed_a != 0 ? fixed_a : av[(size_t)(y - 1) * w + x];
-    q[(size_t)y * w + x] += k * (q[(size_t)(y - 1) * w + x] - q[(size_t)y * w + x]);
+  if (x0 + 8 <= w) {
+    const float8 fa = (float8)(fixed_a);
+    float8 prev = vload8(0, q + x0);
+    for (int y = 1; y < h; ++y) {
+      const float8 k = fixed_a != 0 ? fa : vload8(0, av + (size_t)(y - 1) * w + x0);
+      float8 cur = vload8(0, q + (size_t)y * w + x0);
+      cur += k * (prev - cur);
+      vstore8(cur, 0, q + (size_t)y * w + x0);
+      prev = cur;
+    }
+    for (int y = h - 2; y >= 0; --y) {
+      const float8 k = fixed_a != 0 ? fa : vload8(0, av + (size_t)y * w + x0);
+      float8 cur = vload8(0, q + (size_t)y * w + x0);
+      cur += k * (prev - cur);
+      vstore8(cur, 0, q + (size_t)y * w + x0);
+      prev = cur;
+    }
+    return;
   }
-  for (int y = h - 2; y >= 0; --y) {
-    const float k = fixed_a != 0 ? fixed_a : av[(size_t)y * w + x];
-    q[(size_t)y * w + x] += k * (q[(size_t)(y + 1) * w + x] - q[(size_t)y * w + x]);
+  for (int x = x0; x < w; ++x) {
+    for (int y = 1; y < h; ++y) {
+      const float k = fixed_a != 0 ? fixed_a : av[(size_t)(y - 1) * w + x];
+      q[(size_t)y * w + x] += k * (q[(size_t)(y - 1) * w + x] - q[(size_t)y * w + x]);
+    }
+    for (int y = h - 2; y >= 0; --y) {
+      const float k = fixed_a != 0 ? fixed_a : av[(size_t)y * w + x];
+      q[(size_t)y * w + x] += k * (q[(size_t)(y + 1) * w + x] - q[(size_t)y * w + x]);
+    }
   }
 }
 

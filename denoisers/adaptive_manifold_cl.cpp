@@ -209,7 +209,7 @@ class ClRun : private am_detail::AmRunShape {
     set(rows, w, h, p, ah_, std::max(w - 1, 1), constant);
     set(cols, w, h, p, av_, constant);
     launch(rows, h, n);
-    launch(cols, w, n);
+    launch(cols, (std::size_t(w) + 7) / 8, n);  // 8 columns per work-item
   }
 
   void node(int id, int level, cl::Buffer eta, bool eta_full) {
@@ -228,7 +228,7 @@ class ClRun : private am_detail::AmRunShape {
     if (split) {
       cl::Kernel k(prog_, "cov_rows");
       set(k, sw_, sh_, cov_, cov_rows_);
-      launch(k, sh_, D_ * D_);
+      launch(k, sh_);
       std::vector<float> rows(std::size_t(sh_) * D_ * D_);
       q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data());
       std::vector<double> cov(D_ * D_, 0.0);
