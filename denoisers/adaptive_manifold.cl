@@ -26,48 +26,127 @@ inline void eta_at(__global const float* eta, int eta_full, int W, int H, int sw
   }
 }
 
-// Splat (pass 1): one work-item per reduced pixel, over its df x df block: weight
-// w = exp(-|g - eta|^2 / sigma_r^2), splat w * (src, 1), outlier distance, and the block's
-// uncentred covariance of (g - eta) over the node's cluster.
+// Eight lanes of a reduced row `r` at the columns `i` (a gather).
+inline float8 gather8(__global const float* r, int8 i) {
+  return (float8)(r[i.s0], r[i.s1], r[i.s2], r[i.s3], r[i.s4], r[i.s5], r[i.s6], r[i.s7]);
+}
+
+// Eight consecutive values of `r` from column x0 (a vector load), or for the row's tail the
+// clamped columns xs.
+inline float8 load8(__global const float* r, int x0, int8 xs, int full) {
+  return full ? vload8(0, r + x0) : gather8(r, xs);
+}
+
+// Splat (pass 1), in float8 lanes: one work-item per 8 full-resolution columns of reduced row sy
+// (a CPU device such as PoCL vectorises across work-items only in loop-free kernels, and this
+// one loops over the block's rows). For every pixel: w = exp(-|g - eta|^2 / sigma_r^2) into
+// wbuf, the outlier distance, and (w src, w) summed over the block's rows into the column sums
+// `colsum` (C + 1 planes of sh x W); splat_blocks adds the columns of each block. Above the
+// leaves also the uncentred covariance of (g - eta) over the node's cluster, the work-item's
+// D x D sums into cov (one entry per 8 columns).
 __kernel void splat(int W, int H, int sw, int sh, int df, __global const float* guide, __global const float* src,
                     __global const float* eta, int eta_full, TABLES, float inv_sr2, __global float* wbuf,
-                    __global float* min_d2, int adjust, __global float* splat_out, int split, int id,
+                    __global float* min_d2, int adjust, __global float* colsum, int split, int id,
                     __global const ushort* label, __global float* cov) {
+  const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
+  if (x0 >= W || sy >= sh) return;
+  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+  const int8 xs = min((int8)(x0) + lane, (int8)(W - 1));  // the tail's lanes repeat the last column
+  const float8 valid = convert_float8((int8)(x0) + lane < (int8)(W)) * -1.0f;  // 1 or 0 (true is -1)
+  const int full = x0 + 8 <= W;
+  int8 ix0 = 0, ix1 = 0;
+  float8 fx = 0;
+  if (!eta_full) {
+    ix0 = (int8)(tx0[xs.s0], tx0[xs.s1], tx0[xs.s2], tx0[xs.s3], tx0[xs.s4], tx0[xs.s5], tx0[xs.s6], tx0[xs.s7]);
+    ix1 = (int8)(tx1[xs.s0], tx1[xs.s1], tx1[xs.s2], tx1[xs.s3], tx1[xs.s4], tx1[xs.s5], tx1[xs.s6], tx1[xs.s7]);
+    fx = (float8)(tfx[xs.s0], tfx[xs.s1], tfx[xs.s2], tfx[xs.s3], tfx[xs.s4], tfx[xs.s5], tfx[xs.s6], tfx[xs.s7]);
+  }
+  const int ya = sy * df, yb = min(H, ya + df);
+  float8 acc[CHANS + 1];
+  for (int c = 0; c <= CHANS; ++c) acc[c] = 0;
+  float8 cv[DIMS * DIMS];
+  if (split)
+    for (int k = 0; k < DIMS * DIMS; ++k) cv[k] = 0;
+  const size_t N = (size_t)W * H;
+  for (int y = ya; y < yb; ++y) {
+    const size_t row = (size_t)y * W;
+    float8 X[DIMS];
+    float8 d2 = 0;
+    for (int c = 0; c < DIMS; ++c) {
+      float8 e;
+      if (eta_full) {
+        e = load8(eta + (size_t)c * N + row, x0, xs, full);
+      } else {
+        __global const float* p = eta + (size_t)c * sw * sh;
+        __global const float* r0 = p + (size_t)ty0[y] * sw;
+        __global const float* r1 = p + (size_t)ty1[y] * sw;
+        const float fy = tfy[y];
+        const float8 a0 = gather8(r0, ix0), a1 = gather8(r1, ix0), b0 = gather8(r0, ix1), b1 = gather8(r1, ix1);
+        const float8 a = a0 + fy * (a1 - a0), b = b0 + fy * (b1 - b0);
+        e = a + fx * (b - a);
+      }
+      X[c] = load8(guide + (size_t)c * N + row, x0, xs, full) - e;
+      d2 += X[c] * X[c];
+    }
+    const float8 w = exp(-d2 * inv_sr2);
+    if (full) {
+      vstore8(w, 0, wbuf + row + x0);
+      if (adjust) vstore8(fmin(vload8(0, min_d2 + row + x0), d2), 0, min_d2 + row + x0);
+    } else {
+      for (int l = 0; l < W - x0; ++l) {
+        wbuf[row + x0 + l] = w[l];
+        if (adjust) min_d2[row + x0 + l] = fmin(min_d2[row + x0 + l], d2[l]);
+      }
+    }
+    const float8 wv = w * valid;
+    for (int c = 0; c < CHANS; ++c) acc[c] += wv * load8(src + (size_t)c * N + row, x0, xs, full);
+    acc[CHANS] += wv;
+    if (split) {
+      const ushort8 lab = full ? vload8(0, label + row + x0)
+                               : (ushort8)(label[row + xs.s0], label[row + xs.s1], label[row + xs.s2], label[row + xs.s3],
+                                           label[row + xs.s4], label[row + xs.s5], label[row + xs.s6], label[row + xs.s7]);
+      const float8 mine = convert_float8(convert_int8(lab) == (int8)(id)) * -1.0f * valid;
+      for (int a = 0; a < DIMS; ++a) {
+        const float8 xa = X[a] * mine;
+        for (int b = a; b < DIMS; ++b) cv[a * DIMS + b] += xa * X[b];
+      }
+    }
+  }
+  for (int c = 0; c <= CHANS; ++c) {
+    __global float* o = colsum + ((size_t)c * sh + sy) * W + x0;
+    if (full)
+      vstore8(acc[c], 0, o);
+    else
+      for (int l = 0; l < W - x0; ++l) o[l] = acc[c][l];
+  }
+  if (split) {
+    const int nwx = (W + 7) / 8;
+    __global float* o = cov + ((size_t)sy * nwx + get_global_id(0)) * DIMS * DIMS;
+    for (int k = 0; k < DIMS * DIMS; ++k) {
+      const float8 v = cv[k];
+      o[k] = ((v.s0 + v.s1) + (v.s2 + v.s3)) + ((v.s4 + v.s5) + (v.s6 + v.s7));
+    }
+  }
+}
+
+// The splat's blocks: each reduced pixel's column sums added over its df columns, over the
+// block's pixel count.
+__kernel void splat_blocks(int W, int H, int sw, int sh, int df, __global const float* colsum, __global float* splat_out) {
   const int sx = get_global_id(0), sy = get_global_id(1);
   if (sx >= sw || sy >= sh) return;
   const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
-  float acc[CHANS + 1];
-  for (int c = 0; c <= CHANS; ++c) acc[c] = 0;
-  float cv[DIMS * DIMS];
-  for (int k = 0; k < DIMS * DIMS; ++k) cv[k] = 0;
-  for (int y = ya; y < yb; ++y)
-    for (int x = xa; x < xb; ++x) {
-      const size_t i = (size_t)y * W + x;
-      float e[DIMS], X[DIMS];
-      eta_at(eta, eta_full, W, H, sw, sh, x, y, tx0, tx1, tfx, ty0, ty1, tfy, e);
-      float d2 = 0;
-      for (int c = 0; c < DIMS; ++c) {
-        X[c] = guide[(size_t)c * W * H + i] - e[c];
-        d2 += X[c] * X[c];
-      }
-      const float w = exp(-d2 * inv_sr2);
-      wbuf[i] = w;
-      if (adjust) min_d2[i] = min(min_d2[i], d2);
-      for (int c = 0; c < CHANS; ++c) acc[c] += w * src[(size_t)c * W * H + i];
-      acc[CHANS] += w;
-      if (split && label[i] == id)
-        for (int a = 0; a < DIMS; ++a)
-          for (int b = a; b < DIMS; ++b) cv[a * DIMS + b] += X[a] * X[b];
-    }
   const float inv = 1.0f / (float)((yb - ya) * (xb - xa));
-  for (int c = 0; c <= CHANS; ++c) splat_out[((size_t)c * sh + sy) * sw + sx] = acc[c] * inv;
-  if (split)
-    for (int k = 0; k < DIMS * DIMS; ++k) cov[((size_t)sy * sw + sx) * DIMS * DIMS + k] = cv[k];
+  for (int c = 0; c <= CHANS; ++c) {
+    __global const float* r = colsum + ((size_t)c * sh + sy) * W;
+    float t = 0;
+    for (int x = xa; x < xb; ++x) t += r[x];
+    splat_out[((size_t)c * sh + sy) * sw + sx] = t * inv;
+  }
 }
 
 // Row sums of the per-block covariances: one work-item per reduced row, reading the row's blocks
 // in memory order (each block's D x D entries are contiguous) into private sums.
-__kernel void cov_rows(int sw, int sh, __global const float* cov, __global float* rows) {
+__kernel void cov_rows(int sw, int sh, __global const float* cov, __global float* rows) {  // sw: entries per row
   const int sy = get_global_id(0);
   if (sy >= sh) return;
   float s[DIMS * DIMS];

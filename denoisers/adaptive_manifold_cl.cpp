@@ -118,7 +118,10 @@ class ClRun : private am_detail::AmRunShape {
     am_detail::bilinear_table(H_, sh_, df_, y0, y1, fy);
     tx0_ = buffer(ctx, x0), tx1_ = buffer(ctx, x1), tfx_ = buffer(ctx, fx);
     ty0_ = buffer(ctx, y0), ty1_ = buffer(ctx, y1), tfy_ = buffer(ctx, fy);
-    cov_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sw_) * sh_ * D_ * D_);
+    // The splat kernel's work-items cover 8 full-resolution columns each (adaptive_manifold.cl).
+    nwx_ = (W_ + 7) / 8;
+    colsum_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(C_ + 1) * sh_ * W_);
+    cov_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(nwx_) * sh_ * D_ * D_);
     cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sh_) * D_ * D_);
     const int hstride = std::max(sw_ - 1, 1);
     ah_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sh_) * hstride);
@@ -221,13 +224,16 @@ class ClRun : private am_detail::AmRunShape {
     {
       cl::Kernel k(prog_, "splat");
       set(k, W_, H_, sw_, sh_, df_, guide_, src_, eta, int(eta_full), tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, inv_sr2_, w_,
-          min_d2_, int(s_.adjust_outliers), splat, int(split), id, label_, cov_);
-      launch(k, sw_, sh_);
+          min_d2_, int(s_.adjust_outliers), colsum_, int(split), id, label_, cov_);
+      launch(k, std::size_t(nwx_), sh_);
+      cl::Kernel b(prog_, "splat_blocks");
+      set(b, W_, H_, sw_, sh_, df_, colsum_, splat);
+      launch(b, sw_, sh_);
     }
     std::vector<float> v(D_, 0.0f);
     if (split) {
       cl::Kernel k(prog_, "cov_rows");
-      set(k, sw_, sh_, cov_, cov_rows_);
+      set(k, nwx_, sh_, cov_, cov_rows_);
       launch(k, sh_);
       std::vector<float> rows(std::size_t(sh_) * D_ * D_);
       q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data());
@@ -287,6 +293,8 @@ class ClRun : private am_detail::AmRunShape {
   ClState& st_;
   cl::Program prog_;
   cl::Buffer guide_, src_, acc_, w_, min_d2_, label_, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, cov_, cov_rows_, ah_, av_;
+  cl::Buffer colsum_;  // the splat's column sums (C + 1 planes of sh x W)
+  int nwx_ = 1;        // the splat's work-items per row
   cl::Buffer qxy_, qguide_, qacc_, qmin_;
 };
 
