@@ -194,15 +194,50 @@ __kernel void dt_weights(int sw, int sh, int hstride, __global const float* eta,
   }
 }
 
-// Recursive filter along rows, causal then anti-causal: one work-item per (row, plane). With
-// fixed_a != 0 the feedback is that constant (the low-pass h_filter), else ah.
+// Recursive filter along rows, causal then anti-causal: one work-item per 8 rows of a plane, in
+// float8 lanes (one row per lane; see rf_cols). With fixed_a != 0 the feedback is that constant
+// (the low-pass h_filter), else ah. A plane's last rows, fewer than 8, run one by one.
 __kernel void rf_rows(int w, int h, __global float* p, __global const float* ah, int hstride, float fixed_a) {
-  const int y = get_global_id(0), c = get_global_id(1);
-  if (y >= h) return;
-  __global float* r = p + ((size_t)c * h + y) * w;
-  __global const float* a = ah + (size_t)y * hstride;
-  for (int x = 1; x < w; ++x) r[x] += (fixed_a != 0 ? fixed_a : a[x - 1]) * (r[x - 1] - r[x]);
-  for (int x = w - 2; x >= 0; --x) r[x] += (fixed_a != 0 ? fixed_a : a[x]) * (r[x + 1] - r[x]);
+  const int y0 = 8 * get_global_id(0), c = get_global_id(1);
+  if (y0 >= h) return;
+  if (y0 + 8 <= h) {
+    __global float* r = p + ((size_t)c * h + y0) * w;
+    __global const float* a = ah + (size_t)y0 * hstride;
+    const size_t S = (size_t)w, A = (size_t)hstride;
+    const float8 fa = (float8)(fixed_a);
+#define ROWS8(q, i, s) (float8)((q)[(i)], (q)[(i) + (s)], (q)[(i) + 2 * (s)], (q)[(i) + 3 * (s)], (q)[(i) + 4 * (s)], \
+                                (q)[(i) + 5 * (s)], (q)[(i) + 6 * (s)], (q)[(i) + 7 * (s)])
+#define STORE8(v, q, i, s)                                                                       \
+  do {                                                                                           \
+    (q)[(i)] = (v).s0, (q)[(i) + (s)] = (v).s1, (q)[(i) + 2 * (s)] = (v).s2, (q)[(i) + 3 * (s)] = (v).s3; \
+    (q)[(i) + 4 * (s)] = (v).s4, (q)[(i) + 5 * (s)] = (v).s5, (q)[(i) + 6 * (s)] = (v).s6;                 \
+    (q)[(i) + 7 * (s)] = (v).s7;                                                                 \
+  } while (0)
+    float8 prev = ROWS8(r, 0, S);
+    for (int x = 1; x < w; ++x) {
+      const float8 k = fixed_a != 0 ? fa : ROWS8(a, x - 1, A);
+      float8 cur = ROWS8(r, x, S);
+      cur += k * (prev - cur);
+      STORE8(cur, r, x, S);
+      prev = cur;
+    }
+    for (int x = w - 2; x >= 0; --x) {
+      const float8 k = fixed_a != 0 ? fa : ROWS8(a, x, A);
+      float8 cur = ROWS8(r, x, S);
+      cur += k * (prev - cur);
+      STORE8(cur, r, x, S);
+      prev = cur;
+    }
+#undef ROWS8
+#undef STORE8
+    return;
+  }
+  for (int y = y0; y < h; ++y) {
+    __global float* r = p + ((size_t)c * h + y) * w;
+    __global const float* a = ah + (size_t)y * hstride;
+    for (int x = 1; x < w; ++x) r[x] += (fixed_a != 0 ? fixed_a : a[x - 1]) * (r[x - 1] - r[x]);
+    for (int x = w - 2; x >= 0; --x) r[x] += (fixed_a != 0 ? fixed_a : a[x]) * (r[x + 1] - r[x]);
+  }
 }
 
 // Recursive filter along columns: one work-item per 8 columns of a plane, as float8 (a CPU

@@ -211,7 +211,7 @@ class ClRun : private am_detail::AmRunShape {
     cl::Kernel rows(prog_, "rf_rows"), cols(prog_, "rf_cols");
     set(rows, w, h, p, ah_, std::max(w - 1, 1), constant);
     set(cols, w, h, p, av_, constant);
-    launch(rows, h, n);
+    launch(rows, (std::size_t(h) + 7) / 8, n);  // 8 rows per work-item
     launch(cols, (std::size_t(w) + 7) / 8, n);  // 8 columns per work-item
   }
 
