@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <memory>
@@ -201,14 +202,23 @@ TEST(RunMpi, AKilledJobResumesFromItsSpooledCells) {
   test::TempDir dir;
   ASSERT_NO_FATAL_FAILURE(make_folder(dir));
   ASSERT_TRUE(start_and_kill(dir, "two", 3)) << "the run ended before it could be killed";
+  // One spooled cell damaged (a write cut short by a full disk): reported, and computed again.
+  std::vector<fs::path> spooled_json;
+  for (const auto& e : fs::directory_iterator(dir.path() / "two/.spool"))
+    if (e.path().extension() == ".json" && e.path().filename().string()[0] != '.') spooled_json.push_back(e.path());
+  ASSERT_GE(spooled_json.size(), 3u);
+  std::sort(spooled_json.begin(), spooled_json.end());
+  fs::resize_file(spooled_json[0], fs::file_size(spooled_json[0]) / 2);
   const auto resumed = run(dir, "two", 2);
   ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_NE(resumed.output.find("not a spooled cell of this build"), std::string::npos) << resumed.output;
+  EXPECT_NE(resumed.output.find(spooled_json[0].stem().string()), std::string::npos) << resumed.output;
   // The cells spooled before the kill are stored, not computed again.
   const std::regex from_spool(R"((\d+) from an earlier run's spool)");
   int spooled = 0;
   for (auto it = std::sregex_iterator(resumed.output.begin(), resumed.output.end(), from_spool); it != std::sregex_iterator(); ++it)
     spooled += std::stoi((*it)[1]);
-  EXPECT_GE(spooled, 3) << resumed.output;
+  EXPECT_GE(spooled, 3) << resumed.output;  // the damaged one among them: seen, then computed
   const auto one = run(dir, "one", 1);
   ASSERT_EQ(one.exit_code, 0) << one.output;
   expect_same_folder(dir.path() / "one", dir.path() / "two", true);
