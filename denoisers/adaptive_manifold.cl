@@ -41,6 +41,37 @@ inline float8 gather8(__global const float* r, int8 i) {
   return (float8)(r[i.s0], r[i.s1], r[i.s2], r[i.s3], r[i.s4], r[i.s5], r[i.s6], r[i.s7]);
 }
 
+// Whether 8 consecutive columns' bilinear taps (ix0, ix1: am_grid.h's tables) follow the interior
+// pattern of a reduction by 2 or by 4 (2 or 4), with 8 reduced columns from the first tap inside
+// the row; 0 otherwise (borders, other factors, odd sizes: gathers).
+inline int tap_pattern(int8 ix0, int8 ix1, int sw) {
+  const int base = ix0.s0;
+  if (base + 8 > sw) return 0;
+  const int8 b8 = (int8)(base);
+  if (all(ix0 == b8 + (int8)(0, 1, 1, 2, 2, 3, 3, 4)) && all(ix1 == b8 + (int8)(1, 2, 2, 3, 3, 4, 4, 5))) return 2;
+  if (all(ix0 == b8 + (int8)(0, 0, 1, 1, 1, 1, 2, 2)) && all(ix1 == b8 + (int8)(1, 1, 2, 2, 2, 2, 3, 3))) return 4;
+  return 0;
+}
+
+// Eight columns of a reduced plane bilinearly upsampled at one full-resolution row (reduced rows
+// r0 and r1, vertical weight fy): vertical first, as upsample() and the CPU path. With a tap
+// pattern, 8 reduced columns are blended by one vector operation and the taps picked by
+// constant swizzles (the same operations on the same values as the gathers).
+inline float8 upsample8(__global const float* r0, __global const float* r1, float fy, int taps, int base, int8 ix0,
+                        int8 ix1, float8 fx) {
+  float8 a, b;
+  if (taps) {
+    const float8 v0 = vload8(0, r0 + base), v1 = vload8(0, r1 + base);
+    const float8 vb = v0 + fy * (v1 - v0);
+    a = taps == 2 ? vb.s01122334 : vb.s00111122;
+    b = taps == 2 ? vb.s12233445 : vb.s11222233;
+  } else {
+    const float8 a0 = gather8(r0, ix0), a1 = gather8(r1, ix0), b0 = gather8(r0, ix1), b1 = gather8(r1, ix1);
+    a = a0 + fy * (a1 - a0), b = b0 + fy * (b1 - b0);
+  }
+  return a + fx * (b - a);
+}
+
 // Eight consecutive values of `r` from column x0 (a vector load), or for the row's tail the
 // clamped columns xs.
 inline float8 load8(__global const float* r, int x0, int8 xs, int full) {
@@ -71,6 +102,8 @@ __kernel void splat(int W, int H, int sw, int sh, int df, __global const float* 
     ix1 = (int8)(tx1[xs.s0], tx1[xs.s1], tx1[xs.s2], tx1[xs.s3], tx1[xs.s4], tx1[xs.s5], tx1[xs.s6], tx1[xs.s7]);
     fx = (float8)(tfx[xs.s0], tfx[xs.s1], tfx[xs.s2], tfx[xs.s3], tfx[xs.s4], tfx[xs.s5], tfx[xs.s6], tfx[xs.s7]);
   }
+  const int base = ix0.s0;
+  const int taps = !eta_full && full ? tap_pattern(ix0, ix1, sw) : 0;
   const int ya = sy * df, yb = min(H, ya + df);
   float8 acc[CHANS + 1];
   for (int c = 0; c <= CHANS; ++c) acc[c] = 0;
@@ -88,12 +121,7 @@ __kernel void splat(int W, int H, int sw, int sh, int df, __global const float* 
         e = load8(eta + (size_t)c * N + row, x0, xs, full);
       } else {
         __global const float* p = eta + (size_t)c * sw * sh;
-        __global const float* r0 = p + (size_t)ty0[y] * sw;
-        __global const float* r1 = p + (size_t)ty1[y] * sw;
-        const float fy = tfy[y];
-        const float8 a0 = gather8(r0, ix0), a1 = gather8(r1, ix0), b0 = gather8(r0, ix1), b1 = gather8(r1, ix1);
-        const float8 a = a0 + fy * (a1 - a0), b = b0 + fy * (b1 - b0);
-        e = a + fx * (b - a);
+        e = upsample8(p + (size_t)ty0[y] * sw, p + (size_t)ty1[y] * sw, tfy[y], taps, base, ix0, ix1, fx);
       }
       X[c] = load8(guide + (size_t)c * N + row, x0, xs, full) - e;
       d2 += X[c] * X[c];
@@ -300,37 +328,94 @@ __kernel void slice(int W, int H, int sw, int sh, __global const float* blurred,
     acc[(size_t)c * W * H + i] += w * upsample(blurred + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
 }
 
-// Split: one work-item per reduced pixel: the cluster's pixels go left (dot < 0) or right, and
-// each child's block sums of (1 - w) g and (1 - w) are written (D + 1 planes per child).
+// Split, in float8 lanes like the splat: one work-item per 8 full-resolution columns of reduced
+// row sy. The cluster's pixels go left (dot < 0) or right and are relabelled, and each side's
+// (1 - w) g and (1 - w) are summed over the block's rows into the column sums `colsum` (D + 1
+// planes for the left child, then D + 1 for the right, each sh x W); split_blocks adds each
+// block's columns into the children's reduced splats.
 __kernel void split(int W, int H, int sw, int sh, int df, __global const float* guide, __global const float* eta,
                     int eta_full, TABLES, __global const float* v, __global const float* wbuf,
-                    __global ushort* label, int id, __global float* kid_l, __global float* kid_r) {
+                    __global ushort* label, int id, __global float* colsum) {
+  const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
+  if (x0 >= W || sy >= sh) return;
+  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+  const int8 xs = min((int8)(x0) + lane, (int8)(W - 1));
+  const float8 valid = convert_float8((int8)(x0) + lane < (int8)(W)) * -1.0f;
+  const int full = x0 + 8 <= W;
+  int8 ix0 = 0, ix1 = 0;
+  float8 fx = 0;
+  if (!eta_full) {
+    ix0 = (int8)(tx0[xs.s0], tx0[xs.s1], tx0[xs.s2], tx0[xs.s3], tx0[xs.s4], tx0[xs.s5], tx0[xs.s6], tx0[xs.s7]);
+    ix1 = (int8)(tx1[xs.s0], tx1[xs.s1], tx1[xs.s2], tx1[xs.s3], tx1[xs.s4], tx1[xs.s5], tx1[xs.s6], tx1[xs.s7]);
+    fx = (float8)(tfx[xs.s0], tfx[xs.s1], tfx[xs.s2], tfx[xs.s3], tfx[xs.s4], tfx[xs.s5], tfx[xs.s6], tfx[xs.s7]);
+  }
+  const int base = ix0.s0;
+  const int taps = !eta_full && full ? tap_pattern(ix0, ix1, sw) : 0;
+  float8 l[DIMS + 1], r[DIMS + 1];
+  for (int c = 0; c <= DIMS; ++c) l[c] = r[c] = 0;
+  const size_t N = (size_t)W * H;
+  const int ya = sy * df, yb = min(H, ya + df);
+  for (int y = ya; y < yb; ++y) {
+    const size_t row = (size_t)y * W;
+    const int8 lab = full ? convert_int8(vload8(0, label + row + x0))
+                          : (int8)(label[row + xs.s0], label[row + xs.s1], label[row + xs.s2], label[row + xs.s3],
+                                   label[row + xs.s4], label[row + xs.s5], label[row + xs.s6], label[row + xs.s7]);
+    const int8 mine = lab == (int8)(id);  // -1 or 0
+    float8 g[DIMS];
+    float8 dot = 0;
+    for (int c = 0; c < DIMS; ++c) {
+      float8 e;
+      if (eta_full) {
+        e = load8(eta + (size_t)c * N + row, x0, xs, full);
+      } else {
+        __global const float* p = eta + (size_t)c * sw * sh;
+        e = upsample8(p + (size_t)ty0[y] * sw, p + (size_t)ty1[y] * sw, tfy[y], taps, base, ix0, ix1, fx);
+      }
+      g[c] = load8(guide + (size_t)c * N + row, x0, xs, full);
+      dot += v[c] * (g[c] - e);
+    }
+    const int8 left = dot < (float8)(0.0f);  // -1 or 0
+    const float8 theta = (1.0f - load8(wbuf + row, x0, xs, full)) * -convert_float8(mine) * valid;
+    const float8 tl = theta * -convert_float8(left), tr = theta - tl;
+    const int8 relabel = select(lab, select((int8)(2 * id + 1), (int8)(2 * id), left), mine);
+    if (full)
+      vstore8(convert_ushort8(relabel), 0, label + row + x0);
+    else
+      for (int k = 0; k < W - x0; ++k) label[row + x0 + k] = (ushort)relabel[k];
+    for (int c = 0; c < DIMS; ++c) {
+      l[c] += tl * g[c];
+      r[c] += tr * g[c];
+    }
+    l[DIMS] += tl;
+    r[DIMS] += tr;
+  }
+  for (int c = 0; c <= DIMS; ++c) {
+    __global float* ol = colsum + ((size_t)c * sh + sy) * W + x0;
+    __global float* orr = colsum + ((size_t)(DIMS + 1 + c) * sh + sy) * W + x0;
+    if (full) {
+      vstore8(l[c], 0, ol);
+      vstore8(r[c], 0, orr);
+    } else {
+      for (int k = 0; k < W - x0; ++k) ol[k] = l[c][k], orr[k] = r[c][k];
+    }
+  }
+}
+
+// The children's reduced splats from split's column sums: each reduced pixel's df columns
+// added, over the block's pixel count (D + 1 planes per child).
+__kernel void split_blocks(int W, int H, int sw, int sh, int df, __global const float* colsum, __global float* kid_l,
+                           __global float* kid_r) {
   const int sx = get_global_id(0), sy = get_global_id(1);
   if (sx >= sw || sy >= sh) return;
   const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
-  float l[DIMS + 1], r[DIMS + 1];
-  for (int c = 0; c <= DIMS; ++c) l[c] = r[c] = 0;
-  for (int y = ya; y < yb; ++y)
-    for (int x = xa; x < xb; ++x) {
-      const size_t i = (size_t)y * W + x;
-      if (label[i] != id) continue;
-      float e[DIMS];
-      eta_at(eta, eta_full, W, H, sw, sh, x, y, tx0, tx1, tfx, ty0, ty1, tfy, e);
-      float dot = 0;
-      for (int c = 0; c < DIMS; ++c) dot += v[c] * (guide[(size_t)c * W * H + i] - e[c]);
-      const float theta = 1.0f - wbuf[i];
-      const int left = dot < 0;
-      label[i] = (ushort)(left ? 2 * id : 2 * id + 1);
-      for (int c = 0; c < DIMS; ++c) {
-        const float t = theta * guide[(size_t)c * W * H + i];
-        if (left) l[c] += t; else r[c] += t;
-      }
-      if (left) l[DIMS] += theta; else r[DIMS] += theta;
-    }
   const float inv = 1.0f / (float)((yb - ya) * (xb - xa));
   for (int c = 0; c <= DIMS; ++c) {
-    kid_l[((size_t)c * sh + sy) * sw + sx] = l[c] * inv;
-    kid_r[((size_t)c * sh + sy) * sw + sx] = r[c] * inv;
+    __global const float* rl = colsum + ((size_t)c * sh + sy) * W;
+    __global const float* rr = colsum + ((size_t)(DIMS + 1 + c) * sh + sy) * W;
+    float a = 0, b = 0;
+    for (int x = xa; x < xb; ++x) a += rl[x], b += rr[x];
+    kid_l[((size_t)c * sh + sy) * sw + sx] = a * inv;
+    kid_r[((size_t)c * sh + sy) * sw + sx] = b * inv;
   }
 }
 

@@ -120,7 +120,7 @@ class ClRun : private am_detail::AmRunShape {
     ty0_ = buffer(ctx, y0), ty1_ = buffer(ctx, y1), tfy_ = buffer(ctx, fy);
     // The splat kernel's work-items cover 8 full-resolution columns each (adaptive_manifold.cl).
     nwx_ = (W_ + 7) / 8;
-    colsum_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(C_ + 1) * sh_ * W_);
+    colsum_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(std::max(C_ + 1, 2 * (D_ + 1))) * sh_ * W_);
     cov_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(nwx_) * sh_ * D_ * D_);
     cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sh_) * D_ * D_);
     const int hstride = std::max(sw_ - 1, 1);
@@ -277,8 +277,11 @@ class ClRun : private am_detail::AmRunShape {
     {
       cl::Kernel k(prog_, "split");
       set(k, W_, H_, sw_, sh_, df_, guide_, eta, int(eta_full), tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, vb, w_, label_, id,
-          kids[0], kids[1]);
-      launch(k, sw_, sh_);
+          colsum_);
+      launch(k, std::size_t(nwx_), sh_);
+      cl::Kernel b(prog_, "split_blocks");
+      set(b, W_, H_, sw_, sh_, df_, colsum_, kids[0], kids[1]);
+      launch(b, sw_, sh_);
     }
     for (int c = 0; c < 2; ++c) {
       low_pass(kids[c], sw_, sh_, D_ + 1, s_.sigma_s / df_);
@@ -293,7 +296,7 @@ class ClRun : private am_detail::AmRunShape {
   ClState& st_;
   cl::Program prog_;
   cl::Buffer guide_, src_, acc_, w_, min_d2_, label_, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, cov_, cov_rows_, ah_, av_;
-  cl::Buffer colsum_;  // the splat's column sums (C + 1 planes of sh x W)
+  cl::Buffer colsum_;  // the splat's and the split's column sums (C + 1, or 2 (D + 1), planes of sh x W)
   int nwx_ = 1;        // the splat's work-items per row
   cl::Buffer qxy_, qguide_, qacc_, qmin_;
 };
