@@ -317,15 +317,32 @@ __kernel void rf_cols(int w, int h, __global float* p, __global const float* av,
   }
 }
 
-// Slice: every pixel gathers w * blurred (C + 1 planes) from the manifold.
+// Slice: every pixel gathers w * blurred (C + 1 planes) from the manifold; one work-item per 8
+// columns of a full-resolution row, in float8 lanes (the taps as in the splat).
 __kernel void slice(int W, int H, int sw, int sh, __global const float* blurred, TABLES, __global const float* wbuf,
                     __global float* acc) {
-  const int x = get_global_id(0), y = get_global_id(1);
-  if (x >= W || y >= H) return;
-  const size_t i = (size_t)y * W + x;
-  const float w = wbuf[i];
-  for (int c = 0; c <= CHANS; ++c)
-    acc[(size_t)c * W * H + i] += w * upsample(blurred + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
+  const int x0 = 8 * get_global_id(0), y = get_global_id(1);
+  if (x0 >= W || y >= H) return;
+  const size_t row = (size_t)y * W;
+  if (x0 + 8 > W) {  // the row's last columns, fewer than 8
+    for (int x = x0; x < W; ++x) {
+      const float w = wbuf[row + x];
+      for (int c = 0; c <= CHANS; ++c)
+        acc[(size_t)c * W * H + row + x] +=
+            w * upsample(blurred + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
+    }
+    return;
+  }
+  const int8 ix0 = vload8(0, tx0 + x0), ix1 = vload8(0, tx1 + x0);
+  const float8 fx = vload8(0, tfx + x0);
+  const int taps = tap_pattern(ix0, ix1, sw), base = ix0.s0;
+  const float8 w = vload8(0, wbuf + row + x0);
+  for (int c = 0; c <= CHANS; ++c) {
+    __global const float* p = blurred + (size_t)c * sw * sh;
+    __global float* a = acc + (size_t)c * W * H + row + x0;
+    vstore8(vload8(0, a) + w * upsample8(p + (size_t)ty0[y] * sw, p + (size_t)ty1[y] * sw, tfy[y], taps, base, ix0, ix1, fx),
+            0, a);
+  }
 }
 
 // Split, in float8 lanes like the splat: one work-item per 8 full-resolution columns of reduced

@@ -268,7 +268,7 @@ class ClRun : private am_detail::AmRunShape {
     {
       cl::Kernel k(prog_, "slice");
       set(k, W_, H_, sw_, sh_, splat, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, w_, acc_);
-      launch(k, W_, H_);
+      launch(k, std::size_t(nwx_), H_);  // 8 columns per work-item
     }
     if (!split) return;
     cl::Buffer vb = buffer(ctx, v);
