@@ -6,13 +6,16 @@
 //
 // Speed on a CPU device (PoCL): PoCL runs a work-group as a loop over its work-items and leaves
 // vectorising it to LLVM, which vectorises innermost loops only, so a kernel with a loop of its
-// own (over rows, over a block) runs one work-item at a time. Such kernels are written in float8
-// lanes instead (rf_rows, rf_cols, splat): each work-item does 8 rows or columns at once, which
-// costs a GPU nothing. The host launches work-groups of 32 x 1 (adaptive_manifold_cl.cpp).
-// Measured (bench, proposed at 1024x768): 8.7x the native path's time before, 3.95x after. What
-// is left is mostly the bilinear upsampling of reduced manifolds (gathers) in splat and split;
-// the native path instead blends two reduced rows first and fuses a level's manifolds into one
-// pass over the image (am_tree.cpp), which this path does manifold by manifold.
+// own (over rows, over a block, over channels) runs one work-item at a time. Such kernels are
+// written in float8 lanes instead (rf_rows, rf_cols, dt_weights, splat, split, slice): each
+// work-item does 8 rows or columns at once, which costs a GPU nothing; the bilinear taps of 8
+// columns come from one vector blend and constant swizzles where they follow the pattern of a
+// reduction by 2 or 4 (tap_pattern), gathers elsewhere. The host launches work-groups of 32 x 1
+// (adaptive_manifold_cl.cpp). Measured (bench, proposed at 1024x768, against the native path in
+// the same run): 8.7x its time before, 3.1x after. What is left: the splat (a fifth of the time:
+// exp and the covariance sums), the slice queries (gathers at scattered pixels), and the
+// structure: the native path fuses a level's manifolds into one pass over the image
+// (am_tree.cpp), which this path does manifold by manifold.
 
 // Bilinear sample of plane p (sw wide) at full-resolution pixel (x, y): vertical first, as the
 // CPU path's row upsampling.
@@ -209,26 +212,45 @@ __kernel void downsample(int W, int H, int sw, int sh, int df, __global const fl
 }
 
 // Domain-transform edge feedbacks a^sqrt(1 + ratio2 |d eta|^2) along rows (ah: sw - 1 per row,
-// stride hstride) and columns (av: sw per row pair).
+// stride hstride) and columns (av: sw per row pair). One work-item per 8 reduced columns, in
+// float8 lanes where all 8 and their right neighbours are in the row; one by one otherwise.
 __kernel void dt_weights(int sw, int sh, int hstride, __global const float* eta, float ratio2, float ln_a,
                          __global float* ah, __global float* av) {
-  const int x = get_global_id(0), y = get_global_id(1);
-  if (x >= sw || y >= sh) return;
-  if (x + 1 < sw) {
-    float d = 0;
+  const int x0 = 8 * get_global_id(0), y = get_global_id(1);
+  if (x0 >= sw || y >= sh) return;
+  if (x0 + 9 <= sw) {
+    float8 dh = 0, dv = 0;
     for (int c = 0; c < DIMS; ++c) {
-      const float t = eta[((size_t)c * sh + y) * sw + x + 1] - eta[((size_t)c * sh + y) * sw + x];
-      d += t * t;
+      __global const float* e = eta + ((size_t)c * sh + y) * sw + x0;
+      const float8 here = vload8(0, e);
+      const float8 t = vload8(0, e + 1) - here;
+      dh += t * t;
+      if (y + 1 < sh) {
+        const float8 u = vload8(0, e + sw) - here;
+        dv += u * u;
+      }
     }
-    ah[(size_t)y * hstride + x] = exp(ln_a * sqrt(1.0f + ratio2 * d));
+    vstore8(exp(ln_a * sqrt(1.0f + ratio2 * dh)), 0, ah + (size_t)y * hstride + x0);
+    if (y + 1 < sh) vstore8(exp(ln_a * sqrt(1.0f + ratio2 * dv)), 0, av + (size_t)y * sw + x0);
+    return;
   }
-  if (y + 1 < sh) {
-    float d = 0;
-    for (int c = 0; c < DIMS; ++c) {
-      const float t = eta[((size_t)c * sh + y + 1) * sw + x] - eta[((size_t)c * sh + y) * sw + x];
-      d += t * t;
+  for (int x = x0; x < min(sw, x0 + 8); ++x) {
+    if (x + 1 < sw) {
+      float d = 0;
+      for (int c = 0; c < DIMS; ++c) {
+        const float t = eta[((size_t)c * sh + y) * sw + x + 1] - eta[((size_t)c * sh + y) * sw + x];
+        d += t * t;
+      }
+      ah[(size_t)y * hstride + x] = exp(ln_a * sqrt(1.0f + ratio2 * d));
     }
-    av[(size_t)y * sw + x] = exp(ln_a * sqrt(1.0f + ratio2 * d));
+    if (y + 1 < sh) {
+      float d = 0;
+      for (int c = 0; c < DIMS; ++c) {
+        const float t = eta[((size_t)c * sh + y + 1) * sw + x] - eta[((size_t)c * sh + y) * sw + x];
+        d += t * t;
+      }
+      av[(size_t)y * sw + x] = exp(ln_a * sqrt(1.0f + ratio2 * d));
+    }
   }
 }
 

@@ -256,7 +256,7 @@ class ClRun : private am_detail::AmRunShape {
       const double ss = s_.sigma_s / df_, sr = s_.sigma_r / std::sqrt(2.0);
       cl::Kernel k(prog_, "dt_weights");
       set(k, sw_, sh_, std::max(sw_ - 1, 1), small, float((ss / sr) * (ss / sr)), float(-std::sqrt(2.0) / ss), ah_, av_);
-      launch(k, sw_, sh_);
+      launch(k, (std::size_t(sw_) + 7) / 8, sh_);  // 8 reduced columns per work-item
       recursive(splat, sw_, sh_, C_ + 1, 0.0f);
     }
     if (!queries_.empty()) {
