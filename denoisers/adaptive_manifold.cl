@@ -75,11 +75,51 @@ inline float8 upsample8(__global const float* r0, __global const float* r1, floa
   return a + fx * (b - a);
 }
 
+// What the float8 kernels (splat, split) know about their 8 columns x0 .. x0 + 7 of a W-wide row:
+// the columns clamped to the row (the tail's lanes repeat the last one), which lanes are in it
+// (1 or 0), whether all are, and for a manifold on the reduced grid the bilinear taps and weights
+// (am_grid.h's tables) with their swizzle pattern (tap_pattern; 0: gathers).
+typedef struct {
+  int8 xs, ix0, ix1;
+  float8 valid, fx;
+  int full, base, taps;
+} Cols8;
+
+inline Cols8 cols8(int x0, int W, int sw, int eta_full, __global const int* tx0, __global const int* tx1,
+                   __global const float* tfx) {
+  Cols8 k;
+  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
+  k.xs = min((int8)(x0) + lane, (int8)(W - 1));
+  k.valid = convert_float8((int8)(x0) + lane < (int8)(W)) * -1.0f;  // true is -1
+  k.full = x0 + 8 <= W;
+  k.ix0 = 0, k.ix1 = 0;
+  k.fx = 0;
+  if (!eta_full) {
+    const int8 xs = k.xs;
+    k.ix0 = (int8)(tx0[xs.s0], tx0[xs.s1], tx0[xs.s2], tx0[xs.s3], tx0[xs.s4], tx0[xs.s5], tx0[xs.s6], tx0[xs.s7]);
+    k.ix1 = (int8)(tx1[xs.s0], tx1[xs.s1], tx1[xs.s2], tx1[xs.s3], tx1[xs.s4], tx1[xs.s5], tx1[xs.s6], tx1[xs.s7]);
+    k.fx = (float8)(tfx[xs.s0], tfx[xs.s1], tfx[xs.s2], tfx[xs.s3], tfx[xs.s4], tfx[xs.s5], tfx[xs.s6], tfx[xs.s7]);
+  }
+  k.base = k.ix0.s0;
+  k.taps = !eta_full && k.full ? tap_pattern(k.ix0, k.ix1, sw) : 0;
+  return k;
+}
+
 // Eight consecutive values of `r` from column x0 (a vector load), or for the row's tail the
 // clamped columns xs.
 inline float8 load8(__global const float* r, int x0, int8 xs, int full) {
   return full ? vload8(0, r + x0) : gather8(r, xs);
 }
+
+// Channel c of a manifold at the 8 columns of `k` in full-resolution row y: read (the root's,
+// at full resolution) or bilinearly upsampled from the reduced grid.
+inline float8 eta8(__global const float* eta, int eta_full, int c, int W, int H, int sw, int sh, int y, int x0,
+                   const Cols8* k, __global const int* ty0, __global const int* ty1, __global const float* tfy) {
+  if (eta_full) return load8(eta + (size_t)c * W * H + (size_t)y * W, x0, k->xs, k->full);
+  __global const float* p = eta + (size_t)c * sw * sh;
+  return upsample8(p + (size_t)ty0[y] * sw, p + (size_t)ty1[y] * sw, tfy[y], k->taps, k->base, k->ix0, k->ix1, k->fx);
+}
+
 
 // Splat (pass 1), in float8 lanes: one work-item per 8 full-resolution columns of reduced row sy
 // (a CPU device such as PoCL vectorises across work-items only in loop-free kernels, and this
@@ -94,19 +134,10 @@ __kernel void splat(int W, int H, int sw, int sh, int df, __global const float* 
                     __global const ushort* label, __global float* cov) {
   const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
   if (x0 >= W || sy >= sh) return;
-  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
-  const int8 xs = min((int8)(x0) + lane, (int8)(W - 1));  // the tail's lanes repeat the last column
-  const float8 valid = convert_float8((int8)(x0) + lane < (int8)(W)) * -1.0f;  // 1 or 0 (true is -1)
-  const int full = x0 + 8 <= W;
-  int8 ix0 = 0, ix1 = 0;
-  float8 fx = 0;
-  if (!eta_full) {
-    ix0 = (int8)(tx0[xs.s0], tx0[xs.s1], tx0[xs.s2], tx0[xs.s3], tx0[xs.s4], tx0[xs.s5], tx0[xs.s6], tx0[xs.s7]);
-    ix1 = (int8)(tx1[xs.s0], tx1[xs.s1], tx1[xs.s2], tx1[xs.s3], tx1[xs.s4], tx1[xs.s5], tx1[xs.s6], tx1[xs.s7]);
-    fx = (float8)(tfx[xs.s0], tfx[xs.s1], tfx[xs.s2], tfx[xs.s3], tfx[xs.s4], tfx[xs.s5], tfx[xs.s6], tfx[xs.s7]);
-  }
-  const int base = ix0.s0;
-  const int taps = !eta_full && full ? tap_pattern(ix0, ix1, sw) : 0;
+  const Cols8 k8 = cols8(x0, W, sw, eta_full, tx0, tx1, tfx);
+  const int8 xs = k8.xs;
+  const float8 valid = k8.valid;
+  const int full = k8.full;
   const int ya = sy * df, yb = min(H, ya + df);
   float8 acc[CHANS + 1];
   for (int c = 0; c <= CHANS; ++c) acc[c] = 0;
@@ -119,13 +150,7 @@ __kernel void splat(int W, int H, int sw, int sh, int df, __global const float* 
     float8 X[DIMS];
     float8 d2 = 0;
     for (int c = 0; c < DIMS; ++c) {
-      float8 e;
-      if (eta_full) {
-        e = load8(eta + (size_t)c * N + row, x0, xs, full);
-      } else {
-        __global const float* p = eta + (size_t)c * sw * sh;
-        e = upsample8(p + (size_t)ty0[y] * sw, p + (size_t)ty1[y] * sw, tfy[y], taps, base, ix0, ix1, fx);
-      }
+      const float8 e = eta8(eta, eta_full, c, W, H, sw, sh, y, x0, &k8, ty0, ty1, tfy);
       X[c] = load8(guide + (size_t)c * N + row, x0, xs, full) - e;
       d2 += X[c] * X[c];
     }
@@ -377,19 +402,10 @@ __kernel void split(int W, int H, int sw, int sh, int df, __global const float* 
                     __global ushort* label, int id, __global float* colsum) {
   const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
   if (x0 >= W || sy >= sh) return;
-  const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
-  const int8 xs = min((int8)(x0) + lane, (int8)(W - 1));
-  const float8 valid = convert_float8((int8)(x0) + lane < (int8)(W)) * -1.0f;
-  const int full = x0 + 8 <= W;
-  int8 ix0 = 0, ix1 = 0;
-  float8 fx = 0;
-  if (!eta_full) {
-    ix0 = (int8)(tx0[xs.s0], tx0[xs.s1], tx0[xs.s2], tx0[xs.s3], tx0[xs.s4], tx0[xs.s5], tx0[xs.s6], tx0[xs.s7]);
-    ix1 = (int8)(tx1[xs.s0], tx1[xs.s1], tx1[xs.s2], tx1[xs.s3], tx1[xs.s4], tx1[xs.s5], tx1[xs.s6], tx1[xs.s7]);
-    fx = (float8)(tfx[xs.s0], tfx[xs.s1], tfx[xs.s2], tfx[xs.s3], tfx[xs.s4], tfx[xs.s5], tfx[xs.s6], tfx[xs.s7]);
-  }
-  const int base = ix0.s0;
-  const int taps = !eta_full && full ? tap_pattern(ix0, ix1, sw) : 0;
+  const Cols8 k8 = cols8(x0, W, sw, eta_full, tx0, tx1, tfx);
+  const int8 xs = k8.xs;
+  const float8 valid = k8.valid;
+  const int full = k8.full;
   float8 l[DIMS + 1], r[DIMS + 1];
   for (int c = 0; c <= DIMS; ++c) l[c] = r[c] = 0;
   const size_t N = (size_t)W * H;
@@ -403,13 +419,7 @@ __kernel void split(int W, int H, int sw, int sh, int df, __global const float* 
     float8 g[DIMS];
     float8 dot = 0;
     for (int c = 0; c < DIMS; ++c) {
-      float8 e;
-      if (eta_full) {
-        e = load8(eta + (size_t)c * N + row, x0, xs, full);
-      } else {
-        __global const float* p = eta + (size_t)c * sw * sh;
-        e = upsample8(p + (size_t)ty0[y] * sw, p + (size_t)ty1[y] * sw, tfy[y], taps, base, ix0, ix1, fx);
-      }
+      const float8 e = eta8(eta, eta_full, c, W, H, sw, sh, y, x0, &k8, ty0, ty1, tfy);
       g[c] = load8(guide + (size_t)c * N + row, x0, xs, full);
       dot += v[c] * (g[c] - e);
     }
