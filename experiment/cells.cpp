@@ -199,9 +199,7 @@ void write_spooled(const std::string& out_dir, const std::string& key, const Com
     // Images as float EXR: read back bit for bit. The JSON last: it marks the entry complete.
     write_rgb(out->image, spooled(out_dir, key, ".exr"));
     if (out->baseline) write_rgb(*out->baseline, spooled(out_dir, key, ".baseline.exr"));
-    const CellTimes& t = out->times;
-    j["output"] = {{"times", {{"input_render", t.input_render}, {"filter", t.filter}, {"total", t.total},
-                              {"filter_runs", optional_json(t.filter_runs)}, {"setup", optional_json(t.setup)}}},
+    j["output"] = {{"times", times_to_json(out->times)},
                    {"input_cache_hit", optional_json(out->input_cache_hit)},
                    {"phases", optional_json(out->phases)},
                    {"counters", optional_json(out->counters)},
@@ -225,12 +223,7 @@ std::optional<ComputedCell> read_spooled(const std::string& out_dir, const std::
       CellOutput out;
       out.image = read_rgb(spooled(out_dir, key, ".exr"));
       if (o.at("baseline").get<bool>()) out.baseline = read_rgb(spooled(out_dir, key, ".baseline.exr"));
-      const nlohmann::json& t = o.at("times");
-      out.times.input_render = t.at("input_render").get<double>();
-      out.times.filter = t.at("filter").get<double>();
-      out.times.total = t.at("total").get<double>();
-      out.times.filter_runs = json_optional<std::vector<double>>(t, "filter_runs");
-      out.times.setup = json_optional<double>(t, "setup");
+      out.times = times_from_json(o.at("times"), path + ": times");
       out.input_cache_hit = json_optional<bool>(o, "input_cache_hit");
       out.phases = json_optional<std::map<std::string, double>>(o, "phases");
       out.counters = json_optional<std::map<std::string, double>>(o, "counters");

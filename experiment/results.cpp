@@ -110,6 +110,29 @@ std::string CellRecord::file(const std::string& name) const {
   return it == files.end() ? std::string() : it->second;
 }
 
+json times_to_json(const CellTimes& times) {
+  json t = {{"input_render", times.input_render}, {"filter", times.filter}, {"total", times.total}};
+  if (times.reference) t["reference"] = *times.reference;
+  if (times.filter_runs) t["filter_runs"] = *times.filter_runs;
+  if (times.setup) t["setup_seconds"] = *times.setup;
+  return t;
+}
+
+CellTimes times_from_json(const json& times, const std::string& tw) {
+  CellTimes t;
+  t.input_render = non_negative_number(times, "input_render", tw);
+  t.filter = non_negative_number(times, "filter", tw);
+  t.total = non_negative_number(times, "total", tw);
+  t.reference = optional_number(times, "reference", tw);
+  t.filter_runs = optional_value<std::vector<double>>(times, "filter_runs", tw);
+  t.setup = optional_number(times, "setup_seconds", tw);
+  if (t.reference) non_negative(*t.reference, "reference", tw);
+  if (t.setup) non_negative(*t.setup, "setup_seconds", tw);
+  if (t.filter_runs)
+    for (double v : *t.filter_runs) non_negative(v, "filter_runs", tw);
+  return t;
+}
+
 json CellRecord::to_json() const {
   json r = {{"scene", scene}, {"method", method}, {"role", to_string(role)}, {"spp", spp}, {"width", width}, {"height", height}};
   if (!scene_hash.empty()) r["scene_hash"] = scene_hash;
@@ -118,11 +141,7 @@ json CellRecord::to_json() const {
   json m = json::object();
   for (const auto& [k, v] : metrics) m[k] = v ? jf::number_or_null(*v) : json(nullptr);
   r["metrics"] = m;
-  json t = {{"input_render", times.input_render}, {"filter", times.filter}, {"total", times.total}};
-  if (times.reference) t["reference"] = *times.reference;
-  if (times.filter_runs) t["filter_runs"] = *times.filter_runs;
-  if (times.setup) t["setup_seconds"] = *times.setup;
-  r["times"] = t;
+  r["times"] = times_to_json(times);
   json ref = {{"spp", reference.spp}, {"seconds", reference.seconds}, {"image", reference.image},
               {"unconverged_share", reference.unconverged_share ? json(*reference.unconverged_share) : json(nullptr)}};
   if (reference.seed) ref["seed"] = *reference.seed;
@@ -163,18 +182,7 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   if (!metrics.is_object()) throw InputError(fmt::format("{}: key 'metrics': expected an object", where));
   for (const auto& [k, v] : metrics.items()) r.metrics[k] = optional_number(metrics, k, where + ": metrics");
 
-  const json times = jf::get<json>(j, "times", where);
-  const std::string tw = where + ": times";
-  r.times.input_render = non_negative_number(times, "input_render", tw);
-  r.times.filter = non_negative_number(times, "filter", tw);
-  r.times.total = non_negative_number(times, "total", tw);
-  r.times.reference = optional_number(times, "reference", tw);
-  r.times.filter_runs = optional_value<std::vector<double>>(times, "filter_runs", tw);
-  r.times.setup = optional_number(times, "setup_seconds", tw);
-  if (r.times.reference) non_negative(*r.times.reference, "reference", tw);
-  if (r.times.setup) non_negative(*r.times.setup, "setup_seconds", tw);
-  if (r.times.filter_runs)
-    for (double t : *r.times.filter_runs) non_negative(t, "filter_runs", tw);
+  r.times = times_from_json(jf::get<json>(j, "times", where), where + ": times");
 
   const json ref = jf::get<json>(j, "reference", where);
   const std::string rw = where + ": reference";

@@ -109,6 +109,10 @@ struct CellTimes {
   std::optional<std::vector<double>> filter_runs;  // method cells: every timed run
   std::optional<double> setup;  // worker plug-ins: the worker's start-up, paid once per run ("setup_seconds")
 };
+// A record's "times" object, and back (strict: an InputError naming `where` and the key); also
+// what a distributed run's spool keeps of a cell's times (cells.h).
+nlohmann::json times_to_json(const CellTimes& times);
+CellTimes times_from_json(const nlohmann::json& times, const std::string& where);
 
 struct ReferenceInfo {
   int spp = 0;
