@@ -41,13 +41,11 @@ Checkpoint example_checkpoint(int w, int h) {
   ck.sums.width = w;
   ck.sums.height = h;
   ck.sums.samples = 192;
-  ck.sums.pairs = 96;
+  for (auto& g : ck.sums.group_samples) g = 192 / kSampleGroups;
   ck.sums.sum.resize(std::size_t(w) * h * 3);
-  ck.sums.pair_sq.resize(ck.sums.sum.size());
-  for (std::size_t i = 0; i < ck.sums.sum.size(); ++i) {
-    ck.sums.sum[i] = 0.37 * double(i % 1013) + 1e-3 * double(i % 97);
-    ck.sums.pair_sq[i] = 1.7 * ck.sums.sum[i];
-  }
+  ck.sums.group_sum.resize(ck.sums.sum.size() * kSampleGroups);
+  for (std::size_t i = 0; i < ck.sums.sum.size(); ++i) ck.sums.sum[i] = 0.37 * double(i % 1013) + 1e-3 * double(i % 97);
+  for (std::size_t i = 0; i < ck.sums.group_sum.size(); ++i) ck.sums.group_sum[i] = 0.21 * double(i % 331);
   return ck;
 }
 

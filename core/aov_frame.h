@@ -34,9 +34,10 @@ inline constexpr int kMaxLevels = 8;
 // "refl<k>.<base>" for reflection level k >= 1; level 0 returns base itself.
 std::string at_level(int level, const std::string& base);
 // Half buffers (issue 27): the level-0 layers below over half of the samples only: half 0 the
-// even samples 0, 2, 4, ..., half 1 the odd ones. The two samples of a pair share a stratum
-// (tracer/render.cpp's top), so each half is a complete stratification of its own and the two
-// halves are independent estimates of the pixel (NFOR's and any cross-validating filter's input).
+// even samples 0, 2, 4, ..., half 1 the odd ones. Those are the tracer's even and odd sample
+// groups (tracer/render.cpp's top: eight independently scrambled groups, sample s in group s mod 8),
+// so each half is stratified on its own and the two halves are independent estimates of the pixel
+// (NFOR's and any cross-validating filter's input).
 // Named "half<h>.<base>": half0.color.R/G/B, half1.normal.X/Y/Z, half0.depth.Z, ...
 inline constexpr const char* kHalfLayers[] = {kColor, kDirect, kIndirect, kAlbedo, kNormal, kDepth};
 std::string at_half(int half, const std::string& base);

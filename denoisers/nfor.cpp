@@ -31,7 +31,7 @@
 // fourth), so the features are albedo, normal and depth (7 values and the constant); and it
 // writes no variance of the features, so Var(f) of the combined feature is estimated from the
 // halves, (f_A - f_B)^2 / 4 averaged over a 3x3 box. Var(F) is the frame's `variance` layer (from
-// the pairs of samples that share a stratum, tracer/render.cpp). The regression's normal matrix
+// the spread of the tracer's independent sample groups, tracer/render.cpp). The regression's normal matrix
 // gets a ridge of 1e-7 of its own diagonal (and 1e-12) on the feature terms, so that a window
 // whose features are constant or collinear (a flat wall; grey albedo) still solves; the
 // constant term is never damped.

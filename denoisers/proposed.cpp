@@ -554,10 +554,10 @@ class Proposed final : public Method {
   // noise (a 1-2 px dark groove or gap whose guide - NLM patch, normal, depth - looks like its
   // neighbours', so the slice fills it with their light). Each channel's change is clamped to
   // detail_guard standard deviations of the pixel's mean: F' = F + clamp(F' - F, +-k s).
-  // s comes from the variance layer (the variance of the mean, from pairs of stratified samples:
+  // s comes from the variance layer (the variance of the mean, from independent sample groups:
   // docs/references.md) in two steps that keep it honest where one pixel's estimate is not:
   //   - a floor: at least the 5x5 median of the neighbours' relative variance v / (F'^2 + e)
-  //     times the pixel's own F'^2 + e (spp / 2 degrees of freedom per pixel miss the heavy
+  //     times the pixel's own F'^2 + e (7 degrees of freedom per pixel, the tracer's 8 groups, miss the heavy
   //     tail of path-traced noise at low spp; relative, so that a dark groove does not get the
   //     band of the bright wall around it);
   //   - a calibration: s times max(1, 1.4826 median over 5x5 of |F' - F| / s), the robust

@@ -12,8 +12,8 @@
 //
 // Variance: SVGF estimates the luminance variance of each pixel from temporal moments (spatially
 // from a 7x7 window where the history is short). A frame of this harness carries the variance of
-// each pixel's mean instead (direct_variance, indirect_variance: from the pairs of samples that
-// share a stratum, tracer/render.cpp), so the luminance variance is taken from it:
+// each pixel's mean instead (direct_variance, indirect_variance: from the spread of the tracer's
+// independent sample groups, tracer/render.cpp), so the luminance variance is taken from it:
 // Var(l) = sum_c w_c^2 Var_c with the Rec. 709 weights w (channels taken as uncorrelated).
 //
 // Iteration i = 0 .. iterations-1 is an a-trous pass with the 5x5 B3-spline kernel h, taps 2^i

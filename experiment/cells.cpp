@@ -144,6 +144,7 @@ std::optional<CellRecord> store_cell(const CellPlan& plan, const SceneCells& sce
   r.times = out.times;
   r.times.reference = scene.reference_info.seconds;
   r.input_cache_hit = out.input_cache_hit;
+  r.curve = out.curve;
   r.phases = out.phases;
   r.counters = out.counters;
   r.method_info = out.method_info;
@@ -201,6 +202,7 @@ void write_spooled(const std::string& out_dir, const std::string& key, const Com
     if (out->baseline) write_rgb(*out->baseline, spooled(out_dir, key, ".baseline.exr"));
     j["output"] = {{"times", times_to_json(out->times)},
                    {"input_cache_hit", optional_json(out->input_cache_hit)},
+                   {"curve", out->curve ? curve_to_json(*out->curve) : nlohmann::json(nullptr)},
                    {"phases", optional_json(out->phases)},
                    {"counters", optional_json(out->counters)},
                    {"method_info", optional_json(out->method_info)},
@@ -225,6 +227,7 @@ std::optional<ComputedCell> read_spooled(const std::string& out_dir, const std::
       if (o.at("baseline").get<bool>()) out.baseline = read_rgb(spooled(out_dir, key, ".baseline.exr"));
       out.times = times_from_json(o.at("times"), path + ": times");
       out.input_cache_hit = json_optional<bool>(o, "input_cache_hit");
+      if (!o.at("curve").is_null()) out.curve = curve_from_json(o.at("curve"), path + ": curve");
       out.phases = json_optional<std::map<std::string, double>>(o, "phases");
       out.counters = json_optional<std::map<std::string, double>>(o, "counters");
       out.method_info = json_optional<std::map<std::string, std::string>>(o, "method_info");

@@ -49,6 +49,7 @@ struct CellOutput {
   Image image;
   CellTimes times;  // times.reference is filled in by run_cell
   std::optional<bool> input_cache_hit;
+  std::optional<CurveOrigin> curve;  // plain-curve cells
   std::optional<std::map<std::string, double>> phases, counters;
   std::optional<std::map<std::string, std::string>> method_info;  // MethodStats::info, when any
   // Input cells: the AOV frame file the scene's cells read (its edge file beside it, if any),

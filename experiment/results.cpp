@@ -133,6 +133,18 @@ CellTimes times_from_json(const json& times, const std::string& tw) {
   return t;
 }
 
+json curve_to_json(const CurveOrigin& c) { return {{"rendered_spp", c.rendered_spp}, {"prefix_spp", c.prefix_spp}}; }
+
+CurveOrigin curve_from_json(const json& j, const std::string& where) {
+  CurveOrigin c;
+  c.rendered_spp = jf::get<int>(j, "rendered_spp", where);
+  c.prefix_spp = jf::get<int>(j, "prefix_spp", where);
+  if (c.prefix_spp < 1 || c.prefix_spp > c.rendered_spp)
+    throw InputError(fmt::format("{}: expected 1 <= prefix_spp <= rendered_spp, got prefix_spp {} of rendered_spp {}",
+                                 where, c.prefix_spp, c.rendered_spp));
+  return c;
+}
+
 json CellRecord::to_json() const {
   json r = {{"scene", scene}, {"method", method}, {"role", to_string(role)}, {"spp", spp}, {"width", width}, {"height", height}};
   if (!scene_hash.empty()) r["scene_hash"] = scene_hash;
@@ -151,6 +163,7 @@ json CellRecord::to_json() const {
   r["reference"] = ref;
   if (!files.empty()) r["files"] = files;
   if (input_cache_hit) r["input_cache_hit"] = *input_cache_hit;
+  if (curve) r["curve"] = curve_to_json(*curve);
   if (!base_method.empty()) r["base_method"] = base_method;
   if (!kind.empty()) r["kind"] = kind;
   if (params) r["params"] = *params;
@@ -198,6 +211,7 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   r.files = jf::get_or<std::map<std::string, std::string>>(j, "files", {}, where);
   for (const auto& [k, f] : r.files) inside_folder(f, k, where + ": files");
   r.input_cache_hit = optional_value<bool>(j, "input_cache_hit", where);
+  if (j.contains("curve")) r.curve = curve_from_json(j.at("curve"), where + ": curve");
   r.base_method = jf::get_or<std::string>(j, "base_method", "", where);
   r.kind = jf::get_or<std::string>(j, "kind", "", where);
   r.params = optional_value<std::map<std::string, std::string>>(j, "params", where);

@@ -103,6 +103,14 @@ struct RunConfig {
   std::vector<MethodEntry> methods;
 };
 
+// A plain-curve cell's origin: the image is the first prefix_spp samples of one progressive render
+// of rendered_spp samples per pixel (the curve's largest point; experiment/runner.cpp), so the
+// whole curve cost that one render. results.json "curve": {"rendered_spp", "prefix_spp"}.
+struct CurveOrigin {
+  int rendered_spp = 0, prefix_spp = 0;
+  bool operator==(const CurveOrigin&) const = default;
+};
+
 struct CellTimes {
   double input_render = 0, filter = 0, total = 0;
   std::optional<double> reference;            // absent only in hand-written files
@@ -113,6 +121,9 @@ struct CellTimes {
 // what a distributed run's spool keeps of a cell's times (cells.h).
 nlohmann::json times_to_json(const CellTimes& times);
 CellTimes times_from_json(const nlohmann::json& times, const std::string& where);
+// A plain cell's "curve" object, and back (strict, as times_from_json).
+nlohmann::json curve_to_json(const CurveOrigin& curve);
+CurveOrigin curve_from_json(const nlohmann::json& curve, const std::string& where);
 
 struct ReferenceInfo {
   int spp = 0;
@@ -138,6 +149,7 @@ struct CellRecord {
   ReferenceInfo reference;
   std::map<std::string, std::string> files;  // image, error_flip, error_relmse: relative paths
   std::optional<bool> input_cache_hit;
+  std::optional<CurveOrigin> curve;  // plain-curve cells
   // Method and ablation cells.
   std::string base_method, kind;
   std::optional<std::map<std::string, std::string>> params;

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <memory>
 #include <functional>
+#include <map>
 #include <optional>
 #include <tuple>
 #include <utility>
@@ -201,7 +202,40 @@ class InputFrame {
   std::string path_;
 };
 
-CellPlan plain_cell(const ExperimentConfig& c, const Scene& scene, const std::string& scene_hash, int spp,
+// The plain path-tracing curve of a scene: one progressive render to the curve's largest spp,
+// each point the image of its first N samples (tracer/render.h's render_color_prefixes: bit for
+// bit `render --spp N`), its time what the render took to reach N. Rendered whole when the first
+// cell that needs a point asks for it, so the curve costs one render whichever of its points are
+// computed (a resumed run that misses one point renders to the largest again: its records then
+// say the same as an uninterrupted run's).
+class PlainCurve {
+ public:
+  PlainCurve(const ExperimentConfig& c, const Scene& scene) : config_(c), scene_(scene) {
+    for (int spp : c.plain_spp) prefixes_.push_back(spp);
+    std::sort(prefixes_.begin(), prefixes_.end());
+    prefixes_.erase(std::unique(prefixes_.begin(), prefixes_.end()), prefixes_.end());
+  }
+  int rendered_spp() const { return prefixes_.empty() ? 0 : prefixes_.back(); }
+  // Point spp's image and seconds.
+  const std::pair<Image, double>& get(int spp) {
+    if (points_.empty()) {
+      render_color_prefixes(scene_, input_settings(config_, rendered_spp(), config_.seed), prefixes_,
+                            [&](std::size_t k, Image image, double seconds) {
+                              points_[prefixes_[k]] = {std::move(image), seconds};
+                            });
+    }
+    return points_.at(spp);
+  }
+  void release() { points_.clear(); }
+
+ private:
+  const ExperimentConfig& config_;
+  const Scene& scene_;
+  std::vector<int> prefixes_;
+  std::map<int, std::pair<Image, double>> points_;
+};
+
+CellPlan plain_cell(const ExperimentConfig& c, PlainCurve& curve, const std::string& scene_hash, int spp,
                     int reference_spp) {
   CellPlan p;
   p.role = Role::Plain;
@@ -210,12 +244,12 @@ CellPlan plain_cell(const ExperimentConfig& c, const Scene& scene, const std::st
   p.identity = {{"plain", spp}, {"scene", scene_hash}, {"w", c.width}, {"h", c.height}, {"seed", c.seed},
                 {"ref", reference_spp}, {"depth", c.max_depth}, {"tracer", kTracerVersion}};
   p.stem = "path_tracing_" + std::to_string(spp);
-  p.compute = [&c, &scene, spp] {
-    Stopwatch w;
+  p.compute = [&curve, spp] {
     CellOutput out;
-    out.image = render_color_sums(scene, input_settings(c, spp, c.seed), 0, spp).mean();
-    const double t = w.seconds();
-    out.times.input_render = out.times.total = t;
+    const auto& [image, seconds] = curve.get(spp);
+    out.image = image;
+    out.times.input_render = out.times.total = seconds;
+    out.curve = CurveOrigin{curve.rendered_spp(), spp};
     return out;
   };
   return p;
@@ -301,7 +335,12 @@ ResultsDocument results_header(const ExperimentConfig& c) {
 // by group: a group's frame is freed after its cells.
 struct PlanGroup {
   std::unique_ptr<InputFrame> frame;  // null: the plain curve
+  std::unique_ptr<PlainCurve> curve;  // the plain curve's render
   std::vector<CellPlan> plans;        // with a frame: the input cell first, then every method
+  void release() {
+    if (frame) frame->release();
+    if (curve) curve->release();
+  }
 };
 
 struct ScenePlans {
@@ -321,7 +360,9 @@ std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, cons
   sp->cells = rendered_scene_cells(c, opt, cache, scene, name, sp->ref);
   sp->cells.reference = &sp->ref;
   PlanGroup& plain = sp->groups.emplace_back();
-  for (int spp : c.plain_spp) plain.plans.push_back(plain_cell(c, scene, sp->cells.scene_hash, spp, c.reference_spp_for(name)));
+  plain.curve = std::make_unique<PlainCurve>(c, scene);
+  for (int spp : c.plain_spp)
+    plain.plans.push_back(plain_cell(c, *plain.curve, sp->cells.scene_hash, spp, c.reference_spp_for(name)));
   // Every input seed gives its own input and method cells (Table 1's intervals are over them).
   // With one seed the stems are the same as before seeds existed; with several, "_s<seed>" is added.
   for (int spp : c.spp)
@@ -372,7 +413,7 @@ std::unique_ptr<ScenePlans> file_scene_plans(const ExperimentConfig& c, const Ru
 void run_scene_here(ScenePlans& sp, const CellContext& context) {
   for (PlanGroup& g : sp.groups) {
     for (const CellPlan& p : g.plans) run_cell(p, sp.cells, context);
-    if (g.frame) g.frame->release();
+    g.release();
   }
 }
 
@@ -383,7 +424,8 @@ void run_scene_here(ScenePlans& sp, const CellContext& context) {
 //      and tells every rank;
 //   2. frames: every input cell to compute, and every frame whose method cells are to be
 //      computed, is rendered (or found in the cache) by one rank; the plain curve's points
-//      too. Every rank then learns each frame's cache hit;
+//      too, all by one rank (they come from one render). Every rank then learns each frame's
+//      cache hit;
 //   3. methods: every method or renderer cell to compute, by one rank, reading its frame from
 //      the (shared) cache;
 //   4. rank 0 stores every cell in the order a one-process run visits them, from the spool
@@ -394,8 +436,10 @@ void run_scene_here(ScenePlans& sp, const CellContext& context) {
 // cell it computes (the results folder and the cache must be on storage every rank sees:
 // docs/cluster.md), so a rank that dies loses only the cell it was computing.
 
-// A piece of work of steps 2-3: a plan of a group, or (plan < 0) loading a group's frame.
+// A piece of work of steps 2-3: a plan of a group, (plan < 0) loading a group's frame, or
+// (plan == kEveryPlan) every plan of the group that is to be computed (the plain curve).
 struct Unit {
+  static constexpr long kEveryPlan = -2;
   std::size_t group = 0;
   long plan = -1;
   double cost = 0;
@@ -453,8 +497,9 @@ void run_scene_distributed(ScenePlans& sp, const RunOptions& opt, const CellCont
     const PlanGroup& group = sp.groups[g];
     const auto t = [&](std::size_t i) { return todo[g][i] == 't'; };
     if (!group.frame) {
-      for (std::size_t i = 0; i < group.plans.size(); ++i)
-        if (t(i)) frames.push_back({g, long(i), pixels * group.plans[i].spp});
+      bool any = false;
+      for (std::size_t i = 0; i < group.plans.size(); ++i) any = any || t(i);
+      if (any) frames.push_back({g, Unit::kEveryPlan, pixels * (group.curve ? group.curve->rendered_spp() : 0)});
       continue;
     }
     bool methods = false;
@@ -469,6 +514,11 @@ void run_scene_distributed(ScenePlans& sp, const RunOptions& opt, const CellCont
   for (const Unit& u : my_units(frames)) {
     PlanGroup& g = sp.groups[u.group];
     if (u.plan >= 0) compute_and_spool(g, std::size_t(u.plan));
+    if (u.plan == Unit::kEveryPlan) {
+      for (std::size_t i = 0; i < g.plans.size(); ++i)
+        if (todo[u.group][i] == 't') compute_and_spool(g, i);
+      g.release();
+    }
     if (g.frame) {
       g.frame->get();
       hits[std::to_string(u.group)] = g.frame->cache_hit() ? json(*g.frame->cache_hit()) : json(nullptr);
@@ -525,7 +575,7 @@ void run_scene_distributed(ScenePlans& sp, const RunOptions& opt, const CellCont
       store_cell(p, sp.cells, *context, key, std::move(*spooled));
       remove_spooled(opt.out_dir, key);
     }
-    if (g.frame) g.frame->release();
+    g.release();
   }
 }
 

@@ -32,7 +32,7 @@ Lobe choose_lobe(const SurfaceHit& hit, Vec3 wo, Sampler& s) {
       float fr = fresnel_schlick(dot(wo, hit.ns), m.ior);
       float pc = std::clamp(fr, 0.2f, 0.8f);
       l.base_prob = 1 - pc;
-      if (s.next() < pc) {
+      if (s.at(dims::kLobe) < pc) {
         l.specular = true;
         l.spec_weight = m.tint * (fr / pc);
       } else {
@@ -65,7 +65,7 @@ PathTracer::PathTracer(const Scene& scene, Options options) : scene_(scene), opt
 
 Vec3 PathTracer::nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ctx) const {
   Sampler& s = ctx.sampler;
-  float u0 = s.next(), u1 = s.next(), u2 = s.next();
+  float u0 = s.at(dims::kLightChoice), u1 = s.at(dims::kLightU), u2 = s.at(dims::kLightV);
   LightSample ls;
   if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls)) return Vec3(0.0f);
   float cos_s = dot(ls.wi, hit.ns);
@@ -78,7 +78,7 @@ Vec3 PathTracer::nee_mis(const SurfaceHit& hit, float lobe_prob, PathContext& ct
 
 Vec3 PathTracer::direct_white(const SurfaceHit& hit, PathContext& ctx) const {
   Sampler& s = ctx.sampler;
-  float u0 = s.next(), u1 = s.next(), u2 = s.next();
+  float u0 = s.at(dims::kLightChoice), u1 = s.at(dims::kLightU), u2 = s.at(dims::kLightV);
   return direct_white(hit, ctx, u0, u1, u2);
 }
 
@@ -154,6 +154,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
     }
     if (sink == &out.first_emission) out.first_distance = hit.t;
     ++depth;
+    s.start_vertex(depth);
     Vec3 Le = hit.emitted();
     if (!is_black(Le)) {
       float w = prev_pdf > 0 ? power_heuristic(prev_pdf, scene_.light_pdf(prev_p, hit)) : 1.0f;
@@ -164,7 +165,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
     // Russian roulette on the whole path's weight, after rr_depth vertices.
     if (depth > opt_.rr_depth) {
       float q = std::min(0.95f, max_component(beta * path_weight));
-      if (!(q > 0) || s.next() >= q) break;
+      if (!(q > 0) || s.at(dims::kRoulette) >= q) break;
       beta *= 1.0f / q;
     }
     Vec3 wo = -ray.dir;
@@ -181,7 +182,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
     Vec3 base = hit.albedo * lobe.base_weight;
     out.rest += beta * base * nee_mis(hit, lobe.base_prob, ctx);
     Frame f(hit.ns);
-    float u1 = s.next(), u2 = s.next();
+    float u1 = s.at(dims::kBsdfU), u2 = s.at(dims::kBsdfV);
     Vec3 wi = f.to_world(sample_cosine_hemisphere(u1, u2));
     float cos_i = dot(wi, hit.ns);
     if (cos_i <= 1e-7f || dot(wi, hit.ng) <= 0) break;
@@ -211,6 +212,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
     return;
   }
   ++depth;
+  ctx.sampler.start_vertex(depth);
   L.normal = hit.ns;
   L.depth = hit.t;
   L.emission = hit.emitted();
@@ -236,7 +238,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
   Vec3 direct = nee_mis(hit, lobe.base_prob, ctx);
   Vec3 indirect(0.0f);
   Frame f(hit.ns);
-  float u1 = ctx.sampler.next(), u2 = ctx.sampler.next();
+  float u1 = ctx.sampler.at(dims::kBsdfU), u2 = ctx.sampler.at(dims::kBsdfV);
   Vec3 wi = f.to_world(sample_cosine_hemisphere(u1, u2));
   float cos_i = dot(wi, hit.ns);
   if (cos_i > 1e-7f && dot(wi, hit.ng) > 0) {

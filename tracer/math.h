@@ -109,20 +109,131 @@ inline std::uint64_t mix64(std::uint64_t z) {
   return z ^ (z >> 31);
 }
 
+// ---- Owen-scrambled Sobol' points (the pixel samples of render.cpp) --------------------------
+// Written here because no library in Debian offers hash-based Owen scrambling: Boost has Sobol'
+// generators (tests/tracer/sampler_test.cpp checks ours against boost::random::sobol) but no
+// scrambling, and a render needs a random-access point (pixel, sample, dimension) per call.
+// The construction is Burley's "Practical Hash-based Owen Scrambling" (JCGT 2020): the first two
+// dimensions of Sobol's sequence (a (0,2)-sequence in base 2), the point's index shuffled and its
+// coordinates scrambled by nested uniform (Owen) scrambles made of a Laine-Karras style hash, a
+// fresh seed per pair of dimensions ("padding"), so every pair of dimensions is its own
+// scrambled (0,2)-sequence and pairs are independent of each other.
+
+inline std::uint32_t reverse_bits(std::uint32_t x) {
+  x = (x << 16) | (x >> 16);
+  x = ((x & 0x00ff00ffu) << 8) | ((x & 0xff00ff00u) >> 8);
+  x = ((x & 0x0f0f0f0fu) << 4) | ((x & 0xf0f0f0f0u) >> 4);
+  x = ((x & 0x33333333u) << 2) | ((x & 0xccccccccu) >> 2);
+  return ((x & 0x55555555u) << 1) | ((x & 0xaaaaaaaau) >> 1);
+}
+
+// A random permutation of 32-bit words in which bit k of the result depends only on bits 0..k
+// of x (carries and products move information only upwards): Burley's improved Laine-Karras hash.
+inline std::uint32_t laine_karras_permutation(std::uint32_t x, std::uint32_t seed) {
+  x += seed;
+  x ^= x * 0x6c50b47cu;
+  x ^= x * 0xb82f1e52u;
+  x ^= x * 0xc7afe638u;
+  x ^= x * 0x8d22f6e6u;
+  return x;
+}
+
+// Nested uniform scramble of x read as a binary fraction (most significant bit first): each digit
+// is flipped by a random function of the digits before it.
+inline std::uint32_t nested_uniform_scramble(std::uint32_t x, std::uint32_t seed) {
+  return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+}
+
+// Point i of Sobol's first two dimensions as 32-bit fractions: the van der Corput radical
+// inverse, and the second dimension (primitive polynomial x + 1: its direction numbers are the
+// rows of Pascal's triangle mod 2, each the previous one xor itself shifted right by one).
+inline std::uint32_t sobol_dim0(std::uint32_t i) { return reverse_bits(i); }
+inline std::uint32_t sobol_dim1(std::uint32_t i) {
+  std::uint32_t r = 0;
+  for (std::uint32_t v = 1u << 31; i != 0; i >>= 1, v ^= v >> 1)
+    if (i & 1u) r ^= v;
+  return r;
+}
+
+inline float u32_to_unit(std::uint32_t x) { return float(x >> 8) * (1.0f / 16777216.0f); }  // 24 bits, < 1
+
+// Where a path's random numbers sit (sequence mode): the film position takes dimensions 0 and 1,
+// and the path's vertex v (1 for the camera ray's hit) the kVertexDims dimensions from
+// kFilmDims + kVertexDims (v - 1), one fixed slot per use, so that the same use meets the same
+// pair of dimensions on every path (pairs: light choice and lobe, the light point, the BSDF
+// direction, Russian roulette).
+namespace dims {
+enum : int {
+  kFilmDims = 2,
+  kLightChoice = 0, kLobe = 1, kLightU = 2, kLightV = 3, kBsdfU = 4, kBsdfV = 5, kRoulette = 6,
+  kVertexDims = 8,
+};
+}  // namespace dims
+
+// The random numbers of one sample. Two modes:
+//  - independent (the constructor): every number a hash of (seed, key, sample, dimension in call
+//    order); slots are ignored. Used where samples need no stratification (the irradiance
+//    cache's records).
+//  - sequence (pixel_sample()): the render's pixel samples. Sample s of a pixel belongs to group
+//    g = s mod kGroups and is point s / kGroups of that group's own Owen-scrambled Sobol'
+//    sequence (independent scrambles per pixel and group). Any prefix of a group's points whose
+//    length is a power of two is a scrambled (0, m, 2)-net in every pair of dimensions (the
+//    index shuffle maps it onto one aligned block of the sequence), so the first N samples of a
+//    render are as well stratified as a render of N samples, and are that render: the samples
+//    do not depend on the total spp (render.cpp's progressive curve). The groups are independent
+//    replicates, which gives an unbiased variance of a pixel's mean (render.cpp's top).
 class Sampler {
  public:
+  static constexpr int kGroups = 8;
+
+  // Independent mode.
   Sampler(std::uint64_t seed, std::uint64_t pixel, std::uint64_t sample)
       : key_(mix64(mix64(mix64(seed + 0x9e3779b97f4a7c15ULL) ^ pixel) + sample * 0x9e3779b97f4a7c15ULL)) {}
+
+  // Sequence mode: sample s of pixel `pixel` of a render with `seed`.
+  static Sampler pixel_sample(std::uint64_t seed, std::uint64_t pixel, std::uint64_t s) {
+    Sampler r(seed, pixel, 0);
+    r.key_ = mix64(mix64(mix64(seed ^ 0x243f6a8885a308d3ULL) + pixel * 0x9e3779b97f4a7c15ULL) + (s % kGroups));
+    r.index_ = std::uint32_t(s / kGroups);
+    r.sequence_ = true;
+    return r;
+  }
+
   // The next dimension's uniform number in [0, 1).
   float next() {
-    std::uint64_t h = mix64(key_ + (dim_++) * 0xd1b54a32d192ed03ULL);
-    return float(h >> 40) * (1.0f / 16777216.0f);  // 24 bits: exactly representable, < 1
+    if (!sequence_) {
+      std::uint64_t h = mix64(key_ + (dim_++) * 0xd1b54a32d192ed03ULL);
+      return float(h >> 40) * (1.0f / 16777216.0f);  // 24 bits: exactly representable, < 1
+    }
+    return dimension_value(dim_++);
   }
+  // Sequence mode: the number of slot `slot` (dims::) of the current vertex; independent mode:
+  // next().
+  float at(int slot) { return sequence_ ? dimension_value(base_ + std::uint32_t(slot)) : next(); }
+  // Sequence mode: the path reached vertex v >= 1; at() now reads that vertex's slots.
+  void start_vertex(int v) { base_ = std::uint32_t(dims::kFilmDims + dims::kVertexDims * (v - 1)); }
   std::uint32_t dimension() const { return dim_; }
 
  private:
+  float dimension_value(std::uint32_t d) {
+    const std::uint32_t pair = d >> 1;
+    if (pair != cached_pair_) {
+      const std::uint64_t h = mix64(key_ + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
+      const std::uint64_t h2 = mix64(h);
+      const std::uint32_t j = nested_uniform_scramble(index_, std::uint32_t(h));
+      cached_[0] = u32_to_unit(nested_uniform_scramble(sobol_dim0(j), std::uint32_t(h >> 32)));
+      cached_[1] = u32_to_unit(nested_uniform_scramble(sobol_dim1(j), std::uint32_t(h2)));
+      cached_pair_ = pair;
+    }
+    return cached_[d & 1];
+  }
+
   std::uint64_t key_;
   std::uint32_t dim_ = 0;
+  std::uint32_t index_ = 0, base_ = 0;
+  std::uint32_t cached_pair_ = ~0u;
+  float cached_[2] = {0, 0};
+  bool sequence_ = false;
 };
 
 }  // namespace dnb::rt

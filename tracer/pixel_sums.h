@@ -96,33 +96,28 @@ inline void demodulated(const double* sum_t, const double* sum, const double* al
   }
 }
 
-// The variance of a pixel's mean from its sample pairs (render.cpp's top). A mean is a ratio
-// of sums A / B: of the colour over the sample count (weights b = 1), or of D T over T for the
-// albedo-weighted means (b = T). Its first-order variance is that of sum_i (a_i - R b_i) / B with
-// R = A / B; the two samples of a stratum are independent and alike, so over the pairs
-//   Var(A / B) = sum_pairs ((a1 - a2) - R (b1 - b2))^2 / B^2
-//              = (S_aa - 2 R S_ab + R^2 S_bb) / B^2,
-// unbiased for b = 1 (each pair's (a1 - a2)^2 / 2 is its stratum's variance, and the stratum
-// holds two samples). A sample without a partner (an odd spp, or a partner dropped as
-// non-finite) is given the pairs' average, (1 + singles / (2 pairs)).
-struct PairMoments {
-  double aa[3] = {0, 0, 0}, ab[3] = {0, 0, 0}, bb[3] = {0, 0, 0};
-  std::int64_t pairs = 0, singles = 0;
-  void add_pair(Vec3 da, Vec3 db) {
-    for (int c = 0; c < 3; ++c) {
-      aa[c] += double(da[c]) * da[c];
-      ab[c] += double(da[c]) * db[c];
-      bb[c] += double(db[c]) * db[c];
-    }
-    ++pairs;
+// The variance of a pixel's mean from its sample groups (render.cpp's top; rt::Sampler's
+// groups are independent replicates). A mean is a ratio of sums A / B: of the colour over the
+// sample count (weights b = 1), or of D T over T for the albedo-weighted means (b = T). With
+// a_g, b_g the sums over group g's samples and R = A / B, its first-order variance is
+//   Var(A / B) = k / (k - 1) sum_g (a_g - R b_g)^2 / B^2
+// over the k groups that hold a sample: unbiased for b = 1 and groups of equal size (every spp
+// that is a multiple of Sampler::kGroups), k - 1 degrees of freedom. 0 with fewer than 2 groups.
+template <int G>
+inline float group_ratio_variance(const double (&a)[G], const double (&b)[G], const std::int64_t (&n)[G], double A,
+                                  double B) {
+  if (!(B > 0)) return 0.0f;
+  const double r = A / B;
+  double s = 0;
+  int k = 0;
+  for (int g = 0; g < G; ++g) {
+    if (n[g] == 0) continue;
+    const double e = a[g] - r * b[g];
+    s += e * e;
+    ++k;
   }
-  // Var(A / B) of channel c, as a layer value; 0 without a pair.
-  float variance(int c, double a, double b) const {
-    if (pairs < 1 || !(b > 0)) return 0.0f;
-    const double r = a / b;
-    const double s = std::max(0.0, aa[c] - 2 * r * ab[c] + r * r * bb[c]);
-    return variance_to_float(s * (1.0 + double(singles) / (2.0 * double(pairs))) / (b * b));
-  }
-};
+  if (k < 2) return 0.0f;
+  return variance_to_float(s * double(k) / double(k - 1) / (B * B));
+}
 
 }  // namespace dnb::rt

@@ -29,7 +29,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // 2: pair_sq (squared differences of sample pairs) replaced sum_sq (squared samples).
-constexpr const char* kCheckpointMagic = "DNBCKPT2";
+// 3: group_sum (the sample groups' sums, render.h) and group_samples replaced pair_sq.
+constexpr const char* kCheckpointMagic = "DNBCKPT3";
 // MPI tag of block transfers; messages between two ranks are never reordered by MPI, so one tag
 // suffices.
 constexpr int kBlockTag = 4101;
@@ -39,7 +40,7 @@ ColorSums zero_sums(int width, int height) {
   s.width = width;
   s.height = height;
   s.sum.assign(std::size_t(width) * height * 3, 0.0);
-  s.pair_sq.assign(s.sum.size(), 0.0);
+  s.group_sum.assign(s.sum.size() * kSampleGroups, 0.0);
   return s;
 }
 
@@ -80,7 +81,7 @@ std::vector<ConvergenceRow> rows_from_json(const nlohmann::json& a) {
 
 void add_block(ColorSums& total, const ColorSums& block) {
   if (total.width != block.width || total.height != block.height || total.sum.size() != block.sum.size() ||
-      total.pair_sq.size() != block.pair_sq.size())
+      total.group_sum.size() != block.group_sum.size())
     throw WorkError(fmt::format("block sums of {}x{} cannot be added to a total of {}x{}", block.width,
                                 block.height, total.width, total.height));
   // The tracer's element-wise add: applied in block order, it makes references bit-identical.
@@ -91,14 +92,16 @@ ConvergenceRow convergence_of(const ColorSums& s) {
   ConvergenceRow row;
   row.spp = s.samples;
   const double n = double(s.samples);
-  if (s.pairs < 1 || s.sum.empty()) {
+  int groups = 0;
+  for (std::int64_t g : s.group_samples) groups += g > 0;
+  if (groups < 2 || s.sum.empty()) {
     row.rel_error = row.est_relmse = NAN;
     return row;
   }
   double sum_var = 0, sum_mean2 = 0, relmse = 0;
   for (std::size_t i = 0; i < s.sum.size(); ++i) {
     const double mean = s.sum[i] / n;
-    const double var = s.variance_of_mean(i);  // from the sample pairs (render.h)
+    const double var = s.variance_of_mean(i);  // from the sample groups (render.h)
     sum_var += var;
     sum_mean2 += mean * mean;
     relmse += var / (mean * mean + 0.01);
@@ -147,15 +150,14 @@ std::vector<ConvergenceRow> parse_convergence_csv(const std::string& text, const
 
 void write_checkpoint(const std::string& path, const Checkpoint& ck) {
   const ColorSums& s = ck.sums;
-  const std::size_t bytes = s.sum.size() * sizeof(double);
+  const std::size_t bytes = s.sum.size() * sizeof(double), group_bytes = s.group_sum.size() * sizeof(double);
   nlohmann::json h;
   h["identity"] = ck.identity;
   h["blocks_done"] = ck.blocks_done;
   h["width"] = s.width;
   h["height"] = s.height;
   h["samples"] = s.samples;
-  h["pairs"] = s.pairs;
-  h["singles"] = s.singles;
+  h["group_samples"] = s.group_samples;
   h["dropped"] = s.dropped;
   h["seconds"] = ck.seconds;
   h["convergence"] = rows_to_json(ck.convergence);
@@ -164,12 +166,12 @@ void write_checkpoint(const std::string& path, const Checkpoint& ck) {
   // wrote it.
   h["double_bytes"] = sizeof(double);
   h["sum_sha256"] = sha256_hex(s.sum.data(), bytes);
-  h["pair_sq_sha256"] = sha256_hex(s.pair_sq.data(), bytes);
+  h["group_sum_sha256"] = sha256_hex(s.group_sum.data(), group_bytes);
   const std::string header = h.dump();
 
   std::string content = fmt::format("{}\n{} {}\n{}", kCheckpointMagic, header.size(), sha256_hex(header), header);
   content.append(reinterpret_cast<const char*>(s.sum.data()), bytes);
-  content.append(reinterpret_cast<const char*>(s.pair_sq.data()), bytes);
+  content.append(reinterpret_cast<const char*>(s.group_sum.data()), group_bytes);
   AtomicOutput out(path);
   out.write(content);  // every write checked, fsynced
   out.commit();        // then renamed over the previous checkpoint
@@ -210,22 +212,24 @@ std::optional<Checkpoint> read_checkpoint(const std::string& path, std::string* 
     s.width = h.at("width").get<int>();
     s.height = h.at("height").get<int>();
     s.samples = h.at("samples").get<std::int64_t>();
-    s.pairs = h.at("pairs").get<std::int64_t>();
-    s.singles = h.at("singles").get<std::int64_t>();
+    const auto gs = h.at("group_samples").get<std::vector<std::int64_t>>();
+    if (gs.size() != std::size_t(kSampleGroups))
+      return fail(fmt::format("{} sample groups, this build has {}", gs.size(), kSampleGroups));
+    std::copy(gs.begin(), gs.end(), s.group_samples);
     s.dropped = h.at("dropped").get<std::int64_t>();
     const std::size_t values = h.at("values").get<std::size_t>();
     if (h.at("double_bytes").get<std::size_t>() != sizeof(double) || values != std::size_t(s.width) * s.height * 3)
       return fail("payload layout does not match this machine or its size");
-    const std::size_t bytes = values * sizeof(double);
+    const std::size_t bytes = values * sizeof(double), group_bytes = bytes * kSampleGroups;
     const std::size_t payload = q + 1 + header_size;
-    if (data.size() != payload + 2 * bytes)
-      return fail(fmt::format("{} bytes, expected {} (truncated?)", data.size(), payload + 2 * bytes));
+    if (data.size() != payload + bytes + group_bytes)
+      return fail(fmt::format("{} bytes, expected {} (truncated?)", data.size(), payload + bytes + group_bytes));
     s.sum.resize(values);
-    s.pair_sq.resize(values);
+    s.group_sum.resize(values * kSampleGroups);
     std::memcpy(s.sum.data(), data.data() + payload, bytes);
-    std::memcpy(s.pair_sq.data(), data.data() + payload + bytes, bytes);
+    std::memcpy(s.group_sum.data(), data.data() + payload + bytes, group_bytes);
     if (sha256_hex(s.sum.data(), bytes) != h.at("sum_sha256").get<std::string>() ||
-        sha256_hex(s.pair_sq.data(), bytes) != h.at("pair_sq_sha256").get<std::string>())
+        sha256_hex(s.group_sum.data(), group_bytes) != h.at("group_sum_sha256").get<std::string>())
       return fail("payload checksum mismatch (corrupted)");
     return ck;
   } catch (const std::exception& e) {
@@ -282,24 +286,24 @@ ResumeState resume_from_checkpoint(const BlockJob& job, int nblocks) {
   return st;
 }
 
-// A block's sums from a rank to rank 0: samples, pairs, singles and dropped as doubles (exact
-// below 2^53), then sum and pair_sq.
+// A block's sums from a rank to rank 0: samples, dropped and the groups' sample counts as
+// doubles (exact below 2^53), then sum and group_sum.
 void send_block(const ColorSums& s) {
-  const double head[4] = {double(s.samples), double(s.pairs), double(s.singles), double(s.dropped)};
-  mpi::send_doubles(0, kBlockTag, head, 4);
+  double head[2 + kSampleGroups] = {double(s.samples), double(s.dropped)};
+  for (int g = 0; g < kSampleGroups; ++g) head[2 + g] = double(s.group_samples[g]);
+  mpi::send_doubles(0, kBlockTag, head, 2 + kSampleGroups);
   mpi::send_doubles(0, kBlockTag, s.sum.data(), s.sum.size());
-  mpi::send_doubles(0, kBlockTag, s.pair_sq.data(), s.pair_sq.size());
+  mpi::send_doubles(0, kBlockTag, s.group_sum.data(), s.group_sum.size());
 }
 
 void receive_block(int from, ColorSums& s) {
-  double head[4];
-  mpi::recv_doubles(from, kBlockTag, head, 4);
+  double head[2 + kSampleGroups];
+  mpi::recv_doubles(from, kBlockTag, head, 2 + kSampleGroups);
   s.samples = std::int64_t(head[0]);
-  s.pairs = std::int64_t(head[1]);
-  s.singles = std::int64_t(head[2]);
-  s.dropped = std::int64_t(head[3]);
+  s.dropped = std::int64_t(head[1]);
+  for (int g = 0; g < kSampleGroups; ++g) s.group_samples[g] = std::int64_t(head[2 + g]);
   mpi::recv_doubles(from, kBlockTag, s.sum.data(), s.sum.size());
-  mpi::recv_doubles(from, kBlockTag, s.pair_sq.data(), s.pair_sq.size());
+  mpi::recv_doubles(from, kBlockTag, s.group_sum.data(), s.group_sum.size());
 }
 
 }  // namespace
@@ -344,7 +348,7 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render) 
   auto check_block = [&](const ColorSums& s, int b) {
     auto [begin, end] = block_range(job, b);
     if (s.width != job.width || s.height != job.height || s.samples != end - begin ||
-        s.sum.size() != std::size_t(pixels) * 3 || s.pair_sq.size() != s.sum.size())
+        s.sum.size() != std::size_t(pixels) * 3 || s.group_sum.size() != s.sum.size() * kSampleGroups)
       throw WorkError(fmt::format("block {} (samples {}..{}) came back as {}x{} with {} samples", b, begin, end,
                                   s.width, s.height, s.samples));
   };

@@ -123,12 +123,12 @@ BlockResult accumulate_blocks(const BlockJob& job, const BlockRenderer& render);
 
 // The element-wise sum of two ranges' sums (the fold step).
 void add_block(ColorSums& total, const ColorSums& block);
-// The relative error of the sums' mean, from ColorSums::variance_of_mean (the sample pairs).
+// The relative error of the sums' mean, from ColorSums::variance_of_mean (the sample groups).
 ConvergenceRow convergence_of(const ColorSums& sums);
 
-// Checkpoint files: "DNBCKPT2" header line, a line with the JSON header's length and SHA-256,
-// the JSON header (identity, blocks done, sizes, pairs, convergence log, payload SHA-256), then
-// the payload (sum and pair_sq as raw doubles).
+// Checkpoint files: "DNBCKPT3" header line, a line with the JSON header's length and SHA-256,
+// the JSON header (identity, blocks done, sizes, group counts, convergence log, payload SHA-256), then
+// the payload (sum and group_sum as raw doubles).
 struct Checkpoint {
   std::string identity;
   int blocks_done = 0;

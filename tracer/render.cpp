@@ -1,25 +1,27 @@
 // render_frame and render_color_sums: per-pixel sample loops over tiles (TBB), accumulation of
 // the layers of tracer/integrator.h, the edge set G and its sub-pixel data (paper 3.1).
 //
-// Sampling: the samples of a pixel come in pairs (2j, 2j + 1) that share a stratum. The first
-// 2 gx gy samples cover a gx x gy grid of strata, two each, jittered independently inside it
-// (gx gy <= spp / 2, gx in gy .. 2 gy, chosen to leave as few samples over as possible: 16 x 8
-// at 256 spp); the samples past them are uniform in the pixel, also taken in pairs, and with an
-// odd spp the last one is alone. Every random number comes from Sampler(seed, pixel, s)
-// (tracer/math.h), so a sample's value does not depend on threads, tiles or order, and samples
-// of one pixel are summed in index order: frames are bit-identical for any thread count.
+// Sampling: sample s of a pixel is point s / 8 of group s mod 8's own Owen-scrambled Sobol'
+// sequence (rt::Sampler, tracer/math.h: eight groups, independently scrambled per pixel and
+// group; every pair of dimensions its own scrambled (0,2)-sequence; the film position takes the
+// first pair, each path vertex fixed slots after it). A group's first 2^m points are a scrambled
+// (0, m, 2)-net in every pair of dimensions, so the film position and each vertex's light and
+// BSDF samples are stratified at every power-of-two spp per group, and the samples of a pixel do
+// not depend on the render's spp: the first N samples of any render are the N-spp render
+// (nested; the progressive curve of the experiment takes every point of the plain path-tracing
+// curve from one render). Every random number is a pure function of (seed, pixel, s, dimension),
+// so a sample's value does not depend on threads, tiles or order, and a pixel's sums are made in
+// sample order: frames are bit-identical for any thread count.
 //
 // Variance of a pixel's mean: stratified samples are not independent, so the sample variance
 // of a pixel's samples / spp overstates the variance of its mean (by ~3x where the pixel holds
 // an edge or texture that stratification averages out: issue 25, and the old estimator's
-// figures in tests/tracer/variance_test.cpp). The two samples of a stratum are independent and
-// alike, so half their squared difference estimates that stratum's variance without bias, and
-// the variance of the mean is the sum of the pairs' squared differences / spp^2 (pixel_sums.h's
-// PairMoments, spp / 2 degrees of freedom; a lone last sample is given the pairs' average).
-// variance_test.cpp checks it against the seed-to-seed variance over 800 seeds. The cost of
-// two samples per stratum instead of one: half as many strata, which raises only the
-// film-position part of the noise (1.13x the variance at 256x192 and 64 spp on cornell-box;
-// docs/references.md).
+// figures in tests/tracer/variance_test.cpp). The eight groups are independent replicates of
+// the same estimator, so the spread of their means gives the variance of the pixel's mean without
+// bias (pixel_sums.h's group_ratio_variance; 7 degrees of freedom per pixel: a single pixel's
+// value is noisy, +-53% (one standard deviation), its expectation exact). variance_test.cpp
+// checks it against the seed-to-seed variance over many seeds. The half buffers half0.* and
+// half1.* are the even and the odd groups: two independent half-sample estimates.
 //
 // Edge set G (paper 3.1), from the finished normal and depth layers: pixel p is in G when
 //  - its own samples disagree: |mean normal| < kEdgeNormalLength (normals spread over > ~25
@@ -40,7 +42,7 @@
 // paper 3.1 never enters the layers. Where sum_s T_c(s) = 0 (mirrors, sky, black albedo) D_c and
 // I_c are the plain means, which keeps the illumination of such pixels available to filters.
 // For a pixel of constant albedo both definitions coincide. direct_variance and
-// indirect_variance are the variances of these means (from the pairs' differences of D T and T: the
+// indirect_variance are the variances of these means (from the groups' sums of D T and T: the
 // ratio estimator's first-order variance). Edge sub-pixels use the same definition of the means
 // over their stratum's samples.
 #include <atomic>
@@ -87,37 +89,10 @@ void check_settings(const RenderSettings& s) {
   check_bound(s.threads, bounds::kThreads, "render: threads");
 }
 
-// How the samples of a pixel are stratified (see top of file).
-struct SampleLayout {
-  int spp = 1;
-  int gx = 1, gy = 1;  // strata, two samples each
-  SampleLayout() = default;
-  explicit SampleLayout(int spp_) : spp(spp_) {
-    const int m = std::max(1, spp / 2);
-    int best = 0;
-    for (int y = std::max(1, int(std::floor(std::sqrt(double(m))))); y >= 1; --y) {
-      const int x = std::min(m / y, 2 * y);
-      if (x < y) continue;
-      if (x * y > best) best = x * y, gx = x, gy = y;
-      if (2 * y * y < m) break;  // narrower cells than 2:1 are not worth a few more strata
-    }
-  }
-  int stratified() const { return spp >= 2 ? 2 * gx * gy : 0; }  // samples in the strata
-};
-
-// Film position of sample s inside its pixel, in [0, 1)^2 (see top of file).
-inline void sample_position(int s, const SampleLayout& layout, Sampler& rng, float& fx, float& fy) {
-  float u = rng.next(), v = rng.next();
-  if (s < layout.stratified()) {
-    const int h = s / 2;
-    fx = (float(h % layout.gx) + u) / float(layout.gx);
-    fy = (float(h / layout.gx) + v) / float(layout.gy);
-  } else {
-    fx = u;
-    fy = v;
-  }
-  fx = std::min(fx, 0x1.fffffep-1f);
-  fy = std::min(fy, 0x1.fffffep-1f);
+// Film position of a sample inside its pixel, in [0, 1)^2: its sampler's first two dimensions.
+inline void sample_position(Sampler& rng, float& fx, float& fy) {
+  fx = rng.next();
+  fy = rng.next();
 }
 
 inline bool sample_finite(const SampleResult& r) {
@@ -167,20 +142,18 @@ Vec3 pixel_vec(const Image& img, int x, int y) {
   return {p[0], p[1], p[2]};
 }
 
-// What tracing one sample needs: the scene's camera, the tracer, the image size, the seed and
-// the stratification of the render (see top of file).
+// What tracing one sample needs: the scene's camera, the tracer, the image size and the seed.
 struct SampleSource {
   const Scene& scene;
   const PathTracer& tracer;
   int width, height;
   std::uint64_t seed;
-  SampleLayout layout;
 
   // Traces sample s of pixel (x, y) into r; its film position inside the pixel goes to fx, fy.
   // Returns the rays traced.
   std::uint64_t trace(int x, int y, int s, SampleResult& r, float& fx, float& fy) const {
-    Sampler rng(seed, std::uint64_t(y) * width + x, std::uint64_t(s));
-    sample_position(s, layout, rng, fx, fy);
+    Sampler rng = Sampler::pixel_sample(seed, std::uint64_t(y) * width + x, std::uint64_t(s));
+    sample_position(rng, fx, fy);
     PathContext ctx{rng};
     tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, width, height), ctx, r);
     return ctx.rays;
@@ -264,36 +237,44 @@ FrameLayers layers_of(AovFrame& frame, int K) {
 
 // ---- Main pass: per-pixel sums, then the pixel's layers ----
 
-// The sums of one half buffer: level 0's layers and the colour over the even or the odd samples.
-struct HalfSums {
+constexpr int kGroups = Sampler::kGroups;
+static_assert(kGroups == kSampleGroups, "render.h's group count is the sampler's");
+static_assert(kGroups % 2 == 0, "the half buffers are the even and the odd groups");
+
+// The sums of one sample group (rt::Sampler): level 0's layers and the colour. The pixel's
+// level-0 sums, its half buffers and the variances of its means are all made from them.
+struct GroupSums {
   LevelSums level;
   alignas(32) double extra[acc::kExtraSize] = {};
 };
 
-// Adds one finite sample to its pixel's sums: levels 0 .. min(r.levels, K + 1) - 1, and the
-// level-0 colour (`extra`, acc::kExtraSize values); level 0 and the colour also to its half's
-// sums. The full sums stay their own sequence of additions (not half0 + half1), so the layers
-// are bit for bit what they were before the half buffers.
-inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, double* extra, HalfSums& half) {
+// Adds one finite sample to its pixel's sums: its group's level 0 and colour (`group`), and
+// levels 1 .. min(r.levels, K + 1) - 1 to `sums` (level 0 is made from the groups at the end).
+inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, GroupSums& group) {
   alignas(32) float vals[acc::kLevelSize];
   const Vec3 f = r.level[0].color();
   alignas(32) double xvals[acc::kExtraSize] = {f.x, f.y, f.z, 0.0};
-  add_values<acc::kExtraSize>(extra, xvals);
-  add_values<acc::kExtraSize>(half.extra, xvals);
+  add_values<acc::kExtraSize>(group.extra, xvals);
   for (int k = 0; k < r.levels && k <= K; ++k) {
     pack_level(r.level[k], vals);
-    ++sums[k].n;
-    add_values<acc::kLevelSize>(sums[k].v, vals);
-    if (k == 0) {
-      ++half.level.n;
-      add_values<acc::kLevelSize>(half.level.v, vals);
-    }
+    LevelSums& L = k == 0 ? group.level : sums[k];
+    ++L.n;
+    add_values<acc::kLevelSize>(L.v, vals);
+  }
+}
+
+// The sums of the groups g = first, first + step, ... (in that order) into `out`.
+inline void add_groups(const GroupSums* groups, int first, int step, GroupSums& out) {
+  for (int g = first; g < kGroups; g += step) {
+    out.level.n += groups[g].level.n;
+    add_values<acc::kLevelSize>(out.level.v, groups[g].level.v);
+    add_values<acc::kExtraSize>(out.extra, groups[g].extra);
   }
 }
 
 // A half buffer's layers of pixel (x, y): the level-0 means over its samples, D and I
 // albedo-weighted as in the full layers (all zero for a half without a finite sample: spp 1).
-void store_half(const HalfImages& l, int x, int y, const HalfSums& h) {
+void store_half(const HalfImages& l, int x, int y, const GroupSums& h) {
   const LevelSums& L = h.level;
   const double li = L.n > 0 ? 1.0 / L.n : 0.0;
   store(*l.color, x, y, h.extra + acc::kColor, li);
@@ -319,70 +300,52 @@ void store_level(const LevelImages& l, int x, int y, const LevelSums& L, const L
   if (prev) store(*l.tint, x, y, prev->at(acc::kTint), prev->n > 0 ? 1.0 / prev->n : 0.0);
 }
 
-// The pair moments of a pixel's level-0 means (pixel_sums.h): each sample's values are kept
-// until its partner arrives; a pair with a dropped (non-finite) sample leaves the other alone.
-struct PixelPairs {
-  PairMoments color, direct, indirect;  // weights: 1 for the colour, the albedo T for D T and I T
-  PairMoments direct_plain, indirect_plain;  // D and I where the albedo sums to 0 (weight 1)
-  LevelSample first;
-  bool have_first = false;
-
-  // Sample s, finite or not (finite: its level 0 is `l0`).
-  void add(int s, bool finite, const LevelSample& l0) {
-    if (s % 2 == 0) {
-      if (have_first) single();
-      have_first = finite;
-      if (finite) first = l0;
-      return;
-    }
-    if (!finite || !have_first) {
-      if (have_first) single();
-      if (finite) single();
-      have_first = false;
-      return;
-    }
-    const Vec3 df = first.color() - l0.color(), dt = first.albedo - l0.albedo;
-    const Vec3 ddt = first.direct * first.albedo - l0.direct * l0.albedo;
-    const Vec3 dit = first.indirect * first.albedo - l0.indirect * l0.albedo;
-    const Vec3 zero{0, 0, 0};
-    color.add_pair(df, zero);
-    direct.add_pair(ddt, dt);
-    indirect.add_pair(dit, dt);
-    direct_plain.add_pair(first.direct - l0.direct, zero);
-    indirect_plain.add_pair(first.indirect - l0.indirect, zero);
-    have_first = false;
+// The variances of a pixel's level-0 means from its groups' sums (pixel_sums.h).
+struct GroupVariance {
+  double a[kGroups], b[kGroups];
+  std::int64_t n[kGroups];
+  explicit GroupVariance(const GroupSums* groups) {
+    for (int g = 0; g < kGroups; ++g) n[g] = groups[g].level.n;
   }
-  void finish() {
-    if (have_first) single();
-    have_first = false;
-  }
-  void single() {
-    for (PairMoments* m : {&color, &direct, &indirect, &direct_plain, &indirect_plain}) ++m->singles;
+  // Of the mean sum a / sum b, with a = level value `ao` + c (acc::, or the colour when `colour`),
+  // and b = level value `bo` + c, or the sample count when bo < 0.
+  float of(const GroupSums* groups, bool colour, int ao, int bo, int c, double A, double B) {
+    for (int g = 0; g < kGroups; ++g) {
+      a[g] = colour ? groups[g].extra[acc::kColor + c] : groups[g].level.v[ao + c];
+      b[g] = bo < 0 ? double(n[g]) : groups[g].level.v[bo + c];
+    }
+    return group_ratio_variance(a, b, n, A, B);
   }
 };
 
-// The variance of an illumination layer's mean: albedo-weighted where its mean is (demodulated()'s
-// test), plain otherwise.
-void store_demodulated_var(const PairMoments& weighted, const PairMoments& plain, const double* sum_t,
-                           const double* sum, const double* albedo, std::int64_t n, float* out) {
+// The variance of an illumination layer's mean (acc:: offsets of D T and of D): albedo-weighted
+// where its mean is (demodulated()'s test), plain otherwise.
+void store_demodulated_var(GroupVariance& gv, const GroupSums* groups, int weighted, int plain, const LevelSums& L0,
+                           float* out) {
+  const double* albedo = L0.at(acc::kAlbedo);
   for (int c = 0; c < 3; ++c)
-    out[c] = albedo[c] > 1e-12 * double(n) ? weighted.variance(c, sum_t[c], albedo[c])
-                                           : plain.variance(c, sum[c], double(n));
+    out[c] = albedo[c] > 1e-12 * double(L0.n)
+                 ? gv.of(groups, false, weighted, acc::kAlbedo, c, L0.v[weighted + c], albedo[c])
+                 : gv.of(groups, false, plain, -1, c, L0.v[plain + c], double(L0.n));
 }
 
-// Every layer of pixel (x, y) from its sums, and the relative depth spread of its samples.
-void store_pixel(const FrameLayers& out, int x, int y, const std::vector<LevelSums>& sums, const double* extra,
-                 const PixelPairs& pairs, Image& depth_spread) {
+// Every layer of pixel (x, y) from its sums (level 0's and the colour's made from the groups
+// here), and the relative depth spread of its samples.
+void store_pixel(const FrameLayers& out, int x, int y, std::vector<LevelSums>& sums, const GroupSums* groups,
+                 Image& depth_spread) {
+  GroupSums all;
+  add_groups(groups, 0, 1, all);
+  sums[0] = all.level;
+  const double* extra = all.extra;
   const std::int64_t n = sums[0].n;
   const double inv = n > 0 ? 1.0 / n : 0.0;
   const LevelSums& L0 = sums[0];
   store(*out.color, x, y, extra + acc::kColor, inv);
+  GroupVariance gv(groups);
   float* vf = out.var_f->pixel(x, y);
-  for (int c = 0; c < 3; ++c) vf[c] = pairs.color.variance(c, extra[acc::kColor + c], double(n));
-  store_demodulated_var(pairs.direct, pairs.direct_plain, L0.at(acc::kDirectT), L0.at(acc::kDirect), L0.at(acc::kAlbedo),
-                        n, out.var_d->pixel(x, y));
-  store_demodulated_var(pairs.indirect, pairs.indirect_plain, L0.at(acc::kIndirectT), L0.at(acc::kIndirect),
-                        L0.at(acc::kAlbedo), n, out.var_i->pixel(x, y));
+  for (int c = 0; c < 3; ++c) vf[c] = gv.of(groups, true, 0, -1, c, extra[acc::kColor + c], double(n));
+  store_demodulated_var(gv, groups, acc::kDirectT, acc::kDirect, L0, out.var_d->pixel(x, y));
+  store_demodulated_var(gv, groups, acc::kIndirectT, acc::kIndirect, L0, out.var_i->pixel(x, y));
   out.samples->at(x, y, 0) = float(n);
   for (std::size_t k = 0; k < sums.size(); ++k)
     store_level(out.level[k], x, y, sums[k], k > 0 ? &sums[k - 1] : nullptr);
@@ -390,6 +353,11 @@ void store_pixel(const FrameLayers& out, int x, int y, const std::vector<LevelSu
     double m = L0.v[acc::kDepth] * inv;
     double var = std::max(0.0, L0.v[acc::kDepthSq] * inv - m * m);
     depth_spread.at(x, y, 0) = m > 0 ? float(std::sqrt(var) / m) : 0.0f;
+  }
+  for (int h = 0; h < 2; ++h) {
+    GroupSums half;
+    add_groups(groups, h, 2, half);
+    store_half(out.half[h], x, y, half);
   }
 }
 
@@ -407,20 +375,14 @@ void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image
   for (int y = y0; y < y1; ++y)
     for (int x = x0; x < x1; ++x) {
       for (auto& s : sums) s = LevelSums{};
-      alignas(32) double extra[acc::kExtraSize] = {};
-      HalfSums half[2];
-      PixelPairs pairs;
+      GroupSums groups[kGroups];
       for (int s = 0; s < spp; ++s) {
         float fx, fy;
         counts.rays += src.trace(x, y, s, r, fx, fy);
-        const bool finite = sample_finite(r);
-        if (finite) accumulate_sample(r, K, sums.data(), extra, half[s & 1]);
+        if (sample_finite(r)) accumulate_sample(r, K, sums.data(), groups[s % kGroups]);
         else ++counts.dropped;
-        pairs.add(s, finite, r.level[0]);
       }
-      pairs.finish();
-      store_pixel(out, x, y, sums, extra, pairs, depth_spread);
-      for (int h = 0; h < 2; ++h) store_half(out.half[h], x, y, half[h]);
+      store_pixel(out, x, y, sums, groups, depth_spread);
     }
 }
 
@@ -568,7 +530,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   Stopwatch clock;
   const int W = settings.width, H = settings.height, K = settings.reflection_levels;
   PathTracer tracer(scene, tracer_options(settings));
-  const SampleSource src{scene, tracer, W, H, settings.seed, SampleLayout(settings.spp)};
+  const SampleSource src{scene, tracer, W, H, settings.seed};
 
   AovFrame frame = allocate_frame(W, H, K, settings.threads);
   const FrameLayers out = layers_of(frame, K);
@@ -602,46 +564,34 @@ ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, 
                                  settings.spp));
   const int W = settings.width, H = settings.height;
   PathTracer tracer(scene, tracer_options(settings));
-  const SampleSource src{scene, tracer, W, H, settings.seed, SampleLayout(settings.spp)};
+  const SampleSource src{scene, tracer, W, H, settings.seed};
   ColorSums out;
   out.width = W;
   out.height = H;
   out.samples = sample_end - sample_begin;
-  // Pair (2j, 2j + 1) is counted by the range that holds 2j + 1 (which traces 2j again when the
-  // range starts there); with an odd spp the last sample is alone.
-  out.pairs = sample_end / 2 - (sample_begin + 1) / 2;
-  out.singles = (sample_end == settings.spp && settings.spp % 2 == 1) ? 1 : 0;
+  for (int s = sample_begin; s < sample_end; ++s) ++out.group_samples[s % kGroups];
   out.sum.assign(std::size_t(W) * H * 3, 0.0);
-  out.pair_sq.assign(std::size_t(W) * H * 3, 0.0);
+  out.group_sum.assign(std::size_t(W) * H * 3 * kGroups, 0.0);
   std::atomic<std::int64_t> dropped{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
     SampleResult r;
     std::int64_t tile_dropped = 0;
-    // A sample's colour, 0 when dropped (as mean() counts it: the attempted samples divide).
-    auto color_of = [&](int x, int y, int s, bool count) {
-      float fx, fy;
-      src.trace(x, y, s, r, fx, fy);
-      if (sample_finite(r)) return r.level[0].color();
-      if (count) ++tile_dropped;
-      return Vec3{0, 0, 0};
-    };
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
         const std::uint64_t pixel = std::uint64_t(y) * W + x;
         double* s1 = &out.sum[pixel * 3];
-        double* s2 = &out.pair_sq[pixel * 3];
-        Vec3 first{0, 0, 0};
-        if (sample_begin % 2 == 1) first = color_of(x, y, sample_begin - 1, false);
+        double* sg = &out.group_sum[pixel * 3 * kGroups];
         for (int s = sample_begin; s < sample_end; ++s) {
-          const Vec3 f = color_of(x, y, s, true);
-          for (int c = 0; c < 3; ++c) s1[c] += f[c];
-          if (s % 2 == 0) {
-            first = f;
-          } else {
-            for (int c = 0; c < 3; ++c) {
-              const double d = double(first[c]) - f[c];
-              s2[c] += d * d;
-            }
+          float fx, fy;
+          src.trace(x, y, s, r, fx, fy);
+          // A dropped sample counts as 0 (mean() divides by the attempted samples).
+          Vec3 f{0, 0, 0};
+          if (sample_finite(r)) f = r.level[0].color();
+          else ++tile_dropped;
+          double* g = sg + 3 * (s % kGroups);
+          for (int c = 0; c < 3; ++c) {
+            s1[c] += f[c];
+            g[c] += f[c];
           }
         }
       }
@@ -652,6 +602,59 @@ ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, 
   return out;
 }
 
+void render_color_prefixes(const Scene& scene, const RenderSettings& settings, const std::vector<int>& prefixes,
+                           const std::function<void(std::size_t, Image, double)>& on_prefix) {
+  check_settings(settings);
+  for (std::size_t k = 0; k < prefixes.size(); ++k)
+    if (prefixes[k] < 1 || (k > 0 && prefixes[k] <= prefixes[k - 1]) || prefixes[k] > settings.spp)
+      throw InputError(fmt::format("render prefixes must rise from 1 to at most the spp ({}); got {} at position {}",
+                                   settings.spp, prefixes[k], k + 1));
+  Stopwatch clock;
+  const int W = settings.width, H = settings.height;
+  PathTracer tracer(scene, tracer_options(settings));
+  const SampleSource src{scene, tracer, W, H, settings.seed};
+  // Per pixel and group: the colour's sums and the finite samples, as render_tile keeps them
+  // (GroupSums' colour and level-0 count), so that a prefix's image is made by the same
+  // additions in the same order as render_frame's colour layer.
+  struct GroupColor {
+    double c[3] = {0, 0, 0};
+    std::int64_t n = 0;
+  };
+  std::vector<GroupColor> groups(std::size_t(W) * H * kGroups);
+  int done = 0;
+  for (std::size_t k = 0; k < prefixes.size(); ++k) {
+    const int begin = done, end = prefixes[k];
+    Image color(W, H, 3);
+    for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
+      SampleResult r;
+      for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) {
+          GroupColor* g = &groups[(std::size_t(y) * W + x) * kGroups];
+          for (int s = begin; s < end; ++s) {
+            float fx, fy;
+            src.trace(x, y, s, r, fx, fy);
+            if (!sample_finite(r)) continue;
+            const Vec3 f = r.level[0].color();
+            GroupColor& gs = g[s % kGroups];
+            for (int c = 0; c < 3; ++c) gs.c[c] += double(f[c]);
+            ++gs.n;
+          }
+          // add_groups' order: the groups' sums added to 0 in group order.
+          double sum[3] = {0, 0, 0};
+          std::int64_t n = 0;
+          for (int j = 0; j < kGroups; ++j) {
+            n += g[j].n;
+            for (int c = 0; c < 3; ++c) sum[c] += g[j].c[c];
+          }
+          store(color, x, y, sum, n > 0 ? 1.0 / n : 0.0);
+        }
+      if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * (end - begin));
+    });
+    done = end;
+    on_prefix(k, std::move(color), clock.seconds());
+  }
+}
+
 void ColorSums::add(const ColorSums& o) {
   if (sum.empty()) {
     *this = o;
@@ -660,13 +663,10 @@ void ColorSums::add(const ColorSums& o) {
   if (o.width != width || o.height != height)
     throw WorkError(fmt::format("cannot add colour sums of {}x{} to {}x{}", o.width, o.height, width, height));
   samples += o.samples;
-  pairs += o.pairs;
-  singles += o.singles;
+  for (int g = 0; g < kSampleGroups; ++g) group_samples[g] += o.group_samples[g];
   dropped += o.dropped;
-  for (std::size_t i = 0; i < sum.size(); ++i) {
-    sum[i] += o.sum[i];
-    pair_sq[i] += o.pair_sq[i];
-  }
+  for (std::size_t i = 0; i < sum.size(); ++i) sum[i] += o.sum[i];
+  for (std::size_t i = 0; i < group_sum.size(); ++i) group_sum[i] += o.group_sum[i];
 }
 
 Image ColorSums::mean() const {
@@ -679,15 +679,21 @@ Image ColorSums::mean() const {
 }
 
 double ColorSums::variance_of_mean(std::size_t i) const {
-  // PairMoments' formula (pixel_sums.h) with weight 1 per sample.
-  if (pairs < 1 || samples < 2) return 0.0;
-  const double n = double(samples);
-  return pair_sq[i] * (1.0 + double(singles) / (2.0 * double(pairs))) / (n * n);
+  // pixel_sums.h's group_ratio_variance with weight 1 per sample.
+  double a[kGroups], b[kGroups];
+  std::int64_t n[kGroups];
+  const std::size_t pixel = i / 3, c = i % 3;
+  for (int g = 0; g < kGroups; ++g) {
+    a[g] = group_sum[(pixel * kGroups + std::size_t(g)) * 3 + c];
+    b[g] = double(group_samples[g]);
+    n[g] = group_samples[g];
+  }
+  return group_ratio_variance(a, b, n, sum[i], double(samples));
 }
 
 Image ColorSums::variance_of_mean() const {
   Image img(width, height, 3);
-  for (std::size_t i = 0; i < sum.size(); ++i) img.data()[i] = variance_to_float(variance_of_mean(i));
+  for (std::size_t i = 0; i < sum.size(); ++i) img.data()[i] = float(variance_of_mean(i));
   return img;
 }
 

@@ -20,7 +20,9 @@ class Scene;  // tracer/scene.h
 
 // Bumped whenever a change to the tracer changes its images (part of every cache key).
 // 4: two samples per stratum, and variance layers from the pairs (render.cpp's top).
-inline constexpr const char* kTracerVersion = "dnb-tracer-4";
+// 5: Owen-scrambled Sobol' samples in 8 independent groups, nested in the spp, and variance
+//    layers from the groups (render.cpp's top).
+inline constexpr const char* kTracerVersion = "dnb-tracer-5";
 // Bumped whenever a frame gains or loses layers while the images of the layers it had stay the
 // same (part of the frame cache key, not the references'). "halves-1": the half buffers
 // half0.* and half1.* (core/aov_frame.h).
@@ -47,23 +49,34 @@ struct RenderSettings {
 // Renders every AOV layer of DESIGN.md (plus edge sub-pixels and reflection levels).
 AovFrame render_frame(const Scene& scene, const RenderSettings& settings);
 
+// The colour layer of a render at each of `prefixes` (rising, at most settings.spp): the image of
+// the first N samples of every pixel, bit for bit render_frame's colour layer at spp N (the samples
+// do not depend on the spp: render.cpp's top). One progressive render: pass k adds samples
+// [prefixes[k - 1], prefixes[k]) to every pixel, then calls on_prefix(k, image, seconds since the
+// start), so each prefix's time is what reaching it took.
+void render_color_prefixes(const Scene& scene, const RenderSettings& settings, const std::vector<int>& prefixes,
+                           const std::function<void(std::size_t, Image, double)>& on_prefix);
+
+// The number of independent sample groups of a pixel (rt::Sampler in tracer/math.h): sample s
+// belongs to group s mod kSampleGroups; the variances of pixel means come from the groups' sums.
+inline constexpr int kSampleGroups = 8;
+
 // Per-pixel sums of the full radiance F over the sample indices [sample_begin, sample_end) of a
-// render with settings.spp samples per pixel in all, and the sums of the squared differences of
-// the range's sample pairs (the two samples of a stratum, render.cpp's top; a range that starts
-// inside a pair traces its first sample again). The sums of a range depend only on (scene,
-// settings.seed, settings.spp, the range), never on threads.
+// render, and the same sums per sample group. The samples do not depend on the render's total spp
+// (render.cpp's top), so the sums of a range depend only on (scene, settings.seed, the range),
+// never on threads.
 struct ColorSums {
   int width = 0, height = 0;
-  std::int64_t samples = 0;          // samples per pixel summed
-  std::int64_t pairs = 0;            // sample pairs in pair_sq
-  std::int64_t singles = 0;          // samples without a partner (the last of an odd spp)
-  std::int64_t dropped = 0;          // NaN/Inf samples dropped (counted as 0)
-  std::vector<double> sum, pair_sq;  // 3 per pixel, row-major
+  std::int64_t samples = 0;                          // samples per pixel summed
+  std::int64_t group_samples[kSampleGroups] = {};    // of them, in each group
+  std::int64_t dropped = 0;                          // NaN/Inf samples dropped (counted as 0)
+  std::vector<double> sum;        // 3 per pixel, row-major
+  std::vector<double> group_sum;  // kSampleGroups x 3 per pixel: pixel-major, then group, then channel
   // Adds another range's sums. Adding ranges in a fixed order gives a fixed result.
   void add(const ColorSums& other);
   Image mean() const;                // sum / samples, as float RGB
-  // Of value i (pixel * 3 + channel): the variance of its mean from the pairs,
-  // pair_sq (1 + singles / (2 pairs)) / samples^2; 0 without a pair.
+  // Of value i (pixel * 3 + channel): the variance of its mean from the groups' sums
+  // (tracer/pixel_sums.h's group_ratio_variance); 0 with fewer than two groups.
   double variance_of_mean(std::size_t i) const;
   Image variance_of_mean() const;
 };

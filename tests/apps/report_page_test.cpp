@@ -42,7 +42,7 @@ repeats = 1
 name = "bilateral-wide"
 method = "bilateral"
 group = "ablation"
-set = { sigma_space = 6.0 }
+set = { sigma_space = 16.0 }
 )";
 
 class ReportViewer : public ::testing::Test {
@@ -66,8 +66,9 @@ std::unique_ptr<test::TempDir> ReportViewer::dir_;
 // of the scene, a drag pans them, an error map shows a colour bar, keys and the loupe work, no
 // table is wider than the viewport at 800 and 1400 px without a scroll box, and the page logs no
 // console error and no failed request, and the tiles where a method is worse than its input are
-// outlined (at 16 spp against a 64-spp reference, atrous and the wide bilateral are worse than
-// the input in a tile of cornell-box's first seed: checked here, so that check is not vacuous).
+// outlined (at 16 spp against a 64-spp reference, the wide bilateral, sigma_space 16 at 48x36, blurs
+// cornell-box's first seed worse than its input in 7 of 9 tiles: checked here, so that check is
+// not vacuous).
 TEST_F(ReportViewer, TheViewerWorksInHeadlessChromium) {
   if (!fs::exists("/usr/bin/chromium")) GTEST_SKIP() << "Debian's chromium is not installed (scripts/setup installs it)";
   const nlohmann::json doc = nlohmann::json::parse(slurp(out() + "/results.json"));

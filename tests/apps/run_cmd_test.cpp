@@ -215,6 +215,36 @@ TEST(RunCommand, ReferenceIsRenderedWithItsOwnSeedAndTheInputWithTheInputsSeed) 
   EXPECT_TRUE(read_rgb(frame) == read_rgb(out + "/" + input["files"]["image"].get<std::string>()));
 }
 
+// The plain path-tracing curve is one progressive render (issue 24): every point's record says
+// so ("curve": the largest point's spp and its own), and its image is, bit for bit, what
+// `render --spp N` writes with the record's seed and the config's size.
+TEST(RunCommand, ThePlainCurveIsOneRenderWhosePointsAreTheRendersOfTheirSpp) {
+  test::TempDir dir;
+  write(dir.path() / "tiny.toml", kTinyConfig);
+  const std::string out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto res = nlohmann::json::parse(slurp(out + "/results.json"));
+  std::set<int> points;
+  for (const auto& rec : res["records"]) {
+    if (rec["role"] != "plain") {
+      EXPECT_FALSE(rec.contains("curve")) << rec.dump();
+      continue;
+    }
+    const int spp = rec["spp"].get<int>();
+    points.insert(spp);
+    ASSERT_TRUE(rec.contains("curve")) << rec.dump();
+    EXPECT_EQ(rec["curve"]["rendered_spp"].get<int>(), 4);  // kTinyConfig: [speedup] spp = [1, 4]
+    EXPECT_EQ(rec["curve"]["prefix_spp"].get<int>(), spp);
+    const std::string file = dir.file("render_" + std::to_string(spp) + ".exr");
+    auto c = test::run_denoisebench("render cornell-box --size 32x24 --spp " + std::to_string(spp) + " --seed " +
+                                    std::to_string(rec["seed"].get<std::uint64_t>()) + " -o '" + file + "'");
+    ASSERT_EQ(c.exit_code, 0) << c.output;
+    EXPECT_TRUE(read_rgb(file) == read_rgb(out + "/" + rec["files"]["image"].get<std::string>())) << "spp " << spp;
+  }
+  EXPECT_EQ(points, (std::set<int>{1, 4}));
+}
+
 // A results folder re-scores alone: a config naming the folder's own input frame and reference
 // by file (`[[scene]] frame = ..., reference = ...`) runs with exit 0, gives the rendered run's
 // bilateral score, and `metrics` on the files it wrote agrees; a [[scene]] naming a missing

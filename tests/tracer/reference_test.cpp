@@ -30,7 +30,6 @@ struct Synthetic {
   int width = 12, height = 8;
   int calls = 0;
   int fail_after = -1;  // throw on this call (a crash mid-render)
-  int spp = 100;        // the job's (for the last, unpaired sample of an odd spp)
   ColorSums operator()(int begin, int end, const std::function<void(std::int64_t)>& on_progress) {
     if (fail_after >= 0 && calls >= fail_after) throw WorkError("synthetic crash");
     ++calls;
@@ -39,19 +38,17 @@ struct Synthetic {
     s.height = height;
     s.samples = end - begin;
     s.sum.assign(std::size_t(width) * height * 3, 0.0);
-    s.pair_sq.assign(s.sum.size(), 0.0);
-    // Pairs (2j, 2j + 1) as the tracer takes them (render.h): counted by the range holding 2j + 1.
-    s.pairs = end / 2 - (begin + 1) / 2;
-    s.singles = (end == spp && spp % 2 == 1) ? 1 : 0;
-    for (int k = begin; k < end; ++k)
+    s.group_sum.assign(s.sum.size() * kSampleGroups, 0.0);
+    // Groups as the tracer takes them (render.h): sample k in group k mod kSampleGroups.
+    for (int k = begin; k < end; ++k) {
+      const int g = k % kSampleGroups;
+      ++s.group_samples[g];
       for (std::size_t i = 0; i < s.sum.size(); ++i) {
         const double v = synthetic_sample(std::uint64_t(k), i);
         s.sum[i] += v;
-        if (k % 2 == 1) {
-          const double d = synthetic_sample(std::uint64_t(k - 1), i) - v;
-          s.pair_sq[i] += d * d;
-        }
+        s.group_sum[(i / 3 * kSampleGroups + std::size_t(g)) * 3 + i % 3] += v;
       }
+    }
     if (on_progress) on_progress(std::int64_t(end - begin) * width * height);
     return s;
   }
@@ -72,10 +69,11 @@ BlockJob small_job(const std::string& checkpoint = "") {
 }
 
 bool bit_identical(const ColorSums& a, const ColorSums& b) {
-  return a.width == b.width && a.height == b.height && a.samples == b.samples && a.pairs == b.pairs && a.singles == b.singles && a.dropped == b.dropped &&
-         a.sum.size() == b.sum.size() &&
+  return a.width == b.width && a.height == b.height && a.samples == b.samples &&
+         std::equal(a.group_samples, a.group_samples + kSampleGroups, b.group_samples) && a.dropped == b.dropped &&
+         a.sum.size() == b.sum.size() && a.group_sum.size() == b.group_sum.size() &&
          std::memcmp(a.sum.data(), b.sum.data(), a.sum.size() * sizeof(double)) == 0 &&
-         std::memcmp(a.pair_sq.data(), b.pair_sq.data(), a.sum.size() * sizeof(double)) == 0;
+         std::memcmp(a.group_sum.data(), b.group_sum.data(), a.group_sum.size() * sizeof(double)) == 0;
 }
 
 TEST(ReferenceBlocks, FoldsBlocksInOrder) {
@@ -232,7 +230,6 @@ TEST(ReferenceConvergence, MatchesAnalyticVarianceOfTheMean) {
   Synthetic synth;
   synth.width = 64;
   synth.height = 48;
-  synth.spp = 256;
   BlockJob job = small_job();
   job.width = 64;
   job.height = 48;

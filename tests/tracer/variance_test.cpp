@@ -2,8 +2,8 @@
 // predicts for a pixel's mean agrees with the measured seed-to-seed variance of that mean. The
 // tracer stratifies film positions, so its samples are not independent and the sample variance
 // of a pixel's samples / n overstates the variance of its mean (by 2.8x in RMSE on McGuire's
-// Cornell box at 1024 spp); the layers come from the pairs of samples that share a stratum
-// instead (render.cpp).
+// Cornell box at 1024 spp, with the older stratified sampler); the layers come from the spread
+// of the eight independent sample groups' means instead (render.cpp's top).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -86,7 +86,7 @@ TEST(VarianceOfTheMean, FrameLayersPredictTheSeedToSeedVariance) {
     color.add(f.layer(layer::kColor), f.layer(layer::kVariance));
     direct.add(f.layer(layer::kDirect), f.layer(layer::kDirectVariance));
     indirect.add(f.layer(layer::kIndirect), f.layer(layer::kIndirectVariance));
-    // A half buffer holds one sample of each stratum: the variance of its mean is twice the
+    // A half buffer holds four of the eight groups: the variance of its mean is twice the
     // frame's, and twice is what holds only when the two halves are uncorrelated
     // (Var F = (Var h0 + Var h1 + 2 Cov) / 4).
     Image twice = f.layer(layer::kVariance);
@@ -125,7 +125,7 @@ TEST(VarianceOfTheMean, ReferenceVariancePredictsTheSeedToSeedVariance) {
   job.width = s.width;
   job.height = s.height;
   job.spp = s.spp;
-  job.block_spp = 7;  // odd: ranges that start inside a pair
+  job.block_spp = 7;  // ranges that cut across the sample groups
   job.progress = false;
   SeedStats color;
   for (int seed = 1; seed <= kSeeds; ++seed) {
