@@ -155,18 +155,32 @@ inline std::uint32_t sobol_dim1(std::uint32_t i) {
   return r;
 }
 
+// reverse_bits(sobol_dim1(i)), without the reversal: the reversed direction numbers (each the
+// previous one xor itself shifted left by one).
+inline std::uint32_t sobol_dim1_reversed(std::uint32_t i) {
+  std::uint32_t r = 0;
+  for (std::uint32_t w = 1; i != 0; i >>= 1, w ^= w << 1)
+    if (i & 1u) r ^= w;
+  return r;
+}
+
 inline float u32_to_unit(std::uint32_t x) { return float(x >> 8) * (1.0f / 16777216.0f); }  // 24 bits, < 1
 
 // Where a path's random numbers sit (sequence mode): the film position takes dimensions 0 and 1,
 // and the path's vertex v (1 for the camera ray's hit) the kVertexDims dimensions from
 // kFilmDims + kVertexDims (v - 1), one fixed slot per use, so that the same use meets the same
 // pair of dimensions on every path (pairs: light choice and lobe, the light point, the BSDF
-// direction, Russian roulette).
+// direction, Russian roulette). The film and the first kSequenceVertices vertices come from the
+// scrambled sequences; deeper vertices, whose stratification gains little, from independent
+// hashed numbers (a fifth of the cost per number), as every renderer's sampler pads high
+// dimensions.
 namespace dims {
 enum : int {
   kFilmDims = 2,
   kLightChoice = 0, kLobe = 1, kLightU = 2, kLightV = 3, kBsdfU = 4, kBsdfV = 5, kRoulette = 6,
   kVertexDims = 8,
+  kSequenceVertices = 2,
+  kSequenceDims = kFilmDims + kVertexDims * kSequenceVertices,
 };
 }  // namespace dims
 
@@ -177,8 +191,9 @@ enum : int {
 //  - sequence (pixel_sample()): the render's pixel samples. Sample s of a pixel belongs to group
 //    g = s mod kGroups and is point s / kGroups of that group's own Owen-scrambled Sobol'
 //    sequence (independent scrambles per pixel and group). Any prefix of a group's points whose
-//    length is a power of two is a scrambled (0, m, 2)-net in every pair of dimensions (the
-//    index shuffle maps it onto one aligned block of the sequence), so the first N samples of a
+//    length is a power of two is a scrambled (0, m, 2)-net in every pair of the sequence's
+//    dimensions (the film and the first dims::kSequenceVertices vertices; the index shuffle maps
+//    the prefix onto one aligned block of the sequence), so the first N samples of a
 //    render are as well stratified as a render of N samples, and are that render: the samples
 //    do not depend on the total spp (render.cpp's progressive curve). The groups are independent
 //    replicates, which gives an unbiased variance of a pixel's mean (render.cpp's top).
@@ -194,7 +209,8 @@ class Sampler {
   static Sampler pixel_sample(std::uint64_t seed, std::uint64_t pixel, std::uint64_t s) {
     Sampler r(seed, pixel, 0);
     r.key_ = mix64(mix64(mix64(seed ^ 0x243f6a8885a308d3ULL) + pixel * 0x9e3779b97f4a7c15ULL) + (s % kGroups));
-    r.index_ = std::uint32_t(s / kGroups);
+    r.index_reversed_ = reverse_bits(std::uint32_t(s / kGroups));
+    r.sample_key_ = mix64(r.key_ + (s / kGroups + 1) * 0x9e3779b97f4a7c15ULL);
     r.sequence_ = true;
     return r;
   }
@@ -215,24 +231,42 @@ class Sampler {
   std::uint32_t dimension() const { return dim_; }
 
  private:
+  // The pair of dimensions holding d: Burley's construction, computed on bit-reversed words
+  // (the Laine-Karras permutation scrambles a reversed word's digits), which saves half of the
+  // reversals: with R = reverse_bits, LK = laine_karras_permutation, ri = R(index),
+  //   shuffled index j = R(LK(ri, s1) ^ LK(0, s1))   (nested_uniform_scramble(index) xor
+  //                      nested_uniform_scramble(0): the same permutation of every block
+  //                      [0, 2^k) of indices, and j < 2^k whenever index < 2^k, so the Sobol'
+  //                      loop runs over the index's few bits; xor by a constant is a digital
+  //                      shift of the points, which the coordinates' own scrambles absorb)
+  //   x = nested_uniform_scramble(sobol_dim0(j), s2) = R(LK(j, s2))
+  //   y = nested_uniform_scramble(sobol_dim1(j), s3) = R(LK(sobol_dim1_reversed(j), s3)).
+  // Dimensions from kSequenceDims on: hashed from (the sample's key, dimension).
   float dimension_value(std::uint32_t d) {
-    const std::uint32_t pair = d >> 1;
-    if (pair != cached_pair_) {
-      const std::uint64_t h = mix64(key_ + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
-      const std::uint64_t h2 = mix64(h);
-      const std::uint32_t j = nested_uniform_scramble(index_, std::uint32_t(h));
-      cached_[0] = u32_to_unit(nested_uniform_scramble(sobol_dim0(j), std::uint32_t(h >> 32)));
-      cached_[1] = u32_to_unit(nested_uniform_scramble(sobol_dim1(j), std::uint32_t(h2)));
-      cached_pair_ = pair;
+    if (d >= std::uint32_t(dims::kSequenceDims)) {
+      const std::uint64_t h = mix64(sample_key_ + std::uint64_t(d) * 0xd1b54a32d192ed03ULL);
+      return float(h >> 40) * (1.0f / 16777216.0f);
     }
-    return cached_[d & 1];
+    const std::uint32_t pair = d >> 1;
+    if (pair != pair_) {
+      const std::uint64_t h = mix64(key_ + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
+      const std::uint32_t s1 = std::uint32_t(h);
+      j_ = reverse_bits(laine_karras_permutation(index_reversed_, s1) ^ laine_karras_permutation(0, s1));
+      s2_ = std::uint32_t(h >> 32);
+      s3_ = std::uint32_t((h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ULL >> 32);
+      pair_ = pair;
+    }
+    // Each coordinate when asked for (a path uses one of some pairs: the lobe only on coated
+    // surfaces).
+    return (d & 1) == 0 ? u32_to_unit(reverse_bits(laine_karras_permutation(j_, s2_)))
+                        : u32_to_unit(reverse_bits(laine_karras_permutation(sobol_dim1_reversed(j_), s3_)));
   }
 
   std::uint64_t key_;
+  std::uint64_t sample_key_ = 0;
   std::uint32_t dim_ = 0;
-  std::uint32_t index_ = 0, base_ = 0;
-  std::uint32_t cached_pair_ = ~0u;
-  float cached_[2] = {0, 0};
+  std::uint32_t index_reversed_ = 0, base_ = 0;  // reverse_bits(point index in the group)
+  std::uint32_t pair_ = ~0u, j_ = 0, s2_ = 0, s3_ = 0;  // the current pair: shuffled index, scrambles
   bool sequence_ = false;
 };
 

@@ -4,9 +4,10 @@
 // Sampling: sample s of a pixel is point s / 8 of group s mod 8's own Owen-scrambled Sobol'
 // sequence (rt::Sampler, tracer/math.h: eight groups, independently scrambled per pixel and
 // group; every pair of dimensions its own scrambled (0,2)-sequence; the film position takes the
-// first pair, each path vertex fixed slots after it). A group's first 2^m points are a scrambled
-// (0, m, 2)-net in every pair of dimensions, so the film position and each vertex's light and
-// BSDF samples are stratified at every power-of-two spp per group, and the samples of a pixel do
+// first pair, each path vertex fixed slots after it; vertices past the second independent
+// hashed numbers). A group's first 2^m points are a scrambled (0, m, 2)-net in every pair of
+// those dimensions, so the film position and the first two vertices' light and BSDF samples are
+// stratified at every power-of-two spp per group, and the samples of a pixel do
 // not depend on the render's spp: the first N samples of any render are the N-spp render
 // (nested; the progressive curve of the experiment takes every point of the plain path-tracing
 // curve from one render). Every random number is a pure function of (seed, pixel, s, dimension),

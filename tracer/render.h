@@ -21,8 +21,10 @@ class Scene;  // tracer/scene.h
 // Bumped whenever a change to the tracer changes its images (part of every cache key).
 // 4: two samples per stratum, and variance layers from the pairs (render.cpp's top).
 // 5: Owen-scrambled Sobol' samples in 8 independent groups, nested in the spp, and variance
-//    layers from the groups (render.cpp's top).
-inline constexpr const char* kTracerVersion = "dnb-tracer-5";
+//    layers from the groups (render.cpp's top); 484ede7 only.
+// 6: the same, with hashed numbers past the second vertex and a cheaper index shuffle (the same
+//    distribution, other bits; tracer/math.h's Sampler).
+inline constexpr const char* kTracerVersion = "dnb-tracer-6";
 // Bumped whenever a frame gains or loses layers while the images of the layers it had stay the
 // same (part of the frame cache key, not the references'). "halves-1": the half buffers
 // half0.* and half1.* (core/aov_frame.h).

@@ -28,6 +28,7 @@ TEST(Sampler, SobolsFirstTwoDimensionsAreBoosts) {
     const std::uint32_t x = boost_sobol(), y = boost_sobol();
     ASSERT_EQ(sobol_dim0(i), x) << "point " << i;
     ASSERT_EQ(sobol_dim1(i), y) << "point " << i;
+    ASSERT_EQ(sobol_dim1_reversed(i), reverse_bits(y)) << "point " << i;
   }
 }
 
@@ -75,7 +76,7 @@ bool prefix_is_net(std::uint64_t seed, std::uint64_t pixel, int g, int m, int ve
 TEST(Sampler, EveryPowerOfTwoPrefixOfAGroupIsANetInEachPairOfDimensions) {
   for (int m = 1; m <= 8; ++m)
     for (int g : {0, 5})
-      for (int vertex : {0, 1, 3}) EXPECT_TRUE(prefix_is_net(42, 1234 + std::uint64_t(m), g, m, vertex))
+      for (int vertex : {0, 1, int(dims::kSequenceVertices)}) EXPECT_TRUE(prefix_is_net(42, 1234 + std::uint64_t(m), g, m, vertex))
           << "m " << m << " group " << g << " vertex " << vertex;
 }
 

@@ -55,13 +55,18 @@ struct SeedStats {
 
 // How close the ratio must be to 1, and why: the pooled measured variance over M seeds of P
 // pixel-channels has a relative standard error of about sqrt(2 / (M - 1)) / sqrt(P_eff), which
-// the caustics' heavy tails raise: sets of 400 seeds spread by about 4% (sd), 800 seeds by
-// about 3%; 4000 seeds give 1.022 (frame colour) and 1.021 (reference): no bias beyond the
-// noise. The bar is 10%, about 3 sd at 800 seeds. The old estimator (sample variance
-// of the pixel's samples / n, one sample per stratum) read 2.94 (frame colour; 2.95 on edge
-// pixels, 0.98 off them) and 1.83 (reference) in this test at 400 seeds.
+// the caustics' heavy tails raise, most on the 25 pixels off the edge set (the mirror sphere's
+// caustic on the floor carries their indirect light). Over the seeds 1..M, a variant (tracer 6's
+// shuffle, every vertex from the sequences) read 0.997 / 0.997 / 0.996 for all pixels at M = 800 / 4000 / 40000, while that
+// subset's colour read 0.79 / 0.95 / 0.995 and its indirect 0.79 / 0.94 / 0.999: no bias, and
+// M = 4000 keeps the subset's noise inside the 10% bar (10 s). Tracer 6: 0.996
+// (all), 1.018 and 1.016 (the subset) at M = 4000. The
+// old estimator (sample variance of the pixel's samples / n, one sample per stratum) read 2.94
+// (frame colour; 2.95 on edge pixels, 0.98 off them) and 1.83 (reference) in this test at 400
+// seeds.
 constexpr double kTolerance = 0.10;
-constexpr int kSeeds = 800;
+constexpr int kSeeds = 4000;
+constexpr int kReferenceSeeds = 800;  // all pixels only: 1.016 at 800
 
 // The test frames: cornell-box at 16x12 (most pixels hold an edge there, where the old
 // estimator was furthest off).
@@ -128,7 +133,7 @@ TEST(VarianceOfTheMean, ReferenceVariancePredictsTheSeedToSeedVariance) {
   job.block_spp = 7;  // ranges that cut across the sample groups
   job.progress = false;
   SeedStats color;
-  for (int seed = 1; seed <= kSeeds; ++seed) {
+  for (int seed = 1; seed <= kReferenceSeeds; ++seed) {
     s.seed = std::uint64_t(seed);
     const BlockResult b = accumulate_blocks(job, [&](int begin, int end, const std::function<void(std::int64_t)>&) {
       return render_color_sums(*scene, s, begin, end);
@@ -136,7 +141,7 @@ TEST(VarianceOfTheMean, ReferenceVariancePredictsTheSeedToSeedVariance) {
     color.add(b.sums.mean(), b.sums.variance_of_mean());
   }
   const double r = color.ratio([](std::size_t) { return true; }, 3);
-  std::printf("reference: predicted / measured variance of the mean over %d seeds: %.3f\n", kSeeds, r);
+  std::printf("reference: predicted / measured variance of the mean over %d seeds: %.3f\n", kReferenceSeeds, r);
   EXPECT_NEAR(r, 1.0, kTolerance);
 }
 
