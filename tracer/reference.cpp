@@ -169,12 +169,15 @@ void write_checkpoint(const std::string& path, const Checkpoint& ck) {
   h["group_sum_sha256"] = sha256_hex(s.group_sum.data(), group_bytes);
   const std::string header = h.dump();
 
-  std::string content = fmt::format("{}\n{} {}\n{}", kCheckpointMagic, header.size(), sha256_hex(header), header);
-  content.append(reinterpret_cast<const char*>(s.sum.data()), bytes);
-  content.append(reinterpret_cast<const char*>(s.group_sum.data()), group_bytes);
+  const std::string head = fmt::format("{}\n{} {}\n{}", kCheckpointMagic, header.size(), sha256_hex(header), header);
+  // Written in place, piece by piece: a copy of the payload in memory would be the largest
+  // buffer of a reference render (24 doubles a pixel for the groups' sums).
   AtomicOutput out(path);
-  out.write(content);  // every write checked, fsynced
-  out.commit();        // then renamed over the previous checkpoint
+  out.write_at(head.data(), head.size(), 0);  // every write checked
+  out.write_at(s.sum.data(), bytes, head.size());
+  out.write_at(s.group_sum.data(), group_bytes, head.size() + bytes);
+  out.finish_writes();  // fsynced
+  out.commit();         // then renamed over the previous checkpoint
 }
 
 std::optional<Checkpoint> read_checkpoint(const std::string& path, std::string* damage) {
