@@ -49,6 +49,15 @@ group = "ablation"
 set = { sigma_space = 6.0 }
 )";
 
+// Runs kTinyConfig into DIR/out (exit 0) and reads its results.json.
+void run_tiny(const test::TempDir& dir, std::string& out, nlohmann::json& res) {
+  write(dir.path() / "tiny.toml", kTinyConfig);
+  out = dir.file("out");
+  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  res = nlohmann::json::parse(slurp(out + "/results.json"));
+}
+
 TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
   test::TempDir dir;
   write(dir.path() / "tiny.toml", kTinyConfig);
@@ -135,11 +144,9 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
 // and the reference was rendered with a seed of its own, not the inputs' (issue 28).
 TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
   test::TempDir dir;
-  write(dir.path() / "tiny.toml", kTinyConfig);
-  const std::string out = dir.file("out");
-  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const auto res = nlohmann::json::parse(slurp(out + "/results.json"));
+  std::string out;
+  nlohmann::json res;
+  ASSERT_NO_FATAL_FAILURE(run_tiny(dir, out, res));
   double input_mse = -1;
   std::vector<double> method_mse;
   for (const auto& rec : res["records"]) {
@@ -173,11 +180,9 @@ TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
 // of the inputs' seed.
 TEST(RunCommand, ReferenceIsRenderedWithItsOwnSeedAndTheInputWithTheInputsSeed) {
   test::TempDir dir;
-  write(dir.path() / "tiny.toml", kTinyConfig);
-  const std::string out = dir.file("out");
-  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const auto res = nlohmann::json::parse(slurp(out + "/results.json"));
+  std::string out;
+  nlohmann::json res;
+  ASSERT_NO_FATAL_FAILURE(run_tiny(dir, out, res));
   nlohmann::json input;
   for (const auto& rec : res["records"])
     if (rec["role"] == "input") input = rec;
@@ -220,11 +225,9 @@ TEST(RunCommand, ReferenceIsRenderedWithItsOwnSeedAndTheInputWithTheInputsSeed) 
 // `render --spp N` writes with the record's seed and the config's size.
 TEST(RunCommand, ThePlainCurveIsOneRenderWhosePointsAreTheRendersOfTheirSpp) {
   test::TempDir dir;
-  write(dir.path() / "tiny.toml", kTinyConfig);
-  const std::string out = dir.file("out");
-  auto r = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const auto res = nlohmann::json::parse(slurp(out + "/results.json"));
+  std::string out;
+  nlohmann::json res;
+  ASSERT_NO_FATAL_FAILURE(run_tiny(dir, out, res));
   std::set<int> points;
   for (const auto& rec : res["records"]) {
     if (rec["role"] != "plain") {
