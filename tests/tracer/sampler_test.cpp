@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "thread_count.h"
 #include "tracer/math.h"
 #include "tracer/render.h"
 #include "tracer/scene_loader.h"
@@ -129,11 +130,15 @@ TEST(ProgressiveRender, EachPrefixIsTheRenderOfItsSpp) {
   const std::vector<int> prefixes = {1, 3, 16, 40};
   std::vector<Image> images;
   std::vector<double> seconds;
-  render_color_prefixes(*scene, s, prefixes, [&](std::size_t k, Image image, double t) {
-    EXPECT_EQ(k, images.size());
-    images.push_back(std::move(image));
-    seconds.push_back(t);
-  });
+  // Two threads really run (tests/thread_count.h), against one below.
+  ASSERT_GT(test::run_on_threads(2, [&] {
+              render_color_prefixes(*scene, s, prefixes, [&](std::size_t k, Image image, double t) {
+                EXPECT_EQ(k, images.size());
+                images.push_back(std::move(image));
+                seconds.push_back(t);
+              });
+            }),
+            1);
   ASSERT_EQ(images.size(), prefixes.size());
   for (std::size_t k = 0; k < prefixes.size(); ++k) {
     RenderSettings one = s;
