@@ -207,7 +207,7 @@ class Sampler {
 
   // Sequence mode: sample s of pixel `pixel` of a render with `seed`.
   static Sampler pixel_sample(std::uint64_t seed, std::uint64_t pixel, std::uint64_t s) {
-    Sampler r(seed, pixel, 0);
+    Sampler r;  // not the independent mode's key (three hashes per sample): this mode's, below
     r.key_ = mix64(mix64(mix64(seed ^ 0x243f6a8885a308d3ULL) + pixel * 0x9e3779b97f4a7c15ULL) + (s % kGroups));
     r.index_reversed_ = reverse_bits(std::uint32_t(s / kGroups));
     r.sample_key_ = mix64(r.key_ + (s / kGroups + 1) * 0x9e3779b97f4a7c15ULL);
@@ -231,6 +231,7 @@ class Sampler {
   std::uint32_t dimension() const { return dim_; }
 
  private:
+  Sampler() = default;
   // The pair of dimensions holding d: Burley's construction, computed on bit-reversed words
   // (the Laine-Karras permutation scrambles a reversed word's digits), which saves half of the
   // reversals: with R = reverse_bits, LK = laine_karras_permutation, ri = R(index),
@@ -262,7 +263,7 @@ class Sampler {
                         : u32_to_unit(reverse_bits(laine_karras_permutation(sobol_dim1_reversed(j_), s3_)));
   }
 
-  std::uint64_t key_;
+  std::uint64_t key_ = 0;
   std::uint64_t sample_key_ = 0;
   std::uint32_t dim_ = 0;
   std::uint32_t index_reversed_ = 0, base_ = 0;  // reverse_bits(point index in the group)
