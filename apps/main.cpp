@@ -8,13 +8,13 @@
 
 #include "apps/commands.h"
 #include "core/errors.h"
-#include "core/version.h"
+#include "core/build_info.h"
 #include "methods/plugins.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"denoisebench " DNB_VERSION
+  CLI::App app{std::string("denoisebench ") + dnb::build_version() +
                ": renders Monte Carlo AOV frames, runs denoisers, scores them against references"};
-  app.set_version_flag("--version", std::string(DNB_VERSION " (" DNB_GIT_REVISION ")"));
+  app.set_version_flag("--version", dnb::build_version_and_revision());
   app.require_subcommand(1, 1);
   std::string log_level = "info";
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")

@@ -16,7 +16,7 @@
 #include <unistd.h>
 
 #include "bench/bench_util.h"
-#include "core/version.h"
+#include "core/build_info.h"
 #include "tracer/render.h"
 
 #ifdef DNB_WITH_OPENCL
@@ -83,10 +83,10 @@ int main(int argc, char** argv) {
   benchmark::AddCustomContext("hostname", host);
   benchmark::AddCustomContext("hardware_threads", std::to_string(std::thread::hardware_concurrency()));
   benchmark::AddCustomContext("opencl_device", opencl_device());
-  benchmark::AddCustomContext("denoisebench_version", DNB_VERSION);
-  benchmark::AddCustomContext("git_revision", DNB_GIT_REVISION);
-  benchmark::AddCustomContext("build_type", DNB_BUILD_TYPE);
-  benchmark::AddCustomContext("compiler", DNB_COMPILER);
+  benchmark::AddCustomContext("denoisebench_version", dnb::build_version());
+  benchmark::AddCustomContext("git_revision", dnb::build_revision());
+  benchmark::AddCustomContext("build_type", dnb::build_type());
+  benchmark::AddCustomContext("compiler", dnb::build_compiler());
   benchmark::AddCustomContext("tracer_version", dnb::kTracerVersion);
   benchmark::AddCustomContext("nightly_reference_workload", dnb::bench::ReferenceWorkload::description());
   benchmark::AddCustomContext("nightly_size", std::to_string(width) + "x" + std::to_string(height));

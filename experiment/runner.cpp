@@ -19,7 +19,7 @@
 #include "core/progress.h"
 #include "core/stats.h"
 #include "core/timer.h"
-#include "core/version.h"
+#include "core/build_info.h"
 #include "denoisers/method.h"
 #include "experiment/cells.h"
 #include "experiment/input_files.h"
@@ -261,7 +261,7 @@ CellPlan input_cell(InputFrame& frame, int spp) {
   p.method = "input";
   p.spp = spp;
   p.identity = frame.identity();
-  p.identity["build"] = build_id();
+  p.identity["code"] = shared_code_id();
   p.stem = "input_" + std::to_string(spp);
   p.required_files = {"image", "frame"};
   p.compute = [&frame] {
@@ -289,7 +289,7 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
   p.params = registry.parse_params(m.method, m.params).as_strings();
   p.identity = frame.identity();
   p.identity.update({{"method", m.method}, {"params", *p.params}, {"repeats", c.repeats},
-                     {"repeat_below", c.repeat_below_seconds}, {"build", build_id()}});
+                     {"repeat_below", c.repeat_below_seconds}, {"code", method_code_id(m.method)}});
   // A plug-in's code is not in the build: its folder's hash is (built-in cells keep their keys).
   if (!info.content_hash.empty()) p.identity["method_content"] = info.content_hash;
   p.contain_failures = true;
@@ -326,7 +326,7 @@ ResultsDocument results_header(const ExperimentConfig& c) {
   d.machine = machine_info();
   d.machine["ranks"] = mpi::size();  // the MPI ranks the run was spread over (1: one process)
   d.build = build_info();
-  d.git_revision = DNB_GIT_REVISION;
+  d.git_revision = build_revision();
   return d;
 }
 

@@ -8,7 +8,7 @@
 #include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
-#include "core/version.h"
+#include "core/build_info.h"
 #include "interop/import.h"
 #include "methods/inputs.h"
 #include "tracer/scene.h"
@@ -45,7 +45,7 @@ DenoiseOutcome denoise_file(const DenoiseRequest& q) {
     throw InputError(fmt::format("'{}': {}", q.frame, e.what()));
   }
   std::vector<std::pair<std::string, std::string>> attrs = {
-      {"method", q.method}, {"source_frame", q.frame}, {"build_version", DNB_VERSION " (" DNB_GIT_REVISION ")"}};
+      {"method", q.method}, {"source_frame", q.frame}, {"build_version", build_version_and_revision()}};
   for (const auto& [k, v] : out.params.as_strings()) attrs.emplace_back("param." + k, v);
   write_rgb(out.result.image, q.output, attrs);
   out.width = frame.width();

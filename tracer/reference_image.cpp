@@ -11,7 +11,7 @@
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/timer.h"
-#include "core/version.h"
+#include "core/build_info.h"
 #include "tracer/cache_keys.h"
 #include "tracer/mpi_context.h"
 #include "tracer/reference.h"
@@ -111,7 +111,7 @@ Reference reference_image(const Scene& scene, const ReferenceSettings& settings,
   m.spp = settings.spp;
   m.seed = settings.seed;
   m.tracer_version = kTracerVersion;
-  m.build_version = DNB_VERSION " (" DNB_GIT_REVISION ")";
+  m.build_version = build_version_and_revision();
   m.render_seconds = blocks.seconds;
   m.dropped_samples = blocks.sums.dropped;
   m.extra["reference"] = std::string("1");  // std::string: GCC 12 warns falsely on = "1" (PR 105329)

@@ -58,7 +58,7 @@
 #include "core/bounds.h"
 #include "core/errors.h"
 #include "core/timer.h"
-#include "core/version.h"
+#include "core/build_info.h"
 #include "tracer/integrator.h"
 #include "tracer/pixel_sums.h"
 #include "tracer/render.h"
@@ -515,7 +515,7 @@ void write_meta(FrameMeta& meta, const Scene& scene, const RenderSettings& setti
   meta.spp = settings.spp;
   meta.seed = settings.seed;
   meta.tracer_version = kTracerVersion;
-  meta.build_version = std::string(DNB_VERSION) + " (" + DNB_GIT_REVISION + ")";
+  meta.build_version = build_version_and_revision();
   meta.dropped_samples = counts.dropped;
   meta.reflection_levels = settings.reflection_levels;
   meta.extra["max_depth"] = std::to_string(settings.max_depth);
