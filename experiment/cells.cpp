@@ -19,6 +19,11 @@ namespace fs = std::filesystem;
 
 namespace dnb::experiment {
 
+namespace {
+// write_rgb's attribute "cell_key", as its header holds it (core/exr_io.cpp's prefix).
+constexpr const char* kCellKeyAttribute = "denoisebench:cell_key";
+}  // namespace
+
 std::string safe_file_name(const std::string& s) {
   std::string o = s;
   for (char& ch : o)
@@ -26,9 +31,9 @@ std::string safe_file_name(const std::string& s) {
   return o;
 }
 
-std::map<std::string, std::optional<double>> score_image(const Image& image, const Reference& reference,
-                                                         const std::string& out_dir, const std::string& stem,
-                                                         std::map<std::string, std::string>& files) {
+std::map<std::string, std::optional<double>> score_image(
+    const Image& image, const Reference& reference, const std::string& out_dir, const std::string& stem,
+    std::map<std::string, std::string>& files, const std::vector<std::pair<std::string, std::string>>& attributes) {
   std::map<std::string, std::optional<double>> m;
   const Image* variance = reference.variance.empty() ? nullptr : &reference.variance;
   for (const auto& info : metrics::all_metrics()) {
@@ -39,7 +44,7 @@ std::map<std::string, std::optional<double>> score_image(const Image& image, con
       for (std::size_t p = 0; p < r.map.pixel_count(); ++p)
         for (int c = 0; c < 3; ++c) rgb.data()[3 * p + c] = r.map.data()[p];
       const std::string rel = stem + ".err_" + info.name + ".exr";
-      write_rgb(rgb, out_dir + "/" + rel);
+      write_rgb(rgb, out_dir + "/" + rel, attributes);
       files["error_" + info.name] = rel;
     }
   }
@@ -85,8 +90,25 @@ const CellRecord* reusable(const std::string& key, const CellPlan& plan, const C
   if (!old) return nullptr;
   for (const auto& name : plan.required_files)
     if (old->file(name).empty()) return nullptr;
-  for (const auto& [name, rel] : old->files)
-    if (!fs::exists(c.out_dir + "/" + rel)) return nullptr;
+  for (const auto& [name, rel] : old->files) {
+    const std::string path = c.out_dir + "/" + rel;
+    if (!fs::exists(path)) return nullptr;
+    // The cell's own images must still be the ones it wrote: a cell of the same name and spp with
+    // another key (other parameters in another config, or the method's code as it was before a
+    // change that was then undone) writes the same file names into the folder.
+    if (name == "image" || name.rfind("error_", 0) == 0) {
+      try {
+        const auto attrs = read_exr_channels(path, /*with_pixels=*/false).attributes;
+        const auto it = attrs.find(kCellKeyAttribute);
+        if (it == attrs.end() || it->second != key) {
+          spdlog::debug("{}: written by another cell than {}; computing it again", path, key);
+          return nullptr;
+        }
+      } catch (const InputError&) {  // damaged: compute the cell again
+        return nullptr;
+      }
+    }
+  }
   return old;
 }
 
@@ -132,10 +154,12 @@ std::optional<CellRecord> store_cell(const CellPlan& plan, const SceneCells& sce
   CellOutput& out = *computed.output;
   CellRecord r = base_record(plan, scene);
   const std::string stem = scene.image_dir + "/" + plan.stem;
-  write_rgb(out.image, c.out_dir + "/" + stem + ".exr");
+  // Every image the cell writes names the cell's key in its header (checked by `reusable`).
+  const std::vector<std::pair<std::string, std::string>> owner = {{"cell_key", key}};
+  write_rgb(out.image, c.out_dir + "/" + stem + ".exr", owner);
   r.files["image"] = stem + ".exr";
   if (!out.frame_file.empty()) keep_frame(out.frame_file, c.out_dir, scene.frame_dir + "/" + plan.stem + ".exr", r.files);
-  r.metrics = score_image(out.image, *scene.reference, c.out_dir, stem, r.files);
+  r.metrics = score_image(out.image, *scene.reference, c.out_dir, stem, r.files, owner);
   if (out.baseline) {
     const metrics::WorseBlocks b = metrics::worse_blocks(out.image, *out.baseline, scene.reference->color);
     r.blocks = {{"block", b.block}, {"count", b.count}, {"worse", b.worse}, {"worse_twice", b.worse_twice}};

@@ -129,10 +129,11 @@ std::optional<ComputedCell> read_spooled(const std::string& out_dir, const std::
 void remove_spooled(const std::string& out_dir, const std::string& key);
 
 // Scores `image` against the reference with every metric and writes the error maps the report
-// shows (flip, relmse) beside the image; their paths go into `files`.
-std::map<std::string, std::optional<double>> score_image(const Image& image, const Reference& reference,
-                                                         const std::string& out_dir, const std::string& stem,
-                                                         std::map<std::string, std::string>& files);
+// shows (flip, relmse) beside the image, with `attributes` in their headers; their paths go into
+// `files`.
+std::map<std::string, std::optional<double>> score_image(
+    const Image& image, const Reference& reference, const std::string& out_dir, const std::string& stem,
+    std::map<std::string, std::string>& files, const std::vector<std::pair<std::string, std::string>>& attributes = {});
 
 // Keeps `frame_file` (and its edge file, when it has one) in the results folder `out_dir` as
 // `rel` (keep_file), naming them in files["frame"] (and files["frame_edges"]); an edge file left

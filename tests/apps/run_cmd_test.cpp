@@ -142,6 +142,40 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
 // each metric recomputed from the written files by `denoisebench metrics` agrees (a record that
 // stored another cell's score, or a stale image, fails here); every method beats the 2 spp input;
 // and the reference was rendered with a seed of its own, not the inputs' (issue 28).
+// Two configs with the same method and spp but other parameters write the same file names into a
+// folder. Going back to the first config must not reuse its record beside the second one's image
+// (the record's scores would then describe another picture): the image names its cell's key.
+TEST(RunCommand, ACellWhoseImageAnotherCellOverwroteIsComputedAgain) {
+  test::TempDir dir;
+  std::string out;
+  nlohmann::json first;
+  ASSERT_NO_FATAL_FAILURE(run_tiny(dir, out, first));
+  const auto bilateral = [](const nlohmann::json& res) {
+    for (const auto& rec : res["records"])
+      if (rec["method"] == "bilateral") return rec;
+    return nlohmann::json();
+  };
+  const std::string image = out + "/images/cornell-box/bilateral_2.exr";
+  const auto key_in_image = [&] { return read_exr_channels(image, false).attributes.at("denoisebench:cell_key"); };
+  EXPECT_EQ(key_in_image(), bilateral(first)["cell_key"]);
+
+  std::string wide_config = kTinyConfig;
+  wide_config.resize(wide_config.find("[[variant]]"));
+  write(dir.path() / "wide.toml", wide_config + "[params.bilateral]\nsigma_space = 4.0\n");
+  auto wide = run_in(dir, "run " + dir.file("wide.toml") + " -o " + out);
+  ASSERT_EQ(wide.exit_code, 0) << wide.output;
+  const auto wide_record = bilateral(nlohmann::json::parse(slurp(out + "/results.json")));
+  ASSERT_NE(wide_record["cell_key"], bilateral(first)["cell_key"]);
+  EXPECT_EQ(key_in_image(), wide_record["cell_key"]);
+
+  auto back = run_in(dir, "run " + dir.file("tiny.toml") + " -o " + out);
+  ASSERT_EQ(back.exit_code, 0) << back.output;
+  const auto again = bilateral(nlohmann::json::parse(slurp(out + "/results.json")));
+  EXPECT_EQ(key_in_image(), bilateral(first)["cell_key"]) << "the first config's record was kept beside another image";
+  EXPECT_EQ(again["metrics"]["mse"], bilateral(first)["metrics"]["mse"]);
+  EXPECT_NE(again["metrics"]["mse"], wide_record["metrics"]["mse"]);
+}
+
 TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
   test::TempDir dir;
   std::string out;
