@@ -24,8 +24,9 @@ which of them a given code path can reach. The program records its own SHA-256 h
 left from another build is ignored (the program then falls back to its whole hash).
 
 Usage: code_ids.py --program BIN --objects LIST --nm NM --binary-dir DIR --out JSON
-                   [--identity-object SUFFIX] [--replace OBJ=FILE ...]
---replace hashes FILE in place of object OBJ (the test's way to "change" one object).
+                   [--identity-object REL] [--replace OBJ=FILE ...]
+--identity-object: the build-identity object, relative to DIR. --replace hashes FILE in place of
+object OBJ (relative to DIR): the test's way to "change" one object.
 """
 import argparse
 import hashlib
@@ -35,7 +36,7 @@ import re
 import subprocess
 import sys
 
-FACTORY = re.compile(r"^_ZN3dnb(\d+)(\w+)Ev$")  # dnb::<name>_method()
+FACTORY = re.compile(r"^_ZN3dnb(\d+)(\w+_method)Ev$")  # dnb::<name>_method(), <length><identifier>
 WEAK_OR_UNDEFINED = set("UVWuvw")
 
 
@@ -56,14 +57,9 @@ def nm_lines(nm, path, *flags):
 
 
 def factory_name(symbol):
+    """<name> when `symbol` is dnb::<name>_method() mangled, else None."""
     m = FACTORY.match(symbol)
-    if not m:
-        return None
-    length, rest = int(m.group(1)), m.group(2)
-    ident = rest[:length]
-    if len(ident) != length or rest[length:] != "" or not ident.endswith("_method"):
-        return None
-    return ident[: -len("_method")]
+    return m.group(2)[: -len("_method")] if m and len(m.group(2)) == int(m.group(1)) else None
 
 
 def main():
