@@ -2,11 +2,18 @@
 // statistics of FLIP's tool (metrics.h documents each).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <tuple>
 #include <vector>
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
 #include "metrics/metrics.h"
@@ -52,64 +59,105 @@ Vec3 hunt(Vec3 lab) { return {lab.x, 0.01 * lab.x * lab.y, 0.01 * lab.x * lab.z}
 double hyab(Vec3 a, Vec3 b) { return std::abs(a.x - b.x) + std::hypot(a.y - b.y, a.z - b.z); }
 
 // The contrast sensitivity functions as spatial kernels (paper section 4.1, Table 1 constants):
-// g(x) = a1 sqrt(pi/b1) exp(-pi^2 x^2 / b1) + a2 sqrt(pi/b2) exp(-pi^2 x^2 / b2), x in degrees.
-cv::Mat csf_kernel(double a1, double b1, double a2, double b2, double ppd, int radius) {
-  cv::Mat k(2 * radius + 1, 2 * radius + 1, CV_64F);
+// g(x) = a1 sqrt(pi/b1) exp(-pi^2 x^2 / b1) + a2 sqrt(pi/b2) exp(-pi^2 x^2 / b2), x in degrees,
+// sampled on a (2 radius + 1)^2 grid and normalised to sum 1. Each term is a 2-D Gaussian, the
+// product of two 1-D ones, so the 2-D kernel is applied as a weighted sum of separable filters
+// (2 x 21 taps a pixel instead of 21 x 21 at 67 pixels per degree): the same kernel, so the same
+// filter up to rounding.
+struct SeparableTerm { cv::Mat taps; double weight; };  // taps sum to 1; the 2-D term is weight * taps x taps^T
+
+std::vector<SeparableTerm> csf_terms(double a1, double b1, double a2, double b2, double ppd, int radius) {
   const double pi2 = M_PI * M_PI;
-  double sum = 0;
-  for (int j = -radius; j <= radius; ++j)
-    for (int i = -radius; i <= radius; ++i) {
-      double d2 = (i * i + j * j) / (ppd * ppd);
-      double g = a1 * std::sqrt(M_PI / b1) * std::exp(-pi2 * d2 / b1) + a2 * std::sqrt(M_PI / b2) * std::exp(-pi2 * d2 / b2);
-      k.at<double>(j + radius, i + radius) = g;
-      sum += g;
-    }
-  return k / sum;
+  std::vector<SeparableTerm> terms;
+  double total = 0;
+  for (auto [a, b] : {std::pair{a1, b1}, std::pair{a2, b2}}) {
+    if (a == 0) continue;
+    cv::Mat t(2 * radius + 1, 1, CV_64F);
+    double sum = 0;
+    for (int i = -radius; i <= radius; ++i) sum += t.at<double>(i + radius) = std::exp(-pi2 * (i * i) / (ppd * ppd) / b);
+    // This term's share of the 2-D kernel's sum: a sqrt(pi/b) times the sum of its 2-D taps, sum^2.
+    const double mass = a * std::sqrt(M_PI / b) * sum * sum;
+    cv::Mat taps;
+    cv::Mat(t / sum).convertTo(taps, CV_32F);  // the images are filtered in float, as FLIP's own code does
+    terms.push_back({taps, mass});
+    total += mass;
+  }
+  for (auto& t : terms) t.weight /= total;
+  return terms;
 }
 
 // Edge (first derivative of a Gaussian) and point (second derivative) detectors, x direction;
-// positive and negative weights normalised to sum to +1 and -1 (paper section 4.2).
-void feature_kernels(double ppd, cv::Mat& edge, cv::Mat& point) {
+// positive and negative weights normalised to sum to +1 and -1 (paper section 4.2). Both are a
+// 1-D profile in x times a Gaussian in y, and a weight's sign depends on x alone, so the
+// normalised 2-D kernel is the x profile normalised by sign times the y Gaussian normalised to 1:
+// `across` (x) and `along` (y) below.
+struct FeatureKernels { cv::Mat edge, point, along; };
+
+FeatureKernels feature_kernels(double ppd) {
   const double sd = 0.5 * 0.082 * ppd;
   const int r = int(std::ceil(3 * sd));
-  edge.create(2 * r + 1, 2 * r + 1, CV_64F);
-  point.create(2 * r + 1, 2 * r + 1, CV_64F);
-  double ep = 0, en = 0, pp = 0, pn = 0;
-  for (int y = -r; y <= r; ++y)
-    for (int x = -r; x <= r; ++x) {
-      double g = std::exp(-(x * x + y * y) / (2 * sd * sd));
-      double e = -x * g, p = (x * x / (sd * sd) - 1) * g;
-      edge.at<double>(y + r, x + r) = e;
-      point.at<double>(y + r, x + r) = p;
-      (e > 0 ? ep : en) += e;
-      (p > 0 ? pp : pn) += p;
-    }
-  for (auto [k, pos, neg] : {std::tuple{&edge, ep, en}, std::tuple{&point, pp, pn}})
-    for (auto it = k->begin<double>(); it != k->end<double>(); ++it) *it = *it > 0 ? *it / pos : *it / -neg;
+  FeatureKernels k;
+  k.edge.create(2 * r + 1, 1, CV_64F);
+  k.point.create(2 * r + 1, 1, CV_64F);
+  k.along.create(2 * r + 1, 1, CV_64F);
+  double ep = 0, en = 0, pp = 0, pn = 0, g_sum = 0;
+  for (int x = -r; x <= r; ++x) {
+    const double g = std::exp(-(x * x) / (2 * sd * sd));
+    const double e = -x * g, p = (x * x / (sd * sd) - 1) * g;
+    k.edge.at<double>(x + r) = e;
+    k.point.at<double>(x + r) = p;
+    k.along.at<double>(x + r) = g;
+    (e > 0 ? ep : en) += e;
+    (p > 0 ? pp : pn) += p;
+    g_sum += g;
+  }
+  for (auto [m, pos, neg] : {std::tuple{&k.edge, ep, en}, std::tuple{&k.point, pp, pn}})
+    for (auto it = m->begin<double>(); it != m->end<double>(); ++it) *it = *it > 0 ? *it / pos : *it / -neg;
+  k.along /= g_sum;
+  for (cv::Mat* m : {&k.edge, &k.point, &k.along}) m->convertTo(*m, CV_32F);  // applied in float, as FLIP's code does
+  return k;
 }
 
-cv::Mat filtered(const cv::Mat& in, const cv::Mat& kernel) {
+// Correlation with the separable kernel kx (along rows) x ky (along columns), edges replicated,
+// as filter2D with the full kernel computes it.
+cv::Mat filtered(const cv::Mat& in, const cv::Mat& kx, const cv::Mat& ky) {
   cv::Mat out;
-  cv::filter2D(in, out, CV_64F, kernel, cv::Point(-1, -1), 0, cv::BORDER_REPLICATE);
+  cv::sepFilter2D(in, out, CV_32F, kx, ky, cv::Point(-1, -1), 0, cv::BORDER_REPLICATE);
   return out;
+}
+
+cv::Mat filtered(const cv::Mat& in, const std::vector<SeparableTerm>& terms) {
+  cv::Mat out;
+  for (const auto& t : terms) {
+    cv::Mat f = filtered(in, t.taps, t.taps);
+    if (out.empty()) out = t.weight * f;
+    else cv::scaleAdd(f, t.weight, out, out);
+  }
+  return out;
+}
+
+// Rows [0, h) of an image, in parallel: every pixel is computed alone, so the result is the same
+// whatever the thread count.
+template <typename Row>
+void for_rows(int h, Row row) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, h, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) row(y);
+  });
 }
 
 // LDR-FLIP in three named steps, so that HDR-FLIP runs the same code on each exposure:
 // the filters for a viewing distance, each image in FLIP's working spaces, the per-pixel error.
 // Every step works on linear RGB in [0, 1]; `to_linear` says how a pixel of the input gets there.
 struct FlipFilters {
-  cv::Mat csf[3];  // Y, Cx, Cz contrast sensitivity (section 4.1)
-  cv::Mat edge, point, edge_t, point_t;  // feature detectors in x and, transposed, in y (section 4.2)
+  std::vector<SeparableTerm> csf[3];  // Y, Cx, Cz contrast sensitivity (section 4.1)
+  FeatureKernels feature;             // edge and point detectors (section 4.2)
 
-  explicit FlipFilters(double ppd) {
+  explicit FlipFilters(double ppd) : feature(feature_kernels(ppd)) {
     const double bmax = 0.04;  // the widest CSF term (blue-yellow b1)
     const int radius = int(std::ceil(3 * std::sqrt(bmax / (2 * M_PI * M_PI)) * ppd));
-    csf[0] = csf_kernel(1, 0.0047, 0, 1e-5, ppd, radius);
-    csf[1] = csf_kernel(1, 0.0053, 0, 1e-5, ppd, radius);
-    csf[2] = csf_kernel(34.1, 0.04, 13.5, 0.025, ppd, radius);
-    feature_kernels(ppd, edge, point);
-    edge_t = edge.t();
-    point_t = point.t();
+    csf[0] = csf_terms(1, 0.0047, 0, 1e-5, ppd, radius);
+    csf[1] = csf_terms(1, 0.0053, 0, 1e-5, ppd, radius);
+    csf[2] = csf_terms(34.1, 0.04, 13.5, 0.025, ppd, radius);
   }
 };
 
@@ -121,25 +169,30 @@ template <typename ToLinear>
 Prepared prepare(const Image& im, const FlipFilters& k, ToLinear to_linear) {
   const int w = im.width(), h = im.height();
   cv::Mat ycc[3];
-  for (auto& m : ycc) m.create(h, w, CV_64F);
-  for (int y = 0; y < h; ++y)
+  for (auto& m : ycc) m.create(h, w, CV_32F);
+  for_rows(h, [&](int y) {
     for (int x = 0; x < w; ++x) {
       Vec3 v = xyz_to_ycxcz(rgb_to_xyz(to_linear(im.pixel(x, y))));
-      ycc[0].at<double>(y, x) = v.x; ycc[1].at<double>(y, x) = v.y; ycc[2].at<double>(y, x) = v.z;
+      ycc[0].at<float>(y, x) = float(v.x); ycc[1].at<float>(y, x) = float(v.y); ycc[2].at<float>(y, x) = float(v.z);
     }
+  });
   Prepared out;
   cv::Mat f[3];
   for (int c = 0; c < 3; ++c) f[c] = filtered(ycc[c], k.csf[c]);
-  for (auto& m : out.lab) m.create(h, w, CV_64F);
-  for (int y = 0; y < h; ++y)
+  for (auto& m : out.lab) m.create(h, w, CV_32F);
+  for_rows(h, [&](int y) {
     for (int x = 0; x < w; ++x) {
-      Vec3 rgb = xyz_to_rgb(ycxcz_to_xyz({f[0].at<double>(y, x), f[1].at<double>(y, x), f[2].at<double>(y, x)}));
+      Vec3 rgb = xyz_to_rgb(ycxcz_to_xyz({f[0].at<float>(y, x), f[1].at<float>(y, x), f[2].at<float>(y, x)}));
       rgb = {std::clamp(rgb.x, 0.0, 1.0), std::clamp(rgb.y, 0.0, 1.0), std::clamp(rgb.z, 0.0, 1.0)};
       Vec3 lab = hunt(xyz_to_lab(rgb_to_xyz(rgb)));
-      out.lab[0].at<double>(y, x) = lab.x; out.lab[1].at<double>(y, x) = lab.y; out.lab[2].at<double>(y, x) = lab.z;
+      out.lab[0].at<float>(y, x) = float(lab.x); out.lab[1].at<float>(y, x) = float(lab.y);
+      out.lab[2].at<float>(y, x) = float(lab.z);
     }
+  });
   cv::Mat yn = (ycc[0] + 16) / 116;  // achromatic channel normalised to [0, 1]
-  cv::Mat ex = filtered(yn, k.edge), ey = filtered(yn, k.edge_t), px = filtered(yn, k.point), py = filtered(yn, k.point_t);
+  const FeatureKernels& fk = k.feature;
+  cv::Mat ex = filtered(yn, fk.edge, fk.along), ey = filtered(yn, fk.along, fk.edge);
+  cv::Mat px = filtered(yn, fk.point, fk.along), py = filtered(yn, fk.along, fk.point);
   cv::magnitude(ex, ey, out.edge_mag);
   cv::magnitude(px, py, out.point_mag);
   return out;
@@ -148,27 +201,68 @@ Prepared prepare(const Image& im, const FlipFilters& k, ToLinear to_linear) {
 // The per-pixel LDR-FLIP error in [0, 1] (CV_64F): the colour error raised to 1 minus the feature
 // error (section 4.3).
 cv::Mat flip_error(const Prepared& a, const Prepared& b) {
-  const double qc = 0.7, qf = 0.5, pc = 0.4, pt = 0.95;
+  const double qc = 0.7, pc = 0.4, pt = 0.95;  // and qf = 0.5
   const double cmax = std::pow(hyab(hunt(xyz_to_lab(rgb_to_xyz({0, 1, 0}))), hunt(xyz_to_lab(rgb_to_xyz({0, 0, 1})))), qc);
   const int w = a.edge_mag.cols, h = a.edge_mag.rows;
   cv::Mat err(h, w, CV_64F);
-  for (int y = 0; y < h; ++y)
+  for_rows(h, [&](int y) {
     for (int x = 0; x < w; ++x) {
-      Vec3 la{a.lab[0].at<double>(y, x), a.lab[1].at<double>(y, x), a.lab[2].at<double>(y, x)};
-      Vec3 lb{b.lab[0].at<double>(y, x), b.lab[1].at<double>(y, x), b.lab[2].at<double>(y, x)};
+      Vec3 la{a.lab[0].at<float>(y, x), a.lab[1].at<float>(y, x), a.lab[2].at<float>(y, x)};
+      Vec3 lb{b.lab[0].at<float>(y, x), b.lab[1].at<float>(y, x), b.lab[2].at<float>(y, x)};
       double dc = std::pow(hyab(la, lb), qc);
       double ec = dc < pc * cmax ? pt / (pc * cmax) * dc : pt + (dc - pc * cmax) / (cmax - pc * cmax) * (1 - pt);
-      double df = std::max(std::abs(a.edge_mag.at<double>(y, x) - b.edge_mag.at<double>(y, x)),
-                           std::abs(a.point_mag.at<double>(y, x) - b.point_mag.at<double>(y, x)));
-      double ef = std::pow(df / std::sqrt(2.0), qf);
+      double df = std::max(std::abs(double(a.edge_mag.at<float>(y, x)) - b.edge_mag.at<float>(y, x)),
+                           std::abs(double(a.point_mag.at<float>(y, x)) - b.point_mag.at<float>(y, x)));
+      double ef = std::sqrt(df / std::sqrt(2.0));  // pow(., qf) with qf = 1/2
       err.at<double>(y, x) = std::pow(ec, 1 - ef);
     }
+  });
   return err;
 }
 
-template <typename ToLinear>
-cv::Mat ldr_flip_error(const Image& image, const Image& reference, const FlipFilters& k, ToLinear to_linear) {
-  return flip_error(prepare(image, k, to_linear), prepare(reference, k, to_linear));
+// The reference's prepared images, kept between calls. A run scores every cell of a scene, and
+// `metrics` every image it is given, against one reference, and preparing the reference is half of
+// FLIP's work (ten times per image for HDR-FLIP's exposures), so it is done once per reference and
+// exposure. The memo holds the last reference seen, compared by content (not by address: a caller
+// may free one reference and allocate another in its place), and is safe to use from threads.
+class ReferenceMemo {
+ public:
+  // `kind` 0: LDR-FLIP's display transform; 1: HDR-FLIP at `exposure`.
+  template <typename Make>
+  std::shared_ptr<const Prepared> get(const Image& reference, double ppd, int kind, double exposure, Make make) {
+    const Key key{ppd, kind, exposure};
+    std::uint64_t generation;
+    {
+      const std::lock_guard lock(mutex_);
+      if (!same(reference)) {
+        reference_ = reference;
+        prepared_.clear();
+        ++generation_;
+      }
+      if (auto it = prepared_.find(key); it != prepared_.end()) return it->second;
+      generation = generation_;
+    }
+    auto made = std::make_shared<const Prepared>(make());  // outside the lock: exposures run in parallel
+    const std::lock_guard lock(mutex_);
+    if (generation == generation_) prepared_.emplace(key, made);
+    return made;
+  }
+
+ private:
+  using Key = std::tuple<double, int, double>;
+  bool same(const Image& r) const {
+    return r.width() == reference_.width() && r.height() == reference_.height() && r.channels() == reference_.channels() &&
+           std::memcmp(r.data(), reference_.data(), r.size() * sizeof(float)) == 0;
+  }
+  std::mutex mutex_;
+  Image reference_;
+  std::uint64_t generation_ = 0;
+  std::map<Key, std::shared_ptr<const Prepared>> prepared_;
+};
+
+ReferenceMemo& reference_memo() {
+  static ReferenceMemo memo;
+  return memo;
 }
 
 // The map as a 1-channel image and its mean.
@@ -194,7 +288,9 @@ MetricResult flip(const Image& image, const Image& reference, double ppd) {
   auto display = [](const float* p) {
     return Vec3{srgb_decode(srgb_encode(p[0])), srgb_decode(srgb_encode(p[1])), srgb_decode(srgb_encode(p[2]))};
   };
-  return mean_of(ldr_flip_error(image, reference, FlipFilters(ppd), display));
+  const FlipFilters filters(ppd);
+  const auto ref = reference_memo().get(reference, ppd, 0, 0.0, [&] { return prepare(reference, filters, display); });
+  return mean_of(flip_error(prepare(image, filters, display), *ref));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -262,11 +358,18 @@ MetricResult hdrflip(const Image& image, const Image& reference, double ppd) {
   const FlipFilters filters(ppd);
   // The tone-mapped images are already linear in [0, 1]: LDR-FLIP takes them as they are.
   auto as_is = [](const float* p) { return Vec3{p[0], p[1], p[2]}; };
+  // The exposures in parallel: the per-pixel maximum is exact and does not depend on the order
+  // in which the exposures' maps arrive.
   cv::Mat worst(image.height(), image.width(), CV_64F, cv::Scalar(0));
-  for (int i = 0; i < ex.count; ++i) {
+  std::mutex worst_mutex;
+  tbb::parallel_for(0, ex.count, [&](int i) {
     const double c = ex.exposure(i);
-    worst = cv::max(worst, ldr_flip_error(hdrflip_tone_map(image, c), hdrflip_tone_map(reference, c), filters, as_is));
-  }
+    const auto ref = reference_memo().get(reference, ppd, 1, c,
+                                          [&] { return prepare(hdrflip_tone_map(reference, c), filters, as_is); });
+    const cv::Mat err = flip_error(prepare(hdrflip_tone_map(image, c), filters, as_is), *ref);
+    const std::lock_guard lock(worst_mutex);
+    worst = cv::max(worst, err);
+  });
   return mean_of(worst);
 }
 

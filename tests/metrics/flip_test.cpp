@@ -4,8 +4,11 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
 #include "metrics/metrics.h"
@@ -154,6 +157,52 @@ Image map_of(std::initializer_list<float> values) {
   Image m(int(values.size()), 1, 1);
   std::copy(values.begin(), values.end(), m.data());
   return m;
+}
+
+// FLIP keeps the reference's prepared images between calls (flip.cpp's ReferenceMemo). A reference
+// is recognised by its content: another reference, even one written in place over the last one's
+// pixels (the same address), must be prepared again, and a reference seen before scores exactly as
+// it did then.
+TEST(FlipMemo, ScoresDoNotDependOnWhichReferenceCameBefore) {
+  const Image a = hdr_pattern(40, 24);
+  Image b = hdr_pattern(40, 24);
+  const Image image = noisy(a, 0.3f, 5);
+  Image other = a;
+  for (int x = 0; x < 40; ++x) other.at(x, 12, 1) *= 3.0f;  // a bright line: the scores differ a lot
+  const double ldr_a = flip(image, a).value, hdr_a = hdrflip(image, a).value;
+  const double ldr_other = flip(image, other).value, hdr_other = hdrflip(image, other).value;
+  ASSERT_NE(ldr_a, ldr_other);
+  ASSERT_NE(hdr_a, hdr_other);
+  // `b` is `a`'s pixels at another address: the same scores.
+  EXPECT_EQ(flip(image, b).value, ldr_a);
+  EXPECT_EQ(hdrflip(image, b).value, hdr_a);
+  // `b` overwritten with `other`'s pixels, in place: scored as `other`, not as the `b` seen before.
+  std::copy(other.data(), other.data() + other.size(), b.data());
+  EXPECT_EQ(flip(image, b).value, ldr_other);
+  EXPECT_EQ(hdrflip(image, b).value, hdr_other);
+  EXPECT_EQ(hdrflip(image, a).value, hdr_a);
+}
+
+// Every pixel is computed alone and HDR-FLIP's maximum over exposures is exact, so the maps are
+// the same bit for bit on one thread and on every core, and when several images are scored at
+// once against one reference (the memo shared between threads).
+TEST(FlipMemo, SameMapsOnOneThreadAndOnManyInParallel) {
+  const Image ref = hdr_pattern(64, 48);
+  std::vector<Image> images;
+  for (std::uint32_t s = 0; s < 6; ++s) images.push_back(noisy(ref, 0.1f * float(s + 1), s));
+  std::vector<MetricResult> one, many(images.size());
+  {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    hdrflip(hdr_pattern(8, 8), hdr_pattern(8, 8));  // another reference first: nothing of `ref` kept
+    for (const auto& im : images) one.push_back(hdrflip(im, ref));
+  }
+  hdrflip(hdr_pattern(8, 8), hdr_pattern(8, 8));
+  tbb::parallel_for(std::size_t(0), images.size(), [&](std::size_t i) { many[i] = hdrflip(images[i], ref); });
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    EXPECT_EQ(one[i].value, many[i].value) << "image " << i;
+    ASSERT_EQ(one[i].map.size(), many[i].map.size());
+    for (std::size_t p = 0; p < one[i].map.size(); ++p) ASSERT_EQ(one[i].map.data()[p], many[i].map.data()[p]) << i << " " << p;
+  }
 }
 
 TEST(FlipPooling, HandComputedWeightedPercentiles) {
