@@ -206,11 +206,12 @@ class InputFrame {
 // each point the image of its first N samples (tracer/render.h's render_color_prefixes: bit for
 // bit `render --spp N`), its time what the render took to reach N. Rendered whole when the first
 // cell that needs a point asks for it, so the curve costs one render whichever of its points are
-// computed (a resumed run that misses one point renders to the largest again: its records then
-// say the same as an uninterrupted run's).
+// computed, and kept in the render cache (a resumed run that misses one point reads them all from
+// there, or renders to the largest again: its records then say the same as an uninterrupted run's).
 class PlainCurve {
  public:
-  PlainCurve(const ExperimentConfig& c, const Scene& scene) : config_(c), scene_(scene) {
+  PlainCurve(const ExperimentConfig& c, const Scene& scene, Cache& cache, bool use_cache)
+      : config_(c), scene_(scene), cache_(cache), use_cache_(use_cache) {
     for (int spp : c.plain_spp) prefixes_.push_back(spp);
     std::sort(prefixes_.begin(), prefixes_.end());
     prefixes_.erase(std::unique(prefixes_.begin(), prefixes_.end()), prefixes_.end());
@@ -218,19 +219,50 @@ class PlainCurve {
   int rendered_spp() const { return prefixes_.empty() ? 0 : prefixes_.back(); }
   // Point spp's image and seconds.
   const std::pair<Image, double>& get(int spp) {
-    if (points_.empty()) {
-      render_color_prefixes(scene_, input_settings(config_, rendered_spp(), config_.seed), prefixes_,
-                            [&](std::size_t k, Image image, double seconds) {
-                              points_[prefixes_[k]] = {std::move(image), seconds};
-                            });
-    }
+    if (points_.empty()) load();
     return points_.at(spp);
   }
+  // Whether the points came from the render cache (known once a point was asked for).
+  bool cache_hit() const { return hit_; }
   void release() { points_.clear(); }
 
  private:
+  // From the render cache when it holds this curve (each point's image and the seconds the render
+  // took to reach it, as first measured), else rendered and stored there: a run whose plain cells
+  // must be scored again (the metrics changed) reads the curve instead of rendering it again.
+  void load() {
+    const RenderSettings settings = input_settings(config_, rendered_spp(), config_.seed);
+    const CacheKey key = curve_cache_key(scene_, settings, prefixes_);
+    if (!use_cache_) cache_.remove(key);
+    if (auto entry = cache_.lookup(key)) {
+      for (int spp : prefixes_) {
+        const std::string path = entry->file(point_file(spp));
+        const auto attrs = read_exr_channels(path, /*with_pixels=*/false).attributes;
+        const auto it = attrs.find(kSecondsAttribute);
+        if (it == attrs.end()) throw InputError(fmt::format("'{}': no attribute '{}'", path, kSecondsAttribute));
+        points_[spp] = {read_rgb(path), std::stod(it->second)};
+      }
+      hit_ = true;
+      return;
+    }
+    render_color_prefixes(scene_, settings, prefixes_, [&](std::size_t k, Image image, double seconds) {
+      points_[prefixes_[k]] = {std::move(image), seconds};
+    });
+    hit_ = false;
+    cache_.store(key, [&](const std::string& dir) {
+      for (const auto& [spp, point] : points_)
+        write_rgb(point.first, dir + "/" + point_file(spp), {{"render_seconds", fmt::format("{}", point.second)}});
+    });
+  }
+  static std::string point_file(int spp) { return fmt::format("prefix_{}.exr", spp); }
+  // write_rgb's attribute "render_seconds", as the header holds it (core/exr_io.cpp's prefix).
+  static constexpr const char* kSecondsAttribute = "denoisebench:render_seconds";
+
   const ExperimentConfig& config_;
   const Scene& scene_;
+  Cache& cache_;
+  bool use_cache_;
+  bool hit_ = false;
   std::vector<int> prefixes_;
   std::map<int, std::pair<Image, double>> points_;
 };
@@ -241,8 +273,10 @@ CellPlan plain_cell(const ExperimentConfig& c, PlainCurve& curve, const std::str
   p.role = Role::Plain;
   p.method = "path_tracing";
   p.spp = spp;
+  // The code too (the metrics score the point): the render itself is cached (PlainCurve), so
+  // scoring the curve again after a change costs a read, not a render.
   p.identity = {{"plain", spp}, {"scene", scene_hash}, {"w", c.width}, {"h", c.height}, {"seed", c.seed},
-                {"ref", reference_spp}, {"depth", c.max_depth}, {"tracer", kTracerVersion}};
+                {"ref", reference_spp}, {"depth", c.max_depth}, {"tracer", kTracerVersion}, {"code", shared_code_id()}};
   p.stem = "path_tracing_" + std::to_string(spp);
   p.compute = [&curve, spp] {
     CellOutput out;
@@ -250,6 +284,7 @@ CellPlan plain_cell(const ExperimentConfig& c, PlainCurve& curve, const std::str
     out.image = image;
     out.times.input_render = out.times.total = seconds;
     out.curve = CurveOrigin{curve.rendered_spp(), spp};
+    out.input_cache_hit = curve.cache_hit();
     return out;
   };
   return p;
@@ -288,7 +323,9 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
   p.kind = to_string(info.kind);
   p.params = registry.parse_params(m.method, m.params).as_strings();
   p.identity = frame.identity();
-  p.identity.update({{"method", m.method}, {"params", *p.params}, {"repeats", c.repeats},
+  // The column's name too: two columns of the same method and parameters (a variant and
+  // [params.<method>], or two variants) are two cells, each listed under its own name.
+  p.identity.update({{"column", m.name}, {"method", m.method}, {"params", *p.params}, {"repeats", c.repeats},
                      {"repeat_below", c.repeat_below_seconds}, {"code", method_code_id(m.method)}});
   // A plug-in's code is not in the build: its folder's hash is (built-in cells keep their keys).
   if (!info.content_hash.empty()) p.identity["method_content"] = info.content_hash;
@@ -360,7 +397,7 @@ std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, cons
   sp->cells = rendered_scene_cells(c, opt, cache, scene, name, sp->ref);
   sp->cells.reference = &sp->ref;
   PlanGroup& plain = sp->groups.emplace_back();
-  plain.curve = std::make_unique<PlainCurve>(c, scene);
+  plain.curve = std::make_unique<PlainCurve>(c, scene, cache, opt.use_cache);
   for (int spp : c.plain_spp)
     plain.plans.push_back(plain_cell(c, *plain.curve, sp->cells.scene_hash, spp, c.reference_spp_for(name)));
   // Every input seed gives its own input and method cells (Table 1's intervals are over them).

@@ -4,6 +4,8 @@
 // cached product of its kind.
 #pragma once
 
+#include <vector>
+
 #include "tracer/cache.h"
 
 namespace dnb {
@@ -20,5 +22,10 @@ CacheKey reference_cache_key(const Scene& scene, const ReferenceSettings& settin
 // The experiment runner's input frames (render_frame; use with cached_frame, tracer/cache.h):
 // scene content, size, spp, seed, max depth, reflection levels, edge sub-pixels, tracer version.
 CacheKey frame_cache_key(const Scene& scene, const RenderSettings& settings);
+
+// The plain path-tracing curve of a run (render_color_prefixes): the colour of one progressive
+// render at each of `prefixes` (rising; settings.spp is the last). Scene content, size, the
+// largest spp, seed, max depth, the prefixes, tracer version.
+CacheKey curve_cache_key(const Scene& scene, const RenderSettings& settings, const std::vector<int>& prefixes);
 
 }  // namespace dnb

@@ -113,7 +113,8 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
 
   // Another build (here: the same program with one byte appended, so its file hash differs)
   // must not reuse the method cells another build computed: after a code change the tables
-  // would silently keep the old numbers. The plain path-tracing cells are the tracer's and stay.
+  // would silently keep the old numbers. The plain path-tracing cells are scored again (the
+  // metrics are code), their render read from the render cache instead of rendered again.
   const fs::path other = dir.path() / "denoisebench-rebuilt";
   fs::copy_file(binary(), other);
   std::ofstream(other, std::ios::app | std::ios::binary) << '\n';
@@ -125,6 +126,22 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
   const auto res3 = nlohmann::json::parse(slurp(out + "/results.json"));
   EXPECT_EQ(res3["records"].size(), 5u);
   EXPECT_NE(res3["build"]["build_id"], res["build"]["build_id"]);
+  const auto plain = [](const nlohmann::json& doc) {
+    std::map<int, nlohmann::json> by_spp;
+    for (const auto& rec : doc["records"])
+      if (rec["role"] == "plain") by_spp[rec["spp"].get<int>()] = rec;
+    return by_spp;
+  };
+  const auto plain_before = plain(res), plain_after = plain(res3);
+  ASSERT_EQ(plain_after.size(), 2u);
+  for (const auto& [spp, rec] : plain_after) {
+    const auto& old = plain_before.at(spp);
+    EXPECT_EQ(old["input_cache_hit"], false) << "the first run rendered the curve";
+    EXPECT_EQ(rec["input_cache_hit"], true) << rec.dump();
+    EXPECT_NE(rec["cell_key"], old["cell_key"]) << "scored again by the other build";
+    EXPECT_EQ(rec["metrics"]["mse"], old["metrics"]["mse"]) << "the same points, read from the cache";
+    EXPECT_EQ(rec["times"]["total"], old["times"]["total"]) << "the render's own time, as first measured";
+  }
 
   // The timing settings are part of a method cell: a run with another repeat threshold times
   // the filters again instead of keeping times taken under the old one.
@@ -431,6 +448,31 @@ TEST(RunCommand, SeveralSeedsGiveACellPerSeedAndTable1Intervals) {
       }
     }
   EXPECT_THAT(slurp(dir.file("out/worse_blocks.md")), ::testing::ContainsRegex("[0-9.]+% \\([0-9.]+%\\)"));
+}
+
+// Two columns of the same method and parameters (here two variants with the same settings) are
+// two cells: each computed, each record under its own name with its own image. Keyed without the
+// column's name, the second reused the first's record and was listed under the first's name.
+TEST(RunCommand, TwoColumnsWithTheSameSettingsAreTwoCells) {
+  test::TempDir dir;
+  const std::string config = std::string(kTinyConfig) +
+                             "[[variant]]\nname = \"bilateral-wide-too\"\nmethod = \"bilateral\"\n"
+                             "group = \"ablation\"\nset = { sigma_space = 6.0 }\n";
+  write(dir.file("exp.toml"), config);
+  auto r = run_in(dir, "run " + dir.file("exp.toml") + " -o " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto doc = nlohmann::json::parse(slurp(dir.file("out/results.json")));
+  std::map<std::string, nlohmann::json> by_name;
+  for (const auto& rec : doc["records"])
+    if (rec["role"] != "plain") by_name[rec["method"].get<std::string>()] = rec;
+  ASSERT_EQ(by_name.count("bilateral-wide"), 1u) << doc["records"].dump();
+  ASSERT_EQ(by_name.count("bilateral-wide-too"), 1u) << doc["records"].dump();
+  const auto& a = by_name["bilateral-wide"];
+  const auto& b = by_name["bilateral-wide-too"];
+  EXPECT_NE(a["cell_key"], b["cell_key"]);
+  EXPECT_EQ(b["files"]["image"], "images/cornell-box/bilateral-wide-too_2.exr");
+  EXPECT_TRUE(fs::exists(dir.file("out/" + b["files"]["image"].get<std::string>())));
+  EXPECT_EQ(a["metrics"]["mse"], b["metrics"]["mse"]) << "the same filter on the same frame";
 }
 
 }  // namespace
