@@ -661,6 +661,14 @@ void write_rgb(const Image& rgb, const std::string& path,
   write_image_file(path, spec, rgb.data());
 }
 
+std::map<std::string, std::string> read_rgb_attributes(const std::string& path) {
+  const std::string prefix = kAttrPrefix;
+  std::map<std::string, std::string> out;
+  for (const auto& [name, value] : read_exr_channels(path, /*with_pixels=*/false).attributes)
+    if (name.rfind(prefix, 0) == 0) out.emplace(name.substr(prefix.size()), value);
+  return out;
+}
+
 Image read_rgb(const std::string& path) {
   auto in = open_input(path);
   const OIIO::ImageSpec spec = in->spec();

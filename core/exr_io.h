@@ -71,6 +71,11 @@ void write_rgb(const Image& rgb, const std::string& path,
 // channel when one is missing.
 Image read_rgb(const std::string& path);
 
+// The attributes write_rgb wrote into `path`'s header, by the names it was given (without the
+// header's "denoisebench:" prefix), read without the pixels; InputError naming the file when it
+// cannot be read.
+std::map<std::string, std::string> read_rgb_attributes(const std::string& path);
+
 // Every channel of a flat OpenEXR file, by name, with its header attributes: what an importer of
 // another renderer's frames reads (interop/). The parts of a multi-part file are merged (their
 // channel names are already distinct in the files Blender, pbrt and Mitsuba write; a repeated

@@ -19,11 +19,6 @@ namespace fs = std::filesystem;
 
 namespace dnb::experiment {
 
-namespace {
-// write_rgb's attribute "cell_key", as its header holds it (core/exr_io.cpp's prefix).
-constexpr const char* kCellKeyAttribute = "denoisebench:cell_key";
-}  // namespace
-
 std::string safe_file_name(const std::string& s) {
   std::string o = s;
   for (char& ch : o)
@@ -98,8 +93,8 @@ const CellRecord* reusable(const std::string& key, const CellPlan& plan, const C
     // change that was then undone) writes the same file names into the folder.
     if (name == "image" || name.rfind("error_", 0) == 0) {
       try {
-        const auto attrs = read_exr_channels(path, /*with_pixels=*/false).attributes;
-        const auto it = attrs.find(kCellKeyAttribute);
+        const auto attrs = read_rgb_attributes(path);
+        const auto it = attrs.find("cell_key");
         if (it == attrs.end() || it->second != key) {
           spdlog::debug("{}: written by another cell than {}; computing it again", path, key);
           return nullptr;

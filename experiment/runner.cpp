@@ -237,9 +237,9 @@ class PlainCurve {
     if (auto entry = cache_.lookup(key)) {
       for (int spp : prefixes_) {
         const std::string path = entry->file(point_file(spp));
-        const auto attrs = read_exr_channels(path, /*with_pixels=*/false).attributes;
-        const auto it = attrs.find(kSecondsAttribute);
-        if (it == attrs.end()) throw InputError(fmt::format("'{}': no attribute '{}'", path, kSecondsAttribute));
+        const auto attrs = read_rgb_attributes(path);
+        const auto it = attrs.find("render_seconds");
+        if (it == attrs.end()) throw InputError(fmt::format("'{}': no attribute 'render_seconds'", path));
         points_[spp] = {read_rgb(path), std::stod(it->second)};
       }
       hit_ = true;
@@ -255,8 +255,6 @@ class PlainCurve {
     });
   }
   static std::string point_file(int spp) { return fmt::format("prefix_{}.exr", spp); }
-  // write_rgb's attribute "render_seconds", as the header holds it (core/exr_io.cpp's prefix).
-  static constexpr const char* kSecondsAttribute = "denoisebench:render_seconds";
 
   const ExperimentConfig& config_;
   const Scene& scene_;

@@ -89,8 +89,8 @@ std::vector<SeparableTerm> csf_terms(double a1, double b1, double a2, double b2,
 // Edge (first derivative of a Gaussian) and point (second derivative) detectors, x direction;
 // positive and negative weights normalised to sum to +1 and -1 (paper section 4.2). Both are a
 // 1-D profile in x times a Gaussian in y, and a weight's sign depends on x alone, so the
-// normalised 2-D kernel is the x profile normalised by sign times the y Gaussian normalised to 1:
-// `across` (x) and `along` (y) below.
+// normalised 2-D kernel is the x profile normalised by sign (`edge`, `point`) times the y Gaussian
+// normalised to 1 (`along`); the y-direction detectors are the same kernels with x and y swapped.
 struct FeatureKernels { cv::Mat edge, point, along; };
 
 FeatureKernels feature_kernels(double ppd) {
@@ -227,20 +227,26 @@ cv::Mat flip_error(const Prepared& a, const Prepared& b) {
 // may free one reference and allocate another in its place), and is safe to use from threads.
 class ReferenceMemo {
  public:
-  // `kind` 0: LDR-FLIP's display transform; 1: HDR-FLIP at `exposure`.
+  // Makes `reference` the memo's reference (compared once per call of flip or hdrflip, not per
+  // exposure) and returns its generation, for `get`.
+  std::uint64_t adopt(const Image& reference) {
+    const std::lock_guard lock(mutex_);
+    if (!same(reference)) {
+      reference_ = reference;
+      prepared_.clear();
+      ++generation_;
+    }
+    return generation_;
+  }
+  // The reference of `generation` prepared for `kind` (0: LDR-FLIP's display transform; 1:
+  // HDR-FLIP at `exposure`): kept, or made now and kept while that reference is the memo's.
   template <typename Make>
-  std::shared_ptr<const Prepared> get(const Image& reference, double ppd, int kind, double exposure, Make make) {
+  std::shared_ptr<const Prepared> get(std::uint64_t generation, double ppd, int kind, double exposure, Make make) {
     const Key key{ppd, kind, exposure};
-    std::uint64_t generation;
     {
       const std::lock_guard lock(mutex_);
-      if (!same(reference)) {
-        reference_ = reference;
-        prepared_.clear();
-        ++generation_;
-      }
-      if (auto it = prepared_.find(key); it != prepared_.end()) return it->second;
-      generation = generation_;
+      if (generation == generation_)
+        if (auto it = prepared_.find(key); it != prepared_.end()) return it->second;
     }
     auto made = std::make_shared<const Prepared>(make());  // outside the lock: exposures run in parallel
     const std::lock_guard lock(mutex_);
@@ -289,7 +295,8 @@ MetricResult flip(const Image& image, const Image& reference, double ppd) {
     return Vec3{srgb_decode(srgb_encode(p[0])), srgb_decode(srgb_encode(p[1])), srgb_decode(srgb_encode(p[2]))};
   };
   const FlipFilters filters(ppd);
-  const auto ref = reference_memo().get(reference, ppd, 0, 0.0, [&] { return prepare(reference, filters, display); });
+  const std::uint64_t generation = reference_memo().adopt(reference);
+  const auto ref = reference_memo().get(generation, ppd, 0, 0.0, [&] { return prepare(reference, filters, display); });
   return mean_of(flip_error(prepare(image, filters, display), *ref));
 }
 
@@ -362,9 +369,10 @@ MetricResult hdrflip(const Image& image, const Image& reference, double ppd) {
   // in which the exposures' maps arrive.
   cv::Mat worst(image.height(), image.width(), CV_64F, cv::Scalar(0));
   std::mutex worst_mutex;
+  const std::uint64_t generation = reference_memo().adopt(reference);
   tbb::parallel_for(0, ex.count, [&](int i) {
     const double c = ex.exposure(i);
-    const auto ref = reference_memo().get(reference, ppd, 1, c,
+    const auto ref = reference_memo().get(generation, ppd, 1, c,
                                           [&] { return prepare(hdrflip_tone_map(reference, c), filters, as_is); });
     const cv::Mat err = flip_error(prepare(hdrflip_tone_map(image, c), filters, as_is), *ref);
     const std::lock_guard lock(worst_mutex);
