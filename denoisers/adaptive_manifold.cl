@@ -7,15 +7,21 @@
 // Speed on a CPU device (PoCL): PoCL runs a work-group as a loop over its work-items and leaves
 // vectorising it to LLVM, which vectorises innermost loops only, so a kernel with a loop of its
 // own (over rows, over a block, over channels) runs one work-item at a time. Such kernels are
-// written in float8 lanes instead (rf_rows, rf_cols, dt_weights, splat, split, slice): each
-// work-item does 8 rows or columns at once, which costs a GPU nothing; the bilinear taps of 8
-// columns come from one vector blend and constant swizzles where they follow the pattern of a
+// written in float8 lanes instead (rf_rows, rf_cols, dt_weights, splat_group, slice_split_group):
+// each work-item does 8 rows or columns at once, which costs a GPU nothing; the bilinear taps of
+// 8 columns come from one vector blend and constant swizzles where they follow the pattern of a
 // reduction by 2 or 4 (tap_pattern), gathers elsewhere. The host launches work-groups of 32 x 1
-// (adaptive_manifold_cl.cpp). Measured (bench, proposed at 1024x768, against the native path in
-// the same run): 8.7x its time before, 3.1x after. What is left: the splat (a fifth of the time:
-// exp and the covariance sums), the slice queries (gathers at scattered pixels), and the
-// structure: the native path fuses a level's manifolds into one pass over the image
-// (am_tree.cpp), which this path does manifold by manifold.
+// (adaptive_manifold_cl.cpp). As the CPU path (am_tree.cpp), the tree runs level by level and a
+// level's manifolds in groups (up to MAXG): the full-resolution passes (splat_group,
+// slice_split_group) read the guide, the source and the sums once per group, not once per
+// manifold, which bound them by memory traffic; queries at one pixel share its upsampled values
+// (query_group). Measured (bench, against the native path in the same run): proposed at
+// 1024x768 8.7x the native time at first, 3.1x with the float8 kernels, about 1.9x grouped
+// (with the host's buffer pool and one query pass per pixel, adaptive_manifold_cl.cpp).
+
+// The float8 helpers of the hot kernels, inlined by force: PoCL's compiler left upsample8 a call
+// (its float8 arguments passed through memory), a tenth of the splat's and the slice's time.
+#define INLINE inline __attribute__((always_inline))
 
 // Bilinear sample of plane p (sw wide) at full-resolution pixel (x, y): vertical first, as the
 // CPU path's row upsampling.
@@ -60,7 +66,7 @@ inline int tap_pattern(int8 ix0, int8 ix1, int sw) {
 // r0 and r1, vertical weight fy): vertical first, as upsample() and the CPU path. With a tap
 // pattern, 8 reduced columns are blended by one vector operation and the taps picked by
 // constant swizzles (the same operations on the same values as the gathers).
-inline float8 upsample8(__global const float* r0, __global const float* r1, float fy, int taps, int base, int8 ix0,
+INLINE float8 upsample8(__global const float* r0, __global const float* r1, float fy, int taps, int base, int8 ix0,
                         int8 ix1, float8 fx) {
   float8 a, b;
   if (taps) {
@@ -85,7 +91,7 @@ typedef struct {
   int full, base, taps;
 } Cols8;
 
-inline Cols8 cols8(int x0, int W, int sw, int eta_full, __global const int* tx0, __global const int* tx1,
+INLINE Cols8 cols8(int x0, int W, int sw, int eta_full, __global const int* tx0, __global const int* tx1,
                    __global const float* tfx) {
   Cols8 k;
   const int8 lane = (int8)(0, 1, 2, 3, 4, 5, 6, 7);
@@ -107,13 +113,13 @@ inline Cols8 cols8(int x0, int W, int sw, int eta_full, __global const int* tx0,
 
 // Eight consecutive values of `r` from column x0 (a vector load), or for the row's tail the
 // clamped columns xs.
-inline float8 load8(__global const float* r, int x0, int8 xs, int full) {
+INLINE float8 load8(__global const float* r, int x0, int8 xs, int full) {
   return full ? vload8(0, r + x0) : gather8(r, xs);
 }
 
 // Channel c of a manifold at the 8 columns of `k` in full-resolution row y: read (the root's,
 // at full resolution) or bilinearly upsampled from the reduced grid.
-inline float8 eta8(__global const float* eta, int eta_full, int c, int W, int H, int sw, int sh, int y, int x0,
+INLINE float8 eta8(__global const float* eta, int eta_full, int c, int W, int H, int sw, int sh, int y, int x0,
                    const Cols8* k, __global const int* ty0, __global const int* ty1, __global const float* tfy) {
   if (eta_full) return load8(eta + (size_t)c * W * H + (size_t)y * W, x0, k->xs, k->full);
   __global const float* p = eta + (size_t)c * sw * sh;
@@ -121,17 +127,25 @@ inline float8 eta8(__global const float* eta, int eta_full, int c, int W, int H,
 }
 
 
-// Splat (pass 1), in float8 lanes: one work-item per 8 full-resolution columns of reduced row sy
-// (a CPU device such as PoCL vectorises across work-items only in loop-free kernels, and this
-// one loops over the block's rows). For every pixel: w = exp(-|g - eta|^2 / sigma_r^2) into
-// wbuf, the outlier distance, and (w src, w) summed over the block's rows into the column sums
-// `colsum` (C + 1 planes of sh x W); splat_blocks adds the columns of each block. Above the
-// leaves also the uncentred covariance of (g - eta) over the node's cluster, the work-item's
-// D x D sums into cov (one entry per 8 columns).
-__kernel void splat(int W, int H, int sw, int sh, int df, __global const float* guide, __global const float* src,
-                    __global const float* eta, int eta_full, TABLES, float inv_sr2, __global float* wbuf,
-                    __global float* min_d2, int adjust, __global float* colsum, int split, int id,
-                    __global const ushort* label, __global float* cov) {
+// Splat (pass 1) for a group of m manifolds of one tree level (m <= MAXG), in float8 lanes:
+// one work-item per 8 full-resolution columns of reduced row sy (a CPU device such as PoCL
+// vectorises across work-items only in loop-free kernels, and this one loops over the block's
+// rows). The guide, the source and the outlier distance are read once per pixel for the whole
+// group, as the CPU path's am_tree.cpp does: one manifold at a time, the splat read the guide
+// once per manifold and was bound by that memory traffic (half the OpenCL path's time). For
+// every pixel and manifold k: w = exp(-|g - eta_k|^2 / sigma_r^2) into plane k of wbuf, the
+// nearest distance so far, and (w src, w) summed over the block's rows into manifold k's column
+// sums (C + 1 planes of sh x W from plane k (C + 1) of colsum); splat_blocks adds the columns of
+// each block. Above the leaves also the uncentred covariance of (g - eta_k) over manifold k's
+// cluster (label id0 + k), the work-item's D x D sums into cov (one entry per 8 columns).
+// Manifold k's eta: planes (e0 + k) D of `eta` (reduced grid), or with eta_full the root's
+// full-resolution planes (m = 1). Each manifold's sums are added in the same order as when the
+// kernel ran one manifold, so grouping changes no result.
+__kernel void splat_group(int W, int H, int sw, int sh, int df, int m, __global const float* guide,
+                          __global const float* src, __global const float* eta, int e0, int eta_full, TABLES,
+                          float inv_sr2, __global float* wbuf, __global float* min_d2, int adjust,
+                          __global float* colsum, int split, int id0, __global const ushort* label,
+                          __global float* cov) {
   const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
   if (x0 >= W || sy >= sh) return;
   const Cols8 k8 = cols8(x0, W, sw, eta_full, tx0, tx1, tfx);
@@ -139,82 +153,107 @@ __kernel void splat(int W, int H, int sw, int sh, int df, __global const float* 
   const float8 valid = k8.valid;
   const int full = k8.full;
   const int ya = sy * df, yb = min(H, ya + df);
-  float8 acc[CHANS + 1];
-  for (int c = 0; c <= CHANS; ++c) acc[c] = 0;
-  float8 cv[DIMS * DIMS];
-  if (split)
-    for (int k = 0; k < DIMS * DIMS; ++k) cv[k] = 0;
-  const size_t N = (size_t)W * H;
+  const size_t N = (size_t)W * H, n = (size_t)sw * sh;
+  float8 acc[MAXG][CHANS + 1];
+  float8 cv[MAXG][DIMS * (DIMS + 1) / 2];  // the upper triangle, row by row
+  for (int k = 0; k < m; ++k) {
+    for (int c = 0; c <= CHANS; ++c) acc[k][c] = 0;
+    if (split)
+      for (int e = 0; e < DIMS * (DIMS + 1) / 2; ++e) cv[k][e] = 0;
+  }
   for (int y = ya; y < yb; ++y) {
     const size_t row = (size_t)y * W;
-    float8 X[DIMS];
-    float8 d2 = 0;
-    for (int c = 0; c < DIMS; ++c) {
-      const float8 e = eta8(eta, eta_full, c, W, H, sw, sh, y, x0, &k8, ty0, ty1, tfy);
-      X[c] = load8(guide + (size_t)c * N + row, x0, xs, full) - e;
-      d2 += X[c] * X[c];
-    }
-    const float8 w = exp(-d2 * inv_sr2);
-    if (full) {
-      vstore8(w, 0, wbuf + row + x0);
-      if (adjust) vstore8(fmin(vload8(0, min_d2 + row + x0), d2), 0, min_d2 + row + x0);
-    } else {
-      for (int l = 0; l < W - x0; ++l) {
-        wbuf[row + x0 + l] = w[l];
-        if (adjust) min_d2[row + x0 + l] = fmin(min_d2[row + x0 + l], d2[l]);
+    float8 g[DIMS], f[CHANS];
+    for (int c = 0; c < DIMS; ++c) g[c] = load8(guide + (size_t)c * N + row, x0, xs, full);
+    for (int c = 0; c < CHANS; ++c) f[c] = load8(src + (size_t)c * N + row, x0, xs, full);
+    int8 lab = 0;
+    if (split)
+      lab = full ? convert_int8(vload8(0, label + row + x0))
+                 : (int8)(label[row + xs.s0], label[row + xs.s1], label[row + xs.s2], label[row + xs.s3],
+                          label[row + xs.s4], label[row + xs.s5], label[row + xs.s6], label[row + xs.s7]);
+    float8 nearest = INFINITY;
+    for (int k = 0; k < m; ++k) {
+      __global const float* ek = eta + (size_t)(e0 + k) * DIMS * n;
+      float8 X[DIMS];
+      float8 d2 = 0;
+      for (int c = 0; c < DIMS; ++c) {
+        X[c] = g[c] - eta8(ek, eta_full, c, W, H, sw, sh, y, x0, &k8, ty0, ty1, tfy);
+        d2 += X[c] * X[c];
+      }
+      const float8 w = exp(-d2 * inv_sr2);
+      nearest = fmin(nearest, d2);
+      __global float* wk = wbuf + (size_t)k * N + row + x0;
+      if (full)
+        vstore8(w, 0, wk);
+      else
+        for (int l = 0; l < W - x0; ++l) wk[l] = w[l];
+      const float8 wv = w * valid;
+      for (int c = 0; c < CHANS; ++c) acc[k][c] += wv * f[c];
+      acc[k][CHANS] += wv;
+      if (split) {
+        const float8 mine = convert_float8(lab == (int8)(id0 + k)) * -1.0f * valid;
+        int e = 0;
+        for (int a = 0; a < DIMS; ++a) {
+          const float8 xa = X[a] * mine;
+          for (int b = a; b < DIMS; ++b) cv[k][e++] += xa * X[b];
+        }
       }
     }
-    const float8 wv = w * valid;
-    for (int c = 0; c < CHANS; ++c) acc[c] += wv * load8(src + (size_t)c * N + row, x0, xs, full);
-    acc[CHANS] += wv;
-    if (split) {
-      const ushort8 lab = full ? vload8(0, label + row + x0)
-                               : (ushort8)(label[row + xs.s0], label[row + xs.s1], label[row + xs.s2], label[row + xs.s3],
-                                           label[row + xs.s4], label[row + xs.s5], label[row + xs.s6], label[row + xs.s7]);
-      const float8 mine = convert_float8(convert_int8(lab) == (int8)(id)) * -1.0f * valid;
-      for (int a = 0; a < DIMS; ++a) {
-        const float8 xa = X[a] * mine;
-        for (int b = a; b < DIMS; ++b) cv[a * DIMS + b] += xa * X[b];
+    if (adjust) {
+      if (full)
+        vstore8(fmin(vload8(0, min_d2 + row + x0), nearest), 0, min_d2 + row + x0);
+      else
+        for (int l = 0; l < W - x0; ++l) min_d2[row + x0 + l] = fmin(min_d2[row + x0 + l], nearest[l]);
+    }
+  }
+  const int nwx = (W + 7) / 8;
+  for (int k = 0; k < m; ++k) {
+    for (int c = 0; c <= CHANS; ++c) {
+      __global float* o = colsum + ((size_t)(k * (CHANS + 1) + c) * sh + sy) * W + x0;
+      if (full)
+        vstore8(acc[k][c], 0, o);
+      else
+        for (int l = 0; l < W - x0; ++l) o[l] = acc[k][c][l];
+    }
+    if (!split) continue;
+    __global float* o = cov + (((size_t)k * sh + sy) * nwx + get_global_id(0)) * DIMS * DIMS;
+    int e = 0;
+    for (int a = 0; a < DIMS; ++a)
+      for (int b = 0; b < DIMS; ++b) {
+        if (b < a) {
+          o[a * DIMS + b] = 0;
+          continue;
+        }
+        const float8 v = cv[k][e++];
+        o[a * DIMS + b] = ((v.s0 + v.s1) + (v.s2 + v.s3)) + ((v.s4 + v.s5) + (v.s6 + v.s7));
       }
-    }
-  }
-  for (int c = 0; c <= CHANS; ++c) {
-    __global float* o = colsum + ((size_t)c * sh + sy) * W + x0;
-    if (full)
-      vstore8(acc[c], 0, o);
-    else
-      for (int l = 0; l < W - x0; ++l) o[l] = acc[c][l];
-  }
-  if (split) {
-    const int nwx = (W + 7) / 8;
-    __global float* o = cov + ((size_t)sy * nwx + get_global_id(0)) * DIMS * DIMS;
-    for (int k = 0; k < DIMS * DIMS; ++k) {
-      const float8 v = cv[k];
-      o[k] = ((v.s0 + v.s1) + (v.s2 + v.s3)) + ((v.s4 + v.s5) + (v.s6 + v.s7));
-    }
   }
 }
 
-// The splat's blocks: each reduced pixel's column sums added over its df columns, over the
-// block's pixel count.
-__kernel void splat_blocks(int W, int H, int sw, int sh, int df, __global const float* colsum, __global float* splat_out) {
+// The splat's blocks of manifold k of the group: each reduced pixel's column sums added over its
+// df columns, over the block's pixel count, into planes o0 .. o0 + C of splat_out.
+__kernel void splat_blocks(int W, int H, int sw, int sh, int df, int k, __global const float* colsum,
+                           int o0, __global float* splat_out) {
   const int sx = get_global_id(0), sy = get_global_id(1);
   if (sx >= sw || sy >= sh) return;
   const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
   const float inv = 1.0f / (float)((yb - ya) * (xb - xa));
   for (int c = 0; c <= CHANS; ++c) {
-    __global const float* r = colsum + ((size_t)c * sh + sy) * W;
+    __global const float* r = colsum + ((size_t)(k * (CHANS + 1) + c) * sh + sy) * W;
     float t = 0;
     for (int x = xa; x < xb; ++x) t += r[x];
-    splat_out[((size_t)c * sh + sy) * sw + sx] = t * inv;
+    splat_out[((size_t)(o0 + c) * sh + sy) * sw + sx] = t * inv;
   }
 }
 
 // Row sums of the per-block covariances: one work-item per reduced row, reading the row's blocks
 // in memory order (each block's D x D entries are contiguous) into private sums.
-__kernel void cov_rows(int sw, int sh, __global const float* cov, __global float* rows) {  // sw: entries per row
+// Manifold k's (cov: the group's blocks, sh x sw per manifold; rows: sh rows per manifold).
+__kernel void cov_rows(int sw, int sh, int node, __global const float* cov, __global float* rows) {  // sw: entries per row
   const int sy = get_global_id(0);
   if (sy >= sh) return;
+  cov += (size_t)node * sh * sw * DIMS * DIMS;
+  rows += (size_t)node * sh * DIMS * DIMS;
   float s[DIMS * DIMS];
   for (int k = 0; k < DIMS * DIMS; ++k) s[k] = 0;
   __global const float* r = cov + (size_t)sy * sw * DIMS * DIMS;
@@ -239,10 +278,12 @@ __kernel void downsample(int W, int H, int sw, int sh, int df, __global const fl
 // Domain-transform edge feedbacks a^sqrt(1 + ratio2 |d eta|^2) along rows (ah: sw - 1 per row,
 // stride hstride) and columns (av: sw per row pair). One work-item per 8 reduced columns, in
 // float8 lanes where all 8 and their right neighbours are in the row; one by one otherwise.
-__kernel void dt_weights(int sw, int sh, int hstride, __global const float* eta, float ratio2, float ln_a,
+// The manifold's D planes start at plane e0 of `eta`.
+__kernel void dt_weights(int sw, int sh, int hstride, __global const float* eta, int e0, float ratio2, float ln_a,
                          __global float* ah, __global float* av) {
   const int x0 = 8 * get_global_id(0), y = get_global_id(1);
   if (x0 >= sw || y >= sh) return;
+  eta += (size_t)e0 * sw * sh;
   if (x0 + 9 <= sw) {
     float8 dh = 0, dv = 0;
     for (int c = 0; c < DIMS; ++c) {
@@ -281,9 +322,10 @@ __kernel void dt_weights(int sw, int sh, int hstride, __global const float* eta,
 
 // Recursive filter along rows, causal then anti-causal: one work-item per 8 rows of a plane, in
 // float8 lanes (one row per lane; see rf_cols). With fixed_a != 0 the feedback is that constant
-// (the low-pass h_filter), else ah. A plane's last rows, fewer than 8, run one by one.
-__kernel void rf_rows(int w, int h, __global float* p, __global const float* ah, int hstride, float fixed_a) {
-  const int y0 = 8 * get_global_id(0), c = get_global_id(1);
+// (the low-pass h_filter), else ah. A plane's last rows, fewer than 8, run one by one. The planes
+// filtered are p0 + get_global_id(1).
+__kernel void rf_rows(int w, int h, __global float* p, int p0, __global const float* ah, int hstride, float fixed_a) {
+  const int y0 = 8 * get_global_id(0), c = p0 + get_global_id(1);
   if (y0 >= h) return;
   if (y0 + 8 <= h) {
     __global float* r = p + ((size_t)c * h + y0) * w;
@@ -329,8 +371,8 @@ __kernel void rf_rows(int w, int h, __global float* p, __global const float* ah,
 // device such as PoCL vectorises across work-items only where a kernel has no loop of its own;
 // this one is a loop over rows, so it is written for 8 lanes; a GPU loses nothing by it). The last
 // work-item of a row of fewer than 8 columns runs them one by one.
-__kernel void rf_cols(int w, int h, __global float* p, __global const float* av, float fixed_a) {
-  const int x0 = 8 * get_global_id(0), c = get_global_id(1);
+__kernel void rf_cols(int w, int h, __global float* p, int p0, __global const float* av, float fixed_a) {
+  const int x0 = 8 * get_global_id(0), c = p0 + get_global_id(1);
   if (x0 >= w) return;
   __global float* q = p + (size_t)c * h * w;
   if (x0 + 8 <= w) {
@@ -364,103 +406,129 @@ __kernel void rf_cols(int w, int h, __global float* p, __global const float* av,
   }
 }
 
-// Slice: every pixel gathers w * blurred (C + 1 planes) from the manifold; one work-item per 8
-// columns of a full-resolution row, in float8 lanes (the taps as in the splat).
-__kernel void slice(int W, int H, int sw, int sh, __global const float* blurred, TABLES, __global const float* wbuf,
-                    __global float* acc) {
-  const int x0 = 8 * get_global_id(0), y = get_global_id(1);
-  if (x0 >= W || y >= H) return;
-  const size_t row = (size_t)y * W;
-  if (x0 + 8 > W) {  // the row's last columns, fewer than 8
-    for (int x = x0; x < W; ++x) {
-      const float w = wbuf[row + x];
-      for (int c = 0; c <= CHANS; ++c)
-        acc[(size_t)c * W * H + row + x] +=
-            w * upsample(blurred + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
-    }
-    return;
-  }
-  const int8 ix0 = vload8(0, tx0 + x0), ix1 = vload8(0, tx1 + x0);
-  const float8 fx = vload8(0, tfx + x0);
-  const int taps = tap_pattern(ix0, ix1, sw), base = ix0.s0;
-  const float8 w = vload8(0, wbuf + row + x0);
-  for (int c = 0; c <= CHANS; ++c) {
-    __global const float* p = blurred + (size_t)c * sw * sh;
-    __global float* a = acc + (size_t)c * W * H + row + x0;
-    vstore8(vload8(0, a) + w * upsample8(p + (size_t)ty0[y] * sw, p + (size_t)ty1[y] * sw, tfy[y], taps, base, ix0, ix1, fx),
-            0, a);
+// v . eta of each manifold of a group on the reduced grid (planes (e0 + k) D of eta, v: D
+// floats per manifold), one plane per manifold into veta: v . (g - eta) = v . g - v . eta, and
+// v . eta is linear in eta, so slice_split_group upsamples one plane instead of D (as the CPU
+// path's n.veta).
+__kernel void veta(int n, int m, __global const float* eta, int e0, __global const float* v, __global float* out) {
+  const int i = get_global_id(0);
+  if (i >= n) return;
+  for (int k = 0; k < m; ++k) {
+    float t = 0;
+    for (int c = 0; c < DIMS; ++c) t += v[k * DIMS + c] * eta[((size_t)(e0 + k) * DIMS + c) * n + i];
+    out[(size_t)k * n + i] = t;
   }
 }
 
-// Split, in float8 lanes like the splat: one work-item per 8 full-resolution columns of reduced
-// row sy. The cluster's pixels go left (dot < 0) or right and are relabelled, and each side's
-// (1 - w) g and (1 - w) are summed over the block's rows into the column sums `colsum` (D + 1
-// planes for the left child, then D + 1 for the right, each sh x W); split_blocks adds each
-// block's columns into the children's reduced splats.
-__kernel void split(int W, int H, int sw, int sh, int df, __global const float* guide, __global const float* eta,
-                    int eta_full, TABLES, __global const float* v, __global const float* wbuf,
-                    __global ushort* label, int id, __global float* colsum) {
+// Slice and split (pass 3) for a group of m manifolds, in float8 lanes like the splat: one
+// work-item per 8 full-resolution columns of reduced row sy. Every pixel gathers w_k * blurred_k
+// (C + 1 planes per manifold, from plane k (C + 1) of `blurred`) from each manifold in turn into
+// acc, which is read and written once per group. Above the leaves, each manifold's cluster
+// (label id0 + k) is split: its pixels go left (v_k . (g - eta_k) < 0) or right and are
+// relabelled, and each side's (1 - w_k) g and (1 - w_k) are summed over the block's rows into the
+// column sums `colsum` (2 (D + 1) planes of sh x W per manifold: the left child's, then the
+// right's); split_blocks adds each block's columns into the children's reduced splats. v . eta
+// comes from veta's planes, or for the root (eta_full, m = 1) from its full-resolution planes.
+// The children's labels belong to the next level, so no other manifold of the group sees them.
+__kernel void slice_split_group(int W, int H, int sw, int sh, int df, int m, __global const float* blurred, TABLES,
+                                __global const float* wbuf, __global float* acc, int split,
+                                __global const float* guide, __global const float* eta_root, int eta_full,
+                                __global const float* v, __global const float* vetas, __global ushort* label,
+                                int id0, __global float* colsum) {
   const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
   if (x0 >= W || sy >= sh) return;
-  const Cols8 k8 = cols8(x0, W, sw, eta_full, tx0, tx1, tfx);
-  const int8 xs = k8.xs;
-  const float8 valid = k8.valid;
-  const int full = k8.full;
-  float8 l[DIMS + 1], r[DIMS + 1];
-  for (int c = 0; c <= DIMS; ++c) l[c] = r[c] = 0;
-  const size_t N = (size_t)W * H;
+  const Cols8 kt = cols8(x0, W, sw, 0, tx0, tx1, tfx);  // the reduced grid's taps (blurred, veta)
+  const int8 xs = kt.xs;
+  const float8 valid = kt.valid;
+  const int full = kt.full;
+  const size_t N = (size_t)W * H, n = (size_t)sw * sh;
   const int ya = sy * df, yb = min(H, ya + df);
+  float8 l[MAXG][DIMS + 1], r[MAXG][DIMS + 1];
+  if (split)
+    for (int k = 0; k < m; ++k)
+      for (int c = 0; c <= DIMS; ++c) l[k][c] = r[k][c] = 0;
   for (int y = ya; y < yb; ++y) {
     const size_t row = (size_t)y * W;
-    const int8 lab = full ? convert_int8(vload8(0, label + row + x0))
-                          : (int8)(label[row + xs.s0], label[row + xs.s1], label[row + xs.s2], label[row + xs.s3],
-                                   label[row + xs.s4], label[row + xs.s5], label[row + xs.s6], label[row + xs.s7]);
-    const int8 mine = lab == (int8)(id);  // -1 or 0
+    const int r0 = ty0[y], r1 = ty1[y];
+    const float fy = tfy[y];
+    float8 a[CHANS + 1];
+    for (int c = 0; c <= CHANS; ++c) a[c] = load8(acc + (size_t)c * N + row, x0, xs, full);
     float8 g[DIMS];
-    float8 dot = 0;
-    for (int c = 0; c < DIMS; ++c) {
-      const float8 e = eta8(eta, eta_full, c, W, H, sw, sh, y, x0, &k8, ty0, ty1, tfy);
-      g[c] = load8(guide + (size_t)c * N + row, x0, xs, full);
-      dot += v[c] * (g[c] - e);
+    int8 lab = 0;
+    if (split) {
+      for (int c = 0; c < DIMS; ++c) g[c] = load8(guide + (size_t)c * N + row, x0, xs, full);
+      lab = full ? convert_int8(vload8(0, label + row + x0))
+                 : (int8)(label[row + xs.s0], label[row + xs.s1], label[row + xs.s2], label[row + xs.s3],
+                          label[row + xs.s4], label[row + xs.s5], label[row + xs.s6], label[row + xs.s7]);
     }
-    const int8 left = dot < (float8)(0.0f);  // -1 or 0
-    const float8 theta = (1.0f - load8(wbuf + row, x0, xs, full)) * -convert_float8(mine) * valid;
-    const float8 tl = theta * -convert_float8(left), tr = theta - tl;
-    const int8 relabel = select(lab, select((int8)(2 * id + 1), (int8)(2 * id), left), mine);
+    int8 relabel = lab;
+    for (int k = 0; k < m; ++k) {
+      const float8 w = load8(wbuf + (size_t)k * N + row, x0, xs, full);
+      for (int c = 0; c <= CHANS; ++c) {
+        __global const float* p = blurred + (size_t)(k * (CHANS + 1) + c) * n;
+        a[c] += w * upsample8(p + (size_t)r0 * sw, p + (size_t)r1 * sw, fy, kt.taps, kt.base, kt.ix0, kt.ix1, kt.fx);
+      }
+      if (!split) continue;
+      const int id = id0 + k;
+      const int8 mine = lab == (int8)(id);  // -1 or 0
+      float8 dot = 0;
+      if (eta_full) {
+        for (int c = 0; c < DIMS; ++c)
+          dot += v[k * DIMS + c] * (g[c] - load8(eta_root + (size_t)c * N + row, x0, xs, full));
+      } else {
+        __global const float* p = vetas + (size_t)k * n;
+        dot = -upsample8(p + (size_t)r0 * sw, p + (size_t)r1 * sw, fy, kt.taps, kt.base, kt.ix0, kt.ix1, kt.fx);
+        for (int c = 0; c < DIMS; ++c) dot += v[k * DIMS + c] * g[c];
+      }
+      const int8 left = dot < (float8)(0.0f);  // -1 or 0
+      const float8 theta = (1.0f - w) * -convert_float8(mine) * valid;
+      const float8 tl = theta * -convert_float8(left), tr = theta - tl;
+      relabel = select(relabel, select((int8)(2 * id + 1), (int8)(2 * id), left), mine);
+      for (int c = 0; c < DIMS; ++c) {
+        l[k][c] += tl * g[c];
+        r[k][c] += tr * g[c];
+      }
+      l[k][DIMS] += tl;
+      r[k][DIMS] += tr;
+    }
+    for (int c = 0; c <= CHANS; ++c) {
+      __global float* o = acc + (size_t)c * N + row + x0;
+      if (full)
+        vstore8(a[c], 0, o);
+      else
+        for (int q = 0; q < W - x0; ++q) o[q] = a[c][q];
+    }
+    if (!split) continue;
     if (full)
       vstore8(convert_ushort8(relabel), 0, label + row + x0);
     else
-      for (int k = 0; k < W - x0; ++k) label[row + x0 + k] = (ushort)relabel[k];
-    for (int c = 0; c < DIMS; ++c) {
-      l[c] += tl * g[c];
-      r[c] += tr * g[c];
-    }
-    l[DIMS] += tl;
-    r[DIMS] += tr;
+      for (int q = 0; q < W - x0; ++q) label[row + x0 + q] = (ushort)relabel[q];
   }
-  for (int c = 0; c <= DIMS; ++c) {
-    __global float* ol = colsum + ((size_t)c * sh + sy) * W + x0;
-    __global float* orr = colsum + ((size_t)(DIMS + 1 + c) * sh + sy) * W + x0;
-    if (full) {
-      vstore8(l[c], 0, ol);
-      vstore8(r[c], 0, orr);
-    } else {
-      for (int k = 0; k < W - x0; ++k) ol[k] = l[c][k], orr[k] = r[c][k];
+  if (!split) return;
+  for (int k = 0; k < m; ++k)
+    for (int c = 0; c <= DIMS; ++c) {
+      __global float* ol = colsum + ((size_t)(k * 2 * (DIMS + 1) + c) * sh + sy) * W + x0;
+      __global float* orr = colsum + ((size_t)(k * 2 * (DIMS + 1) + DIMS + 1 + c) * sh + sy) * W + x0;
+      if (full) {
+        vstore8(l[k][c], 0, ol);
+        vstore8(r[k][c], 0, orr);
+      } else {
+        for (int q = 0; q < W - x0; ++q) ol[q] = l[k][c][q], orr[q] = r[k][c][q];
+      }
     }
-  }
 }
 
 // The children's reduced splats from split's column sums: each reduced pixel's df columns
 // added, over the block's pixel count (D + 1 planes per child).
-__kernel void split_blocks(int W, int H, int sw, int sh, int df, __global const float* colsum, __global float* kid_l,
-                           __global float* kid_r) {
+__kernel void split_blocks(int W, int H, int sw, int sh, int df, int node, __global const float* colsum,
+                           __global float* kid_l, __global float* kid_r) {
   const int sx = get_global_id(0), sy = get_global_id(1);
   if (sx >= sw || sy >= sh) return;
   const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
   const float inv = 1.0f / (float)((yb - ya) * (xb - xa));
   for (int c = 0; c <= DIMS; ++c) {
-    __global const float* rl = colsum + ((size_t)c * sh + sy) * W;
-    __global const float* rr = colsum + ((size_t)(DIMS + 1 + c) * sh + sy) * W;
+    __global const float* rl = colsum + ((size_t)(node * 2 * (DIMS + 1) + c) * sh + sy) * W;
+    __global const float* rr = colsum + ((size_t)(node * 2 * (DIMS + 1) + DIMS + 1 + c) * sh + sy) * W;
     float a = 0, b = 0;
     for (int x = xa; x < xb; ++x) a += rl[x], b += rr[x];
     kid_l[((size_t)c * sh + sy) * sw + sx] = a * inv;
@@ -469,33 +537,57 @@ __kernel void split_blocks(int W, int H, int sw, int sh, int df, __global const 
 }
 
 // A child's manifold: low-passed weighted guide over low-passed weight; where the child's
-// cluster left no weight it keeps the parent's manifold.
-__kernel void divide_eta(int n, __global const float* kid, __global const float* parent, __global float* eta) {
+// cluster left no weight it keeps the parent's manifold (planes p0 .. of parent; the child's go
+// to planes e0 .. of eta).
+__kernel void divide_eta(int n, __global const float* kid, __global const float* parent, int p0, __global float* eta,
+                         int e0) {
   const int i = get_global_id(0);
   if (i >= n) return;
+  parent += (size_t)p0 * n;
+  eta += (size_t)e0 * n;
   const float den = kid[(size_t)DIMS * n + i];
   for (int c = 0; c < DIMS; ++c)
     eta[(size_t)c * n + i] = den > 1e-20f ? kid[(size_t)c * n + i] / den : parent[(size_t)c * n + i];
 }
 
-// Slice queries (paper 3.1): the slice at a pixel with another guide value.
-__kernel void query(int nq, int W, int H, int sw, int sh, __global const int* qxy, __global const float* qguide,
-                    __global const float* eta, int eta_full, __global const float* blurred, TABLES, float inv_sr2,
-                    __global float* qacc, __global float* qmin) {
-  const int q = get_global_id(0);
-  if (q >= nq) return;
-  const int x = qxy[2 * q], y = qxy[2 * q + 1];
-  float e[DIMS];
-  eta_at(eta, eta_full, W, H, sw, sh, x, y, tx0, tx1, tfx, ty0, ty1, tfy, e);
-  float d2 = 0;
-  for (int c = 0; c < DIMS; ++c) {
-    const float d = qguide[(size_t)q * DIMS + c] - e[c];
-    d2 += d * d;
+// Slice queries (paper 3.1): the slice at a pixel with another guide value, for a group of m
+// manifolds. One work-item per run of queries at the same pixel (runs: the first query of each
+// run, then the end): the manifolds' values and blurred splats at the pixel are upsampled once
+// for the run (an edge pixel has 16 sub-pixel queries), and each query's sums are read and
+// written once per group. Manifold k: D planes from plane (e0 + k) D of eta, C + 1 from plane
+// k (C + 1) of blurred.
+__kernel void query_group(int nruns, __global const int* runs, int W, int H, int sw, int sh, int m,
+                          __global const int* qxy, __global const float* qguide, __global const float* eta, int e0,
+                          int eta_full, __global const float* blurred, TABLES, float inv_sr2, __global float* qacc,
+                          __global float* qmin) {
+  const int r = get_global_id(0);
+  if (r >= nruns) return;
+  const int q0 = runs[r], q1 = runs[r + 1];
+  const int x = qxy[2 * q0], y = qxy[2 * q0 + 1];
+  const size_t plane = eta_full ? (size_t)W * H : (size_t)sw * sh, n = (size_t)sw * sh;
+  float e[MAXG][DIMS], b[MAXG][CHANS + 1];
+  for (int k = 0; k < m; ++k) {
+    eta_at(eta + (size_t)(e0 + k) * DIMS * plane, eta_full, W, H, sw, sh, x, y, tx0, tx1, tfx, ty0, ty1, tfy, e[k]);
+    for (int c = 0; c <= CHANS; ++c)
+      b[k][c] = upsample(blurred + (size_t)(k * (CHANS + 1) + c) * n, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
   }
-  const float wq = exp(-d2 * inv_sr2);
-  for (int c = 0; c <= CHANS; ++c)
-    qacc[(size_t)q * (CHANS + 1) + c] += wq * upsample(blurred + (size_t)c * sw * sh, sw, tx0[x], tx1[x], tfx[x], ty0[y], ty1[y], tfy[y]);
-  qmin[q] = min(qmin[q], d2);
+  for (int q = q0; q < q1; ++q) {
+    float a[CHANS + 1];
+    for (int c = 0; c <= CHANS; ++c) a[c] = qacc[(size_t)q * (CHANS + 1) + c];
+    float nearest = qmin[q];
+    for (int k = 0; k < m; ++k) {
+      float d2 = 0;
+      for (int c = 0; c < DIMS; ++c) {
+        const float d = qguide[(size_t)q * DIMS + c] - e[k][c];
+        d2 += d * d;
+      }
+      const float wq = exp(-d2 * inv_sr2);
+      for (int c = 0; c <= CHANS; ++c) a[c] += wq * b[k][c];
+      nearest = min(nearest, d2);
+    }
+    for (int c = 0; c <= CHANS; ++c) qacc[(size_t)q * (CHANS + 1) + c] = a[c];
+    qmin[q] = nearest;
+  }
 }
 
 // The output: sum(w blur) / sum(w blur_0), with the optional outlier adjustment; interleaved.

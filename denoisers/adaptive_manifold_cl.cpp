@@ -8,9 +8,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <mutex>
+#include <string>
+
+#include <tbb/parallel_for.h>
 
 #include "denoisers/adaptive_manifold_cl_source.h"
 #include "denoisers/am_grid.h"
@@ -31,6 +35,12 @@ Image am_filter_opencl(ConstImageView, ConstImageView, const AmSettings&, const 
 #else
 
 namespace {
+
+// The most manifolds of one tree level that the group kernels (splat_group, slice_split_group)
+// handle in one pass over the full-resolution images. The CPU path groups 8 (am_run.h); here a
+// group's sums live in each work-item's private memory (about 10 KB at 8 guide dimensions for
+// 4), which a CPU device keeps in its cache and a GPU would spill beyond a few.
+constexpr int kMaxGroup = 4;
 
 // One context, queue and program cache per process: PoCL compiles a program in about 0.8 s.
 struct ClState {
@@ -62,12 +72,43 @@ struct ClState {
     }
   }
 
+  // Device buffers kept between runs, by size: a run at 1024x768 takes about 300 MB of them, and
+  // fresh allocations cost it their page faults and zeroing by the kernel (a fifth of proposed's
+  // time on PoCL). At most kPoolBytes are kept; a buffer beyond that is released.
+  static constexpr std::size_t kPoolBytes = std::size_t(1) << 30;
+  std::multimap<std::size_t, cl::Buffer> pool;
+  std::size_t pooled_bytes = 0;
+  std::mutex pool_mutex;
+
+  cl::Buffer take(std::size_t bytes) {
+    {
+      std::lock_guard<std::mutex> lock(pool_mutex);
+      auto it = pool.find(bytes);
+      if (it != pool.end()) {
+        cl::Buffer b = it->second;
+        pool.erase(it);
+        pooled_bytes -= bytes;
+        return b;
+      }
+    }
+    return cl::Buffer(context, CL_MEM_READ_WRITE, bytes);
+  }
+  // Safe while commands that use `b` are still queued: the queue is in order, so whoever takes it
+  // next enqueues after them.
+  void give(std::size_t bytes, const cl::Buffer& b) {
+    std::lock_guard<std::mutex> lock(pool_mutex);
+    if (pooled_bytes + bytes > kPoolBytes) return;
+    pool.emplace(bytes, b);
+    pooled_bytes += bytes;
+  }
+
   cl::Program program(int dims, int chans) {
     std::lock_guard<std::mutex> lock(mutex);
     auto it = programs.find({dims, chans});
     if (it != programs.end()) return it->second;
     cl::Program p(context, kAdaptiveManifoldClSource);
-    const std::string options = "-cl-std=CL1.2 -DDIMS=" + std::to_string(dims) + " -DCHANS=" + std::to_string(chans);
+    const std::string options = "-cl-std=CL1.2 -DDIMS=" + std::to_string(dims) + " -DCHANS=" + std::to_string(chans) +
+                                " -DMAXG=" + std::to_string(kMaxGroup);
     try {
       p.build({device}, options.c_str());
     } catch (const cl::BuildError& e) {
@@ -99,18 +140,28 @@ class ClRun : private am_detail::AmRunShape {
     auto& ctx = st_.context;
     const std::size_t N = std::size_t(W_) * H_;
     std::vector<float> g(N * D_), f(N * C_);
-    for (int y = 0; y < H_; ++y)
+    tbb::parallel_for(0, H_, [&](int y) {  // interleaved to planar, a row per task
       for (int x = 0; x < W_; ++x) {
         const std::size_t i = std::size_t(y) * W_ + x;
-        for (int c = 0; c < D_; ++c) g[c * N + i] = guide.pixel(x, y)[c];
-        for (int c = 0; c < C_; ++c) f[c * N + i] = src.pixel(x, y)[c];
+        const float* gp = guide.pixel(x, y);
+        const float* sp = src.pixel(x, y);
+        for (int c = 0; c < D_; ++c) g[c * N + i] = gp[c];
+        for (int c = 0; c < C_; ++c) f[c * N + i] = sp[c];
       }
-    guide_ = buffer(ctx, g);
-    src_ = buffer(ctx, f);
-    acc_ = buffer(ctx, std::vector<float>(N * (C_ + 1), 0.0f));
-    w_ = buffer(ctx, std::vector<float>(N, 0.0f));
-    min_d2_ = buffer(ctx, std::vector<float>(s.adjust_outliers ? N : 1, INFINITY));
-    label_ = buffer(ctx, std::vector<cl_ushort>(N, 1));
+    });
+    guide_ = take(sizeof(float) * g.size());
+    st_.queue.enqueueWriteBuffer(guide_, CL_TRUE, 0, sizeof(float) * g.size(), g.data());
+    src_ = take(sizeof(float) * f.size());
+    st_.queue.enqueueWriteBuffer(src_, CL_TRUE, 0, sizeof(float) * f.size(), f.data());
+    auto filled = [&](std::size_t count, auto value) {  // filled on the device, no host copy
+      cl::Buffer b = take(sizeof(value) * count);
+      st_.queue.enqueueFillBuffer(b, value, 0, sizeof(value) * count);
+      return b;
+    };
+    acc_ = filled(N * (C_ + 1), 0.0f);
+    w_ = take(sizeof(float) * N * kMaxGroup);  // each manifold's weights, by splat_group
+    min_d2_ = filled(s.adjust_outliers ? N : 1, float(INFINITY));
+    label_ = filled(N, cl_ushort(1));
     // The CPU path's bilinear tables.
     std::vector<int> x0, x1, y0, y1;
     std::vector<float> fx, fy;
@@ -120,9 +171,10 @@ class ClRun : private am_detail::AmRunShape {
     ty0_ = buffer(ctx, y0), ty1_ = buffer(ctx, y1), tfy_ = buffer(ctx, fy);
     // The splat kernel's work-items cover 8 full-resolution columns each (adaptive_manifold.cl).
     nwx_ = (W_ + 7) / 8;
-    colsum_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(std::max(C_ + 1, 2 * (D_ + 1))) * sh_ * W_);
-    cov_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(nwx_) * sh_ * D_ * D_);
-    cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sh_) * D_ * D_);
+    colsum_ = take(sizeof(float) * std::size_t(kMaxGroup) * std::max(C_ + 1, 2 * (D_ + 1)) * sh_ * W_);
+    cov_ = take(sizeof(float) * std::size_t(kMaxGroup) * nwx_ * sh_ * D_ * D_);
+    cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sh_ * D_ * D_);
+    vetas_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sw_ * sh_);
     const int hstride = std::max(sw_ - 1, 1);
     ah_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sh_) * hstride);
     av_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(std::max(sh_ - 1, 1)) * sw_);
@@ -135,6 +187,13 @@ class ClRun : private am_detail::AmRunShape {
         xy[2 * q] = queries_[q].x, xy[2 * q + 1] = queries_[q].y;
         for (int c = 0; c < D_; ++c) qg[q * D_ + c] = queries_[q].guide[c];
       }
+      // Runs of consecutive queries at one pixel (query_group upsamples once per run).
+      std::vector<int> runs{0};
+      for (std::size_t q = 1; q < queries_.size(); ++q)
+        if (queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) runs.push_back(int(q));
+      nruns_ = int(runs.size());
+      runs.push_back(int(queries_.size()));
+      runs_ = buffer(ctx, runs);
       qxy_ = buffer(ctx, xy);
       qguide_ = buffer(ctx, qg);
       qacc_ = buffer(ctx, std::vector<float>(queries_.size() * (C_ + 1), 0.0f));
@@ -142,18 +201,34 @@ class ClRun : private am_detail::AmRunShape {
     }
   }
 
+  ~ClRun() {
+    for (auto& [bytes, b] : owned_) st_.give(bytes, b);
+  }
+  ClRun(const ClRun&) = delete;
+  ClRun& operator=(const ClRun&) = delete;
+
   Image run(std::vector<float>* query_out) {
     auto& ctx = st_.context;
     auto& q = st_.queue;
     const std::size_t N = std::size_t(W_) * H_;
     // The first manifold: the guide low-passed at full resolution.
-    cl::Buffer eta_full(ctx, CL_MEM_READ_WRITE, sizeof(float) * N * D_);
+    cl::Buffer eta_full = take(sizeof(float) * N * D_);
     q.enqueueCopyBuffer(guide_, eta_full, 0, 0, sizeof(float) * N * D_);
-    low_pass(eta_full, W_, H_, D_, s_.sigma_s);
-    node(1, 1, eta_full, true);
+    low_pass(eta_full, 0, W_, H_, D_, s_.sigma_s);
+    // The tree level by level (as the CPU path's am_tree.cpp), each level's manifolds in groups
+    // of up to kMaxGroup: a level's manifolds are D planes each of one buffer, in id order.
+    Level level{eta_full, 1, 1, true};
+    for (int depth = 1; level.count > 0; ++depth) {
+      const bool split = depth < height_;
+      Level next{cl::Buffer(), split ? 2 * level.count : 0, 2 * level.first_id, false};
+      if (split) next.etas = take(sizeof(float) * std::size_t(sw_) * sh_ * D_ * next.count);
+      for (int k0 = 0; k0 < level.count; k0 += kMaxGroup)
+        group(level, k0, std::min(kMaxGroup, level.count - k0), split, next);
+      level = next;
+    }
 
     cl::Buffer out(ctx, CL_MEM_WRITE_ONLY, sizeof(float) * N * C_);
-    cl::Kernel k(prog_, "finish");
+    cl::Kernel& k = kernel("finish");
     set(k, W_, H_, acc_, src_, min_d2_, int(s_.adjust_outliers), float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)), out);
     launch(k, W_, H_);
     Image img(W_, H_, C_);
@@ -180,6 +255,31 @@ class ClRun : private am_detail::AmRunShape {
   }
 
  private:
+  // A buffer from the pool for the rest of the run, and one for a scope.
+  cl::Buffer take(std::size_t bytes) {
+    cl::Buffer b = st_.take(bytes);
+    owned_.emplace_back(bytes, b);
+    return b;
+  }
+  struct Temp {
+    Temp(ClState& s, std::size_t n) : st(s), bytes(n), b(s.take(n)) {}
+    ~Temp() { st.give(bytes, b); }
+    Temp(const Temp&) = delete;
+    Temp& operator=(const Temp&) = delete;
+    ClState& st;
+    std::size_t bytes;
+    cl::Buffer b;
+  };
+
+  // The program's kernels, made once per run: PoCL looks a kernel's symbols up again for every
+  // kernel object (about 3% of a run when each launch made its own). Arguments are captured at
+  // enqueue time, so one object serves every launch.
+  cl::Kernel& kernel(const char* name) {
+    auto it = kernels_.find(name);
+    if (it == kernels_.end()) it = kernels_.emplace(name, cl::Kernel(prog_, name)).first;
+    return it->second;
+  }
+
   template <typename... A>
   static void set(cl::Kernel& k, A&&... args) {
     cl_uint i = 0;
@@ -202,103 +302,131 @@ class ClRun : private am_detail::AmRunShape {
     return v;
   }
 
-  // The recursive filter with a constant feedback (their h_filter) on `n` planes of w x h.
-  void low_pass(cl::Buffer& p, int w, int h, int n, double sigma) {
+  // The recursive filter with a constant feedback (their h_filter) on planes p0 .. p0 + n - 1 of w x h.
+  void low_pass(cl::Buffer& p, int p0, int w, int h, int n, double sigma) {
     const float a = float(std::exp(-std::sqrt(2.0) / sigma));
-    recursive(p, w, h, n, a);
+    recursive(p, p0, w, h, n, a);
   }
-  void recursive(cl::Buffer& p, int w, int h, int n, float constant) {
-    cl::Kernel rows(prog_, "rf_rows"), cols(prog_, "rf_cols");
-    set(rows, w, h, p, ah_, std::max(w - 1, 1), constant);
-    set(cols, w, h, p, av_, constant);
+  void recursive(cl::Buffer& p, int p0, int w, int h, int n, float constant) {
+    cl::Kernel& rows = kernel("rf_rows");
+    cl::Kernel& cols = kernel("rf_cols");
+    set(rows, w, h, p, p0, ah_, std::max(w - 1, 1), constant);
+    set(cols, w, h, p, p0, av_, constant);
     launch(rows, (std::size_t(h) + 7) / 8, n);  // 8 rows per work-item
     launch(cols, (std::size_t(w) + 7) / 8, n);  // 8 columns per work-item
   }
 
-  void node(int id, int level, cl::Buffer eta, bool eta_full) {
+  // One level of the tree: `count` manifolds with ids first_id .. first_id + count - 1, D planes
+  // each in `etas` (on the reduced grid; the root's alone at full resolution).
+  struct Level {
+    cl::Buffer etas;
+    int count = 0, first_id = 1;
+    bool full = false;
+  };
+
+  // Manifolds k0 .. k0 + m - 1 of `level`: splat (one pass over the images for the group), blur
+  // each, answer the queries, slice and split (one pass), and the children into next.etas.
+  void group(const Level& level, int k0, int m, bool split, Level& next) {
     auto& ctx = st_.context;
     auto& q = st_.queue;
-    const bool split = level < height_;
     const std::size_t n = std::size_t(sw_) * sh_;
-    cl::Buffer splat(ctx, CL_MEM_READ_WRITE, sizeof(float) * n * (C_ + 1));
+    const int id0 = level.first_id + k0;
     {
-      cl::Kernel k(prog_, "splat");
-      set(k, W_, H_, sw_, sh_, df_, guide_, src_, eta, int(eta_full), tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, inv_sr2_, w_,
-          min_d2_, int(s_.adjust_outliers), colsum_, int(split), id, label_, cov_);
+      cl::Kernel& k = kernel("splat_group");
+      set(k, W_, H_, sw_, sh_, df_, m, guide_, src_, level.etas, k0, int(level.full), tx0_, tx1_, tfx_, ty0_, ty1_,
+          tfy_, inv_sr2_, w_, min_d2_, int(s_.adjust_outliers), colsum_, int(split), id0, label_, cov_);
       launch(k, std::size_t(nwx_), sh_);
-      cl::Kernel b(prog_, "splat_blocks");
-      set(b, W_, H_, sw_, sh_, df_, colsum_, splat);
+    }
+    Temp splats_tmp(st_, sizeof(float) * n * (C_ + 1) * m);
+    cl::Buffer& splats = splats_tmp.b;
+    for (int j = 0; j < m; ++j) {
+      cl::Kernel& b = kernel("splat_blocks");
+      set(b, W_, H_, sw_, sh_, df_, j, colsum_, j * (C_ + 1), splats);
       launch(b, sw_, sh_);
     }
-    std::vector<float> v(D_, 0.0f);
+    // The split directions: the leading eigenvectors of the clusters' covariances (host).
+    std::vector<float> v(std::size_t(m) * D_, 0.0f);
     if (split) {
-      cl::Kernel k(prog_, "cov_rows");
-      set(k, nwx_, sh_, cov_, cov_rows_);
-      launch(k, sh_);
-      std::vector<float> rows(std::size_t(sh_) * D_ * D_);
+      for (int j = 0; j < m; ++j) {
+        cl::Kernel& k = kernel("cov_rows");
+        set(k, nwx_, sh_, j, cov_, cov_rows_);
+        launch(k, sh_);
+      }
+      std::vector<float> rows(std::size_t(m) * sh_ * D_ * D_);
       q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data());
-      std::vector<double> cov(D_ * D_, 0.0);
-      for (int sy = 0; sy < sh_; ++sy)
-        for (int k2 = 0; k2 < D_ * D_; ++k2) cov[k2] += rows[std::size_t(sy) * D_ * D_ + k2];
-      for (int i = 0; i < D_; ++i)
-        for (int j = 0; j < i; ++j) cov[i * D_ + j] = cov[j * D_ + i];
-      v = am_detail::split_direction(cov, D_, seed_, id, s_.pca_iterations);
+      for (int j = 0; j < m; ++j) {
+        std::vector<double> cov(D_ * D_, 0.0);
+        for (int sy = 0; sy < sh_; ++sy)
+          for (int e = 0; e < D_ * D_; ++e) cov[e] += rows[(std::size_t(j) * sh_ + sy) * D_ * D_ + e];
+        for (int a = 0; a < D_; ++a)
+          for (int b = 0; b < a; ++b) cov[a * D_ + b] = cov[b * D_ + a];
+        const std::vector<float> vj = am_detail::split_direction(cov, D_, seed_, id0 + j, s_.pca_iterations);
+        std::copy(vj.begin(), vj.end(), v.begin() + std::ptrdiff_t(j) * D_);
+      }
     }
-    cl::Buffer small = eta;
-    if (eta_full) {
-      small = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * n * D_);
-      cl::Kernel k(prog_, "downsample");
-      set(k, W_, H_, sw_, sh_, df_, eta, small);
+    // Each manifold on the reduced grid: planes e0 .. of `small`.
+    cl::Buffer small = level.etas;
+    int e0 = k0 * D_;
+    if (level.full) {
+      small = take(sizeof(float) * n * D_);
+      cl::Kernel& k = kernel("downsample");
+      set(k, W_, H_, sw_, sh_, df_, level.etas, small);
       launch(k, sw_, sh_);
+      e0 = 0;
     }
-    // Blur along the manifold.
-    {
-      const double ss = s_.sigma_s / df_, sr = s_.sigma_r / std::sqrt(2.0);
-      cl::Kernel k(prog_, "dt_weights");
-      set(k, sw_, sh_, std::max(sw_ - 1, 1), small, float((ss / sr) * (ss / sr)), float(-std::sqrt(2.0) / ss), ah_, av_);
+    // Blur along each manifold.
+    const double ss = s_.sigma_s / df_, sr = s_.sigma_r / std::sqrt(2.0);
+    for (int j = 0; j < m; ++j) {
+      cl::Kernel& k = kernel("dt_weights");
+      set(k, sw_, sh_, std::max(sw_ - 1, 1), small, e0 + j * D_, float((ss / sr) * (ss / sr)), float(-std::sqrt(2.0) / ss),
+          ah_, av_);
       launch(k, (std::size_t(sw_) + 7) / 8, sh_);  // 8 reduced columns per work-item
-      recursive(splat, sw_, sh_, C_ + 1, 0.0f);
+      recursive(splats, j * (C_ + 1), sw_, sh_, C_ + 1, 0.0f);
     }
     if (!queries_.empty()) {
-      cl::Kernel k(prog_, "query");
-      set(k, int(queries_.size()), W_, H_, sw_, sh_, qxy_, qguide_, eta, int(eta_full), splat, tx0_, tx1_, tfx_, ty0_,
-          ty1_, tfy_, inv_sr2_, qacc_, qmin_);
-      launch(k, queries_.size());
+      cl::Kernel& k = kernel("query_group");
+      set(k, nruns_, runs_, W_, H_, sw_, sh_, m, qxy_, qguide_, level.etas, k0, int(level.full), splats, tx0_, tx1_, tfx_,
+          ty0_, ty1_, tfy_, inv_sr2_, qacc_, qmin_);
+      launch(k, std::size_t(nruns_));
+    }
+    cl::Buffer vb = buffer(ctx, v);
+    if (split && !level.full) {
+      cl::Kernel& k = kernel("veta");
+      set(k, int(n), m, small, k0, vb, vetas_);
+      launch(k, n);
     }
     {
-      cl::Kernel k(prog_, "slice");
-      set(k, W_, H_, sw_, sh_, splat, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, w_, acc_);
-      launch(k, std::size_t(nwx_), H_);  // 8 columns per work-item
+      cl::Kernel& k = kernel("slice_split_group");
+      set(k, W_, H_, sw_, sh_, df_, m, splats, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, w_, acc_, int(split), guide_,
+          level.etas, int(level.full), vb, vetas_, label_, id0, colsum_);
+      launch(k, std::size_t(nwx_), sh_);
     }
     if (!split) return;
-    cl::Buffer vb = buffer(ctx, v);
-    cl::Buffer kids[2] = {cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * n * (D_ + 1)),
-                          cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * n * (D_ + 1))};
-    {
-      cl::Kernel k(prog_, "split");
-      set(k, W_, H_, sw_, sh_, df_, guide_, eta, int(eta_full), tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, vb, w_, label_, id,
-          colsum_);
-      launch(k, std::size_t(nwx_), sh_);
-      cl::Kernel b(prog_, "split_blocks");
-      set(b, W_, H_, sw_, sh_, df_, colsum_, kids[0], kids[1]);
+    Temp kid_tmp[2] = {{st_, sizeof(float) * n * (D_ + 1)}, {st_, sizeof(float) * n * (D_ + 1)}};
+    cl::Buffer kids[2] = {kid_tmp[0].b, kid_tmp[1].b};
+    for (int j = 0; j < m; ++j) {
+      cl::Kernel& b = kernel("split_blocks");
+      set(b, W_, H_, sw_, sh_, df_, j, colsum_, kids[0], kids[1]);
       launch(b, sw_, sh_);
-    }
-    for (int c = 0; c < 2; ++c) {
-      low_pass(kids[c], sw_, sh_, D_ + 1, s_.sigma_s / df_);
-      cl::Buffer child(ctx, CL_MEM_READ_WRITE, sizeof(float) * n * D_);
-      cl::Kernel k(prog_, "divide_eta");
-      set(k, int(n), kids[c], small, child);
-      launch(k, n);
-      node(2 * id + c, level + 1, child, false);
+      for (int c = 0; c < 2; ++c) {
+        low_pass(kids[c], 0, sw_, sh_, D_ + 1, s_.sigma_s / df_);
+        cl::Kernel& k = kernel("divide_eta");
+        set(k, int(n), kids[c], small, e0 + j * D_, next.etas, (2 * (k0 + j) + c) * D_);
+        launch(k, n);
+      }
     }
   }
 
   ClState& st_;
   cl::Program prog_;
   cl::Buffer guide_, src_, acc_, w_, min_d2_, label_, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, cov_, cov_rows_, ah_, av_;
-  cl::Buffer colsum_;  // the splat's and the split's column sums (C + 1, or 2 (D + 1), planes of sh x W)
+  cl::Buffer colsum_;  // a group's column sums: the splat's (C + 1 planes of sh x W per manifold), the split's (2 (D + 1))
+  cl::Buffer vetas_;
+  std::map<std::string, cl::Kernel> kernels_;
+  std::vector<std::pair<std::size_t, cl::Buffer>> owned_;  // given back to the pool by the destructor   // a group's v . eta on the reduced grid (one plane per manifold)
   int nwx_ = 1;        // the splat's work-items per row
-  cl::Buffer qxy_, qguide_, qacc_, qmin_;
+  cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_;
+  int nruns_ = 0;
 };
 
 }  // namespace
