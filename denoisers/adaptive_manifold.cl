@@ -127,6 +127,23 @@ INLINE float8 eta8(__global const float* eta, int eta_full, int c, int W, int H,
 }
 
 
+// Where df divides 8, a work-item's 8 columns hold 8 / df whole blocks of the reduced grid, and
+// the block sums are finished in the work-item (block_store) instead of going through column sums
+// in memory (sh x W per plane) and a second kernel (splat_blocks, split_blocks), which cost a
+// tenth of proposed's time at df = 2. The sums are added in the same order as the second kernel
+// adds them, from 0 and left to right, so both routes give the same values bit for bit.
+INLINE void block_store(float8 v, int x0, int W, int df, int rows, __global float* out_row) {
+  for (int j = 0; j < 8 / df; ++j) {
+    const int xa = x0 + j * df;
+    if (xa >= W) return;
+    const int xb = min(W, xa + df);
+    const float inv = 1.0f / (float)(rows * (xb - xa));
+    float t = 0;
+    for (int x = xa; x < xb; ++x) t += v[x - x0];
+    out_row[xa / df] = t * inv;
+  }
+}
+
 // Splat (pass 1) for a group of m manifolds of one tree level (m <= MAXG), in float8 lanes:
 // one work-item per 8 full-resolution columns of reduced row sy (a CPU device such as PoCL
 // vectorises across work-items only in loop-free kernels, and this one loops over the block's
@@ -144,8 +161,8 @@ INLINE float8 eta8(__global const float* eta, int eta_full, int c, int W, int H,
 __kernel void splat_group(int W, int H, int sw, int sh, int df, int m, __global const float* guide,
                           __global const float* src, __global const float* eta, int e0, int eta_full, TABLES,
                           float inv_sr2, __global float* wbuf, __global float* min_d2, int adjust,
-                          __global float* colsum, int split, int id0, __global const ushort* label,
-                          __global float* cov) {
+                          __global float* colsum, int direct, __global float* splats, int split, int id0,
+                          __global const ushort* label, __global float* cov) {
   const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
   if (x0 >= W || sy >= sh) return;
   const Cols8 k8 = cols8(x0, W, sw, eta_full, tx0, tx1, tfx);
@@ -209,6 +226,10 @@ __kernel void splat_group(int W, int H, int sw, int sh, int df, int m, __global 
   const int nwx = (W + 7) / 8;
   for (int k = 0; k < m; ++k) {
     for (int c = 0; c <= CHANS; ++c) {
+      if (direct) {
+        block_store(acc[k][c], x0, W, df, yb - ya, splats + ((size_t)(k * (CHANS + 1) + c) * sh + sy) * sw);
+        continue;
+      }
       __global float* o = colsum + ((size_t)(k * (CHANS + 1) + c) * sh + sy) * W + x0;
       if (full)
         vstore8(acc[k][c], 0, o);
@@ -434,7 +455,7 @@ __kernel void slice_split_group(int W, int H, int sw, int sh, int df, int m, __g
                                 __global const float* wbuf, __global float* acc, int split,
                                 __global const float* guide, __global const float* eta_root, int eta_full,
                                 __global const float* v, __global const float* vetas, __global ushort* label,
-                                int id0, __global float* colsum) {
+                                int id0, __global float* colsum, int direct, __global float* kids) {
   const int x0 = 8 * get_global_id(0), sy = get_global_id(1);
   if (x0 >= W || sy >= sh) return;
   const Cols8 kt = cols8(x0, W, sw, 0, tx0, tx1, tfx);  // the reduced grid's taps (blurred, veta)
@@ -507,6 +528,12 @@ __kernel void slice_split_group(int W, int H, int sw, int sh, int df, int m, __g
   if (!split) return;
   for (int k = 0; k < m; ++k)
     for (int c = 0; c <= DIMS; ++c) {
+      if (direct) {
+        const int rows = yb - ya;
+        block_store(l[k][c], x0, W, df, rows, kids + ((size_t)(k * 2 * (DIMS + 1) + c) * sh + sy) * sw);
+        block_store(r[k][c], x0, W, df, rows, kids + ((size_t)(k * 2 * (DIMS + 1) + DIMS + 1 + c) * sh + sy) * sw);
+        continue;
+      }
       __global float* ol = colsum + ((size_t)(k * 2 * (DIMS + 1) + c) * sh + sy) * W + x0;
       __global float* orr = colsum + ((size_t)(k * 2 * (DIMS + 1) + DIMS + 1 + c) * sh + sy) * W + x0;
       if (full) {
@@ -521,7 +548,7 @@ __kernel void slice_split_group(int W, int H, int sw, int sh, int df, int m, __g
 // The children's reduced splats from split's column sums: each reduced pixel's df columns
 // added, over the block's pixel count (D + 1 planes per child).
 __kernel void split_blocks(int W, int H, int sw, int sh, int df, int node, __global const float* colsum,
-                           __global float* kid_l, __global float* kid_r) {
+                           __global float* kids) {
   const int sx = get_global_id(0), sy = get_global_id(1);
   if (sx >= sw || sy >= sh) return;
   const int xa = sx * df, xb = min(W, xa + df), ya = sy * df, yb = min(H, ya + df);
@@ -531,18 +558,19 @@ __kernel void split_blocks(int W, int H, int sw, int sh, int df, int node, __glo
     __global const float* rr = colsum + ((size_t)(node * 2 * (DIMS + 1) + DIMS + 1 + c) * sh + sy) * W;
     float a = 0, b = 0;
     for (int x = xa; x < xb; ++x) a += rl[x], b += rr[x];
-    kid_l[((size_t)c * sh + sy) * sw + sx] = a * inv;
-    kid_r[((size_t)c * sh + sy) * sw + sx] = b * inv;
+    kids[((size_t)(node * 2 * (DIMS + 1) + c) * sh + sy) * sw + sx] = a * inv;
+    kids[((size_t)(node * 2 * (DIMS + 1) + DIMS + 1 + c) * sh + sy) * sw + sx] = b * inv;
   }
 }
 
 // A child's manifold: low-passed weighted guide over low-passed weight; where the child's
 // cluster left no weight it keeps the parent's manifold (planes p0 .. of parent; the child's go
 // to planes e0 .. of eta).
-__kernel void divide_eta(int n, __global const float* kid, __global const float* parent, int p0, __global float* eta,
-                         int e0) {
+__kernel void divide_eta(int n, __global const float* kid, int k0, __global const float* parent, int p0,
+                         __global float* eta, int e0) {
   const int i = get_global_id(0);
   if (i >= n) return;
+  kid += (size_t)k0 * n;
   parent += (size_t)p0 * n;
   eta += (size_t)e0 * n;
   const float den = kid[(size_t)DIMS * n + i];

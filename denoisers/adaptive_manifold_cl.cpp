@@ -171,7 +171,8 @@ class ClRun : private am_detail::AmRunShape {
     ty0_ = buffer(ctx, y0), ty1_ = buffer(ctx, y1), tfy_ = buffer(ctx, fy);
     // The splat kernel's work-items cover 8 full-resolution columns each (adaptive_manifold.cl).
     nwx_ = (W_ + 7) / 8;
-    colsum_ = take(sizeof(float) * std::size_t(kMaxGroup) * std::max(C_ + 1, 2 * (D_ + 1)) * sh_ * W_);
+    // Column sums only where a block is wider than a work-item's 8 columns (block_store).
+    colsum_ = take(sizeof(float) * (8 % df_ == 0 ? 1 : std::size_t(kMaxGroup) * std::max(C_ + 1, 2 * (D_ + 1)) * sh_ * W_));
     cov_ = take(sizeof(float) * std::size_t(kMaxGroup) * nwx_ * sh_ * D_ * D_);
     cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sh_ * D_ * D_);
     vetas_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sw_ * sh_);
@@ -331,19 +332,22 @@ class ClRun : private am_detail::AmRunShape {
     auto& q = st_.queue;
     const std::size_t n = std::size_t(sw_) * sh_;
     const int id0 = level.first_id + k0;
+    // Blocks that fit a work-item's 8 columns are summed there (block_store in the kernels).
+    const bool direct = 8 % df_ == 0;
+    Temp splats_tmp(st_, sizeof(float) * n * (C_ + 1) * m);
+    cl::Buffer& splats = splats_tmp.b;
     {
       cl::Kernel& k = kernel("splat_group");
       set(k, W_, H_, sw_, sh_, df_, m, guide_, src_, level.etas, k0, int(level.full), tx0_, tx1_, tfx_, ty0_, ty1_,
-          tfy_, inv_sr2_, w_, min_d2_, int(s_.adjust_outliers), colsum_, int(split), id0, label_, cov_);
+          tfy_, inv_sr2_, w_, min_d2_, int(s_.adjust_outliers), colsum_, int(direct), splats, int(split), id0, label_, cov_);
       launch(k, std::size_t(nwx_), sh_);
     }
-    Temp splats_tmp(st_, sizeof(float) * n * (C_ + 1) * m);
-    cl::Buffer& splats = splats_tmp.b;
-    for (int j = 0; j < m; ++j) {
-      cl::Kernel& b = kernel("splat_blocks");
-      set(b, W_, H_, sw_, sh_, df_, j, colsum_, j * (C_ + 1), splats);
-      launch(b, sw_, sh_);
-    }
+    if (!direct)
+      for (int j = 0; j < m; ++j) {
+        cl::Kernel& b = kernel("splat_blocks");
+        set(b, W_, H_, sw_, sh_, df_, j, colsum_, j * (C_ + 1), splats);
+        launch(b, sw_, sh_);
+      }
     // The split directions: the leading eigenvectors of the clusters' covariances (host).
     std::vector<float> v(std::size_t(m) * D_, 0.0f);
     if (split) {
@@ -395,26 +399,29 @@ class ClRun : private am_detail::AmRunShape {
       set(k, int(n), m, small, k0, vb, vetas_);
       launch(k, n);
     }
+    // The children's splats: D + 1 planes per child, the left and the right child of each manifold.
+    Temp kids_tmp(st_, sizeof(float) * n * 2 * (D_ + 1) * (split ? m : 1));
+    cl::Buffer& kids = kids_tmp.b;
     {
       cl::Kernel& k = kernel("slice_split_group");
       set(k, W_, H_, sw_, sh_, df_, m, splats, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, w_, acc_, int(split), guide_,
-          level.etas, int(level.full), vb, vetas_, label_, id0, colsum_);
+          level.etas, int(level.full), vb, vetas_, label_, id0, colsum_, int(direct), kids);
       launch(k, std::size_t(nwx_), sh_);
     }
     if (!split) return;
-    Temp kid_tmp[2] = {{st_, sizeof(float) * n * (D_ + 1)}, {st_, sizeof(float) * n * (D_ + 1)}};
-    cl::Buffer kids[2] = {kid_tmp[0].b, kid_tmp[1].b};
-    for (int j = 0; j < m; ++j) {
-      cl::Kernel& b = kernel("split_blocks");
-      set(b, W_, H_, sw_, sh_, df_, j, colsum_, kids[0], kids[1]);
-      launch(b, sw_, sh_);
+    if (!direct)
+      for (int j = 0; j < m; ++j) {
+        cl::Kernel& b = kernel("split_blocks");
+        set(b, W_, H_, sw_, sh_, df_, j, colsum_, kids);
+        launch(b, sw_, sh_);
+      }
+    low_pass(kids, 0, sw_, sh_, 2 * (D_ + 1) * m, s_.sigma_s / df_);
+    for (int j = 0; j < m; ++j)
       for (int c = 0; c < 2; ++c) {
-        low_pass(kids[c], 0, sw_, sh_, D_ + 1, s_.sigma_s / df_);
         cl::Kernel& k = kernel("divide_eta");
-        set(k, int(n), kids[c], small, e0 + j * D_, next.etas, (2 * (k0 + j) + c) * D_);
+        set(k, int(n), kids, (2 * j + c) * (D_ + 1), small, e0 + j * D_, next.etas, (2 * (k0 + j) + c) * D_);
         launch(k, n);
       }
-    }
   }
 
   ClState& st_;
