@@ -3,7 +3,8 @@
 // Tolerance: relative RMS difference <= 1e-4 (issue 6). The two paths do the same operations
 // in float; only summation order differs (per block here, per column then block on the CPU),
 // plus the odd pixel whose split dot product sits at 0 and changes cluster. Measured on PoCL:
-// about 8e-8 for the core (150x101, 7-channel guide) and 9e-8 for the whole method.
+// about 8e-8 for the core (150x101, 7-channel guide), 1e-7 for the whole method and for the
+// grouped tree of GroupsBlockSumsAndQueryRunsMatchCpuPath.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -74,6 +75,48 @@ TEST(OpenCl, MatchesCpuPath) {
       ASSERT_EQ(qc.size(), qg.size());
       EXPECT_LE(rel_rms(qg.data(), qc.data(), qc.size()), 1e-4);
     }
+}
+
+// The OpenCL path runs a tree level's manifolds in groups of up to 4 and sums a reduced block in
+// the work-item where df divides 8, through column sums otherwise; queries at one pixel share
+// its upsampled values. A tree of height 5 (16 leaves: levels of 8 and 16 manifolds in 2 and 4
+// groups), reduction factors on both routes (2, 8: in the work-item; 3, 16: column sums; 3 and
+// 16 leave partial blocks at the 150 x 101 image's edges), and queries in runs at one pixel, a
+// pixel visited twice, against the CPU path at the same 1e-4.
+TEST(OpenCl, GroupsBlockSumsAndQueryRunsMatchCpuPath) {
+  if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
+  const int w = 150, h = 101;
+  Image src(w, h, 3), guide(w, h, 5);
+  std::mt19937_64 rng(11);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < 3; ++c) src.at(x, y, c) = (y < h / 2 ? 0.4f : 0.9f) + 0.05f * c + 0.05f * g(rng);
+      for (int c = 0; c < 5; ++c) guide.at(x, y, c) = 0.3f * std::cos(0.04f * x * (c + 1) - 0.05f * y) + 0.02f * g(rng);
+    }
+  std::vector<std::vector<float>> qv;
+  for (int k = 0; k < 7; ++k) qv.push_back(std::vector<float>(5, 0.05f * k - 0.1f));
+  std::vector<AmQuery> queries;
+  for (int k = 0; k < 3; ++k) queries.push_back({40, 30, qv[k].data(), nullptr});
+  queries.push_back({w - 1, h - 1, qv[3].data(), nullptr});
+  for (int k = 4; k < 7; ++k) queries.push_back({40, 30, qv[k].data(), nullptr});
+  for (int df : {2, 3, 8, 16}) {
+    AmSettings s;
+    s.sigma_s = 12.0;
+    s.tree_height = 5;
+    s.downsample = df;
+    s.pca_iterations = 3;
+    std::vector<float> qc, qg;
+    const Image cpu = am_filter(src.cview(), guide.cview(), s, queries, &qc);
+    const Image gpu = am_filter_opencl(src.cview(), guide.cview(), s, queries, &qg);
+    const double d = rel_rms(gpu.data(), cpu.data(), cpu.size());
+    RecordProperty("rel_rms_height5_df" + std::to_string(df), sci(d));
+    EXPECT_LE(d, 1e-4) << "df " << df;
+    ASSERT_EQ(qc.size(), qg.size());
+    EXPECT_LE(rel_rms(qg.data(), qc.data(), qc.size()), 1e-4) << "df " << df;
+    // Queries at one pixel with different guides get answers of their own, not their run's.
+    EXPECT_GT(rel_rms(qg.data(), qg.data() + 4 * 3, 3), 0.0) << "queries with different guides must differ";
+  }
 }
 
 // The whole method with device=opencl matches device=cpu (edge queries and a reflection level
