@@ -31,6 +31,9 @@ inline float upsample(__global const float* p, int sw, int x0, int x1, float fx,
   return a + fx * (b - a);
 }
 
+// The covariance sums keep the upper triangle of the D x D matrix, row by row (a, b >= a).
+#define TRI (DIMS * (DIMS + 1) / 2)
+
 #define TABLES __global const int* tx0, __global const int* tx1, __global const float* tfx, \
                __global const int* ty0, __global const int* ty1, __global const float* tfy
 
@@ -172,11 +175,11 @@ __kernel void splat_group(int W, int H, int sw, int sh, int df, int m, __global 
   const int ya = sy * df, yb = min(H, ya + df);
   const size_t N = (size_t)W * H, n = (size_t)sw * sh;
   float8 acc[MAXG][CHANS + 1];
-  float8 cv[MAXG][DIMS * (DIMS + 1) / 2];  // the upper triangle, row by row
+  float8 cv[MAXG][TRI];  // the upper triangle, row by row
   for (int k = 0; k < m; ++k) {
     for (int c = 0; c <= CHANS; ++c) acc[k][c] = 0;
     if (split)
-      for (int e = 0; e < DIMS * (DIMS + 1) / 2; ++e) cv[k][e] = 0;
+      for (int e = 0; e < TRI; ++e) cv[k][e] = 0;
   }
   for (int y = ya; y < yb; ++y) {
     const size_t row = (size_t)y * W;
@@ -237,17 +240,11 @@ __kernel void splat_group(int W, int H, int sw, int sh, int df, int m, __global 
         for (int l = 0; l < W - x0; ++l) o[l] = acc[k][c][l];
     }
     if (!split) continue;
-    __global float* o = cov + (((size_t)k * sh + sy) * nwx + get_global_id(0)) * DIMS * DIMS;
-    int e = 0;
-    for (int a = 0; a < DIMS; ++a)
-      for (int b = 0; b < DIMS; ++b) {
-        if (b < a) {
-          o[a * DIMS + b] = 0;
-          continue;
-        }
-        const float8 v = cv[k][e++];
-        o[a * DIMS + b] = ((v.s0 + v.s1) + (v.s2 + v.s3)) + ((v.s4 + v.s5) + (v.s6 + v.s7));
-      }
+    __global float* o = cov + (((size_t)k * sh + sy) * nwx + get_global_id(0)) * TRI;
+    for (int e = 0; e < TRI; ++e) {
+      const float8 v = cv[k][e];
+      o[e] = ((v.s0 + v.s1) + (v.s2 + v.s3)) + ((v.s4 + v.s5) + (v.s6 + v.s7));
+    }
   }
 }
 
@@ -273,14 +270,14 @@ __kernel void splat_blocks(int W, int H, int sw, int sh, int df, int k, __global
 __kernel void cov_rows(int sw, int sh, int node, __global const float* cov, __global float* rows) {  // sw: entries per row
   const int sy = get_global_id(0);
   if (sy >= sh) return;
-  cov += (size_t)node * sh * sw * DIMS * DIMS;
-  rows += (size_t)node * sh * DIMS * DIMS;
-  float s[DIMS * DIMS];
-  for (int k = 0; k < DIMS * DIMS; ++k) s[k] = 0;
-  __global const float* r = cov + (size_t)sy * sw * DIMS * DIMS;
+  cov += (size_t)node * sh * sw * TRI;
+  rows += (size_t)node * sh * TRI;
+  float s[TRI];
+  for (int k = 0; k < TRI; ++k) s[k] = 0;
+  __global const float* r = cov + (size_t)sy * sw * TRI;
   for (int sx = 0; sx < sw; ++sx)
-    for (int k = 0; k < DIMS * DIMS; ++k) s[k] += r[(size_t)sx * DIMS * DIMS + k];
-  for (int k = 0; k < DIMS * DIMS; ++k) rows[(size_t)sy * DIMS * DIMS + k] = s[k];
+    for (int k = 0; k < TRI; ++k) s[k] += r[(size_t)sx * TRI + k];
+  for (int k = 0; k < TRI; ++k) rows[(size_t)sy * TRI + k] = s[k];
 }
 
 // Box average of the full-resolution first manifold onto the reduced grid.

@@ -173,8 +173,9 @@ class ClRun : private am_detail::AmRunShape {
     nwx_ = (W_ + 7) / 8;
     // Column sums only where a block is wider than a work-item's 8 columns (block_store).
     colsum_ = take(sizeof(float) * (8 % df_ == 0 ? 1 : std::size_t(kMaxGroup) * std::max(C_ + 1, 2 * (D_ + 1)) * sh_ * W_));
-    cov_ = take(sizeof(float) * std::size_t(kMaxGroup) * nwx_ * sh_ * D_ * D_);
-    cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sh_ * D_ * D_);
+    const std::size_t tri = std::size_t(D_) * (D_ + 1) / 2;  // the covariances' upper triangles
+    cov_ = take(sizeof(float) * std::size_t(kMaxGroup) * nwx_ * sh_ * tri);
+    cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sh_ * tri);
     vetas_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sw_ * sh_);
     const int hstride = std::max(sw_ - 1, 1);
     ah_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sh_) * hstride);
@@ -356,12 +357,16 @@ class ClRun : private am_detail::AmRunShape {
         set(k, nwx_, sh_, j, cov_, cov_rows_);
         launch(k, sh_);
       }
-      std::vector<float> rows(std::size_t(m) * sh_ * D_ * D_);
+      const std::size_t tri = std::size_t(D_) * (D_ + 1) / 2;  // upper triangles, row by row
+      std::vector<float> rows(std::size_t(m) * sh_ * tri);
       q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data());
       for (int j = 0; j < m; ++j) {
         std::vector<double> cov(D_ * D_, 0.0);
-        for (int sy = 0; sy < sh_; ++sy)
-          for (int e = 0; e < D_ * D_; ++e) cov[e] += rows[(std::size_t(j) * sh_ + sy) * D_ * D_ + e];
+        for (int sy = 0; sy < sh_; ++sy) {
+          const float* r = rows.data() + (std::size_t(j) * sh_ + sy) * tri;
+          for (int a = 0, e = 0; a < D_; ++a)
+            for (int b = a; b < D_; ++b) cov[a * D_ + b] += r[e++];
+        }
         for (int a = 0; a < D_; ++a)
           for (int b = 0; b < a; ++b) cov[a * D_ + b] = cov[b * D_ + a];
         const std::vector<float> vj = am_detail::split_direction(cov, D_, seed_, id0 + j, s_.pca_iterations);
