@@ -34,6 +34,24 @@ double rel_rms(const float* a, const float* b, std::size_t n) {
   return std::sqrt(num / std::max(den, 1e-300));
 }
 
+// A w x h test input: a 3-channel source, `level`(x, y, c) plus Gaussian noise of 0.05, and a
+// guide of `dims` channels, `wave`(x, y, c) plus Gaussian noise of 0.02.
+struct AmCase {
+  Image src, guide;
+};
+template <class Level, class Wave>
+AmCase noisy_case(int w, int h, int dims, unsigned seed, Level level, Wave wave) {
+  AmCase r{Image(w, h, 3), Image(w, h, dims)};
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < 3; ++c) r.src.at(x, y, c) = level(x, y, c) + 0.05f * g(rng);
+      for (int c = 0; c < dims; ++c) r.guide.at(x, y, c) = wave(x, y, c) + 0.02f * g(rng);
+    }
+  return r;
+}
+
 bool have_opencl() {
   std::string why;
   if (am_opencl_available(&why)) return true;
@@ -46,14 +64,9 @@ bool have_opencl() {
 TEST(OpenCl, MatchesCpuPath) {
   if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   const int w = 150, h = 101;  // not multiples of the reduced grid
-  Image src(w, h, 3), guide(w, h, 7);
-  std::mt19937_64 rng(4);
-  std::normal_distribution<float> g(0.0f, 1.0f);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      for (int c = 0; c < 3; ++c) src.at(x, y, c) = (x < w / 3 ? 0.3f : 0.8f) + 0.05f * c + 0.05f * g(rng);
-      for (int c = 0; c < 7; ++c) guide.at(x, y, c) = 0.2f * std::sin(0.05f * x * (c + 1) + 0.03f * y) + 0.02f * g(rng);
-    }
+  auto [src, guide] = noisy_case(
+      w, h, 7, 4, [&](int x, int, int c) { return (x < w / 3 ? 0.3f : 0.8f) + 0.05f * c; },
+      [](int x, int y, int c) { return 0.2f * std::sin(0.05f * x * (c + 1) + 0.03f * y); });
   // An outlier far from every manifold: its weights underflow to (near) 0 on both paths, which
   // must then agree that it keeps its own value, whatever the denormal mode (kAmMinWeight).
   for (int c = 0; c < 7; ++c) guide.at(5, 5, c) = 3.0f;
@@ -86,14 +99,9 @@ TEST(OpenCl, MatchesCpuPath) {
 TEST(OpenCl, GroupsBlockSumsAndQueryRunsMatchCpuPath) {
   if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   const int w = 150, h = 101;
-  Image src(w, h, 3), guide(w, h, 5);
-  std::mt19937_64 rng(11);
-  std::normal_distribution<float> g(0.0f, 1.0f);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      for (int c = 0; c < 3; ++c) src.at(x, y, c) = (y < h / 2 ? 0.4f : 0.9f) + 0.05f * c + 0.05f * g(rng);
-      for (int c = 0; c < 5; ++c) guide.at(x, y, c) = 0.3f * std::cos(0.04f * x * (c + 1) - 0.05f * y) + 0.02f * g(rng);
-    }
+  const auto [src, guide] = noisy_case(
+      w, h, 5, 11, [&](int, int y, int c) { return (y < h / 2 ? 0.4f : 0.9f) + 0.05f * c; },
+      [](int x, int y, int c) { return 0.3f * std::cos(0.04f * x * (c + 1) - 0.05f * y); });
   std::vector<std::vector<float>> qv;
   for (int k = 0; k < 7; ++k) qv.push_back(std::vector<float>(5, 0.05f * k - 0.1f));
   std::vector<AmQuery> queries;
