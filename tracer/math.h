@@ -197,9 +197,13 @@ enum : int {
 //    render are as well stratified as a render of N samples, and are that render: the samples
 //    do not depend on the total spp (render.cpp's progressive curve). The groups are independent
 //    replicates, which gives an unbiased variance of a pixel's mean (render.cpp's top).
+class SampleTable;
+
 class Sampler {
  public:
   static constexpr int kGroups = 8;
+  // A SampleTable holds the sequence dimensions of up to kTableSamples samples.
+  static constexpr int kTableSamples = 256;
 
   // Independent mode.
   Sampler(std::uint64_t seed, std::uint64_t pixel, std::uint64_t sample)
@@ -230,8 +234,10 @@ class Sampler {
   void start_vertex(int v) { base_ = std::uint32_t(dims::kFilmDims + dims::kVertexDims * (v - 1)); }
   std::uint32_t dimension() const { return dim_; }
 
- private:
+  // A placeholder to assign a sampler to (arrays of samplers); its numbers are not meant for use.
   Sampler() = default;
+
+ private:
   // The pair of dimensions holding d: Burley's construction, computed on bit-reversed words
   // (the Laine-Karras permutation scrambles a reversed word's digits), which saves half of the
   // reversals: with R = reverse_bits, LK = laine_karras_permutation, ri = R(index),
@@ -248,6 +254,7 @@ class Sampler {
       const std::uint64_t h = mix64(sample_key_ + std::uint64_t(d) * 0xd1b54a32d192ed03ULL);
       return float(h >> 40) * (1.0f / 16777216.0f);
     }
+    if (table_) return table_[d * kTableSamples];
     const std::uint32_t pair = d >> 1;
     if (pair != pair_) {
       const std::uint64_t h = mix64(key_ + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
@@ -263,6 +270,8 @@ class Sampler {
                         : u32_to_unit(reverse_bits(laine_karras_permutation(sobol_dim1_reversed(j_), s3_)));
   }
 
+  friend class SampleTable;
+  const float* table_ = nullptr;  // this sample's sequence dimensions in a SampleTable, when made by one
   std::uint64_t key_ = 0;
   std::uint64_t sample_key_ = 0;
   std::uint32_t dim_ = 0;
@@ -270,5 +279,50 @@ class Sampler {
   std::uint32_t pair_ = ~0u, j_ = 0, s2_ = 0, s3_ = 0;  // the current pair: shuffled index, scrambles
   bool sequence_ = false;
 };
+
+// The sequence dimensions (dims::kSequenceDims) of a run of one pixel's samples, computed
+// together: Sampler::pixel_sample computes a pair's scrambles and its shuffled index on first
+// use and each coordinate when asked, one number at a time, which was a seventh of a render's
+// time; here every number of up to kMaxSamples samples is computed in one loop per pair of
+// dimensions over the samples, eight to a vector (the groups' scrambles once per pixel and
+// pair, not once per sample). The same integer operations in the same order: sampler(s) gives exactly the
+// numbers of Sampler::pixel_sample(seed, pixel, s) (tests/tracer/sampler_test.cpp). ~18 KB; one
+// per thread, reused across pixels.
+class SampleTable {
+ public:
+  static constexpr int kMaxSamples = Sampler::kTableSamples;
+  // Samples [begin, end) of `pixel` of a render with `seed`; end - begin <= kMaxSamples.
+  void prepare(std::uint64_t seed, std::uint64_t pixel, std::uint64_t begin, std::uint64_t end);
+  // Sample s (begin <= s < end of the last prepare()): equal to Sampler::pixel_sample(seed, pixel, s).
+  // The sampler reads the table: it must not outlive it or the next prepare().
+  Sampler sampler(std::uint64_t s) const {
+    const int g = int(s % Sampler::kGroups);
+    const std::uint64_t i = s / Sampler::kGroups;
+    Sampler r;
+    r.key_ = group_key_[g];  // index_reversed_ and the pair cache stay unused: the table has them
+    r.sample_key_ = mix64(r.key_ + (i + 1) * 0x9e3779b97f4a7c15ULL);
+    r.sequence_ = true;
+    r.table_ = &values_[std::size_t(s - begin_)];
+    return r;
+  }
+
+ private:
+  std::uint64_t group_key_[Sampler::kGroups] = {};
+  std::uint64_t begin_ = 0;
+  // values_[d * kMaxSamples + s - begin_]: dimension d of sample s.
+  alignas(32) float values_[dims::kSequenceDims * kMaxSamples] = {};
+};
+
+// Calls f(s, sampler) for s = begin .. end - 1 in order, the samples of `pixel` of a render with
+// `seed`, their sequence dimensions computed kMaxSamples at a time into `table`.
+template <typename F>
+void for_pixel_samples(SampleTable& table, std::uint64_t seed, std::uint64_t pixel, std::uint64_t begin,
+                       std::uint64_t end, F&& f) {
+  for (std::uint64_t b = begin; b < end; b += SampleTable::kMaxSamples) {
+    const std::uint64_t e = std::min<std::uint64_t>(end, b + SampleTable::kMaxSamples);
+    table.prepare(seed, pixel, b, e);
+    for (std::uint64_t s = b; s < e; ++s) f(s, table.sampler(s));
+  }
+}
 
 }  // namespace dnb::rt

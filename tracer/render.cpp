@@ -150,14 +150,24 @@ struct SampleSource {
   int width, height;
   std::uint64_t seed;
 
-  // Traces sample s of pixel (x, y) into r; its film position inside the pixel goes to fx, fy.
-  // Returns the rays traced.
-  std::uint64_t trace(int x, int y, int s, SampleResult& r, float& fx, float& fy) const {
-    Sampler rng = Sampler::pixel_sample(seed, std::uint64_t(y) * width + x, std::uint64_t(s));
-    sample_position(rng, fx, fy);
-    PathContext ctx{rng};
-    tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, width, height), ctx, r);
-    return ctx.rays;
+  // Traces the samples s = begin .. end - 1 of pixel (x, y) in order, calling f(s, r, fx, fy)
+  // after each with its layers in r and its film position inside the pixel in fx, fy; their
+  // sequence dimensions are made in `table` (math.h's SampleTable). Returns the rays traced.
+  // (Tracing the camera rays of a pixel eight at a time as an Embree packet gave the same hits
+  // bit for bit but no measurable speed-up: 2.82 M paths/s against 2.85 M on McGuire's box.)
+  template <typename F>
+  std::uint64_t trace_samples(SampleTable& table, int x, int y, int begin, int end, SampleResult& r, F&& f) const {
+    std::uint64_t rays = 0;
+    for_pixel_samples(table, seed, std::uint64_t(y) * width + x, std::uint64_t(begin), std::uint64_t(end),
+                      [&](std::uint64_t s, Sampler rng) {
+                        float fx, fy;
+                        sample_position(rng, fx, fy);
+                        PathContext ctx{rng};
+                        tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, width, height), ctx, r);
+                        rays += ctx.rays;
+                        f(int(s), r, fx, fy);
+                      });
+    return rays;
   }
 };
 
@@ -371,18 +381,17 @@ struct PassCounts {
 void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image& depth_spread, int x0, int y0,
                  int x1, int y1, PassCounts& counts) {
   SampleResult r;
+  SampleTable table;
   const int K = int(out.level.size()) - 1;
   std::vector<LevelSums> sums(K + 1);
   for (int y = y0; y < y1; ++y)
     for (int x = x0; x < x1; ++x) {
       for (auto& s : sums) s = LevelSums{};
       GroupSums groups[kGroups];
-      for (int s = 0; s < spp; ++s) {
-        float fx, fy;
-        counts.rays += src.trace(x, y, s, r, fx, fy);
-        if (sample_finite(r)) accumulate_sample(r, K, sums.data(), groups[s % kGroups]);
+      counts.rays += src.trace_samples(table, x, y, 0, spp, r, [&](int s, const SampleResult& sr, float, float) {
+        if (sample_finite(sr)) accumulate_sample(sr, K, sums.data(), groups[s % kGroups]);
         else ++counts.dropped;
-      }
+      });
       store_pixel(out, x, y, sums, groups, depth_spread);
     }
 }
@@ -438,15 +447,13 @@ struct SubpixelSums {
   double depth = 0;
 };
 
-void trace_subpixels(const SampleSource& src, int spp, int x, int y, SampleResult& r,
+void trace_subpixels(const SampleSource& src, int spp, int x, int y, SampleTable& table, SampleResult& r,
                      SubpixelSums (&sub)[EdgeSubpixels::kPerPixel]) {
   constexpr int side = EdgeSubpixels::kPerSide;
-  for (int s = 0; s < spp; ++s) {
-    float fx, fy;
-    src.trace(x, y, s, r, fx, fy);
-    if (!sample_finite(r)) continue;
+  src.trace_samples(table, x, y, 0, spp, r, [&](int, const SampleResult& sr, float fx, float fy) {
+    if (!sample_finite(sr)) return;
     SubpixelSums& b = sub[int(fy * side) * side + int(fx * side)];
-    const LevelSample& l0 = r.level[0];
+    const LevelSample& l0 = sr.level[0];
     ++b.n;
     b.normal.add(l0.normal);
     b.albedo.add(l0.albedo);
@@ -455,7 +462,7 @@ void trace_subpixels(const SampleSource& src, int spp, int x, int y, SampleResul
     b.direct_t.add(l0.direct * l0.albedo);
     b.indirect_t.add(l0.indirect * l0.albedo);
     b.depth += l0.depth;
-  }
+  });
 }
 
 // The sub-pixels' means; one that no sample fell in gets the pixel's means from level 0's layers.
@@ -499,10 +506,11 @@ EdgeSubpixels render_edge_subpixels(const SampleSource& src, int spp, const Imag
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
       set_ftz_daz();
       SampleResult r;
+      SampleTable table;
       for (std::size_t i = c * chunk; i < std::min(es.pixels.size(), (c + 1) * chunk); ++i) {
         const int x = es.pixels[i] % W, y = es.pixels[i] / W;
         SubpixelSums sub[EdgeSubpixels::kPerPixel];
-        trace_subpixels(src, spp, x, y, r, sub);
+        trace_subpixels(src, spp, x, y, table, r, sub);
         store_subpixels(sub, l0, x, y, &es.samples[i * EdgeSubpixels::kPerPixel]);
       }
     });
@@ -576,25 +584,24 @@ ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, 
   std::atomic<std::int64_t> dropped{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
     SampleResult r;
+    SampleTable table;
     std::int64_t tile_dropped = 0;
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
         const std::uint64_t pixel = std::uint64_t(y) * W + x;
         double* s1 = &out.sum[pixel * 3];
         double* sg = &out.group_sum[pixel * 3 * kGroups];
-        for (int s = sample_begin; s < sample_end; ++s) {
-          float fx, fy;
-          src.trace(x, y, s, r, fx, fy);
+        src.trace_samples(table, x, y, sample_begin, sample_end, r, [&](int s, const SampleResult& sr, float, float) {
           // A dropped sample counts as 0 (mean() divides by the attempted samples).
           Vec3 f{0, 0, 0};
-          if (sample_finite(r)) f = r.level[0].color();
+          if (sample_finite(sr)) f = sr.level[0].color();
           else ++tile_dropped;
           double* g = sg + 3 * (s % kGroups);
           for (int c = 0; c < 3; ++c) {
             s1[c] += f[c];
             g[c] += f[c];
           }
-        }
+        });
       }
     dropped += tile_dropped;
     if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * (sample_end - sample_begin));
@@ -628,18 +635,17 @@ void render_color_prefixes(const Scene& scene, const RenderSettings& settings, c
     Image color(W, H, 3);
     for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
       SampleResult r;
+      SampleTable table;
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
           GroupColor* g = &groups[(std::size_t(y) * W + x) * kGroups];
-          for (int s = begin; s < end; ++s) {
-            float fx, fy;
-            src.trace(x, y, s, r, fx, fy);
-            if (!sample_finite(r)) continue;
-            const Vec3 f = r.level[0].color();
+          src.trace_samples(table, x, y, begin, end, r, [&](int s, const SampleResult& sr, float, float) {
+            if (!sample_finite(sr)) return;
+            const Vec3 f = sr.level[0].color();
             GroupColor& gs = g[s % kGroups];
             for (int c = 0; c < 3; ++c) gs.c[c] += double(f[c]);
             ++gs.n;
-          }
+          });
           // add_groups' order: the groups' sums added to 0 in group order.
           double sum[3] = {0, 0, 0};
           std::int64_t n = 0;

@@ -100,6 +100,33 @@ TEST(Sampler, GroupsAndPixelsHaveTheirOwnScrambles) {
   EXPECT_EQ(b.at(dims::kBsdfU), bsdf);
 }
 
+// Every number a path can read (the sequence dimensions from the table, the hashed ones past
+// them) equals pixel_sample's, for runs that start and end inside a group's rows, at small and
+// large point indices (a 16M-spp reference reaches index 2^21), and over several tables' worth.
+TEST(Sampler, SampleTableGivesPixelSamplesNumbers) {
+  SampleTable table;
+  const std::pair<std::uint64_t, std::uint64_t> runs[] = {
+      {0, 256}, {0, 1}, {3, 200}, {4000, 4256}, {16380, 16390}, {(1u << 24) - 77, 1u << 24}, {255, 1027}};
+  for (const auto& [begin, end] : runs)
+    for (std::uint64_t pixel : {std::uint64_t(0), std::uint64_t(98765)}) {
+      std::uint64_t visited = 0;
+      for_pixel_samples(table, 11, pixel, begin, end, [&](std::uint64_t s, Sampler t) {
+        ASSERT_EQ(s, begin + visited) << "samples out of order";
+        ++visited;
+        Sampler p = Sampler::pixel_sample(11, pixel, s);
+        EXPECT_EQ(t.next(), p.next()) << "film x, sample " << s;
+        EXPECT_EQ(t.next(), p.next()) << "film y, sample " << s;
+        for (int v = 1; v <= int(dims::kSequenceVertices) + 1; ++v) {
+          t.start_vertex(v);
+          p.start_vertex(v);
+          for (int slot = 0; slot < dims::kVertexDims; ++slot)
+            ASSERT_EQ(t.at(slot), p.at(slot)) << "sample " << s << " vertex " << v << " slot " << slot;
+        }
+      });
+      EXPECT_EQ(visited, end - begin);
+    }
+}
+
 TEST(Sampler, IndependentModeReadsItsNumbersInCallOrder) {
   // The irradiance cache's records use it: at() and start_vertex() do not change its numbers.
   Sampler a(5, 6, 7), b(5, 6, 7);

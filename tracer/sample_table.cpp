@@ -1,0 +1,58 @@
+// rt::SampleTable::prepare (tracer/math.h): the sequence dimensions of a run of a pixel's
+// samples, the same integer operations as Sampler::dimension_value, arranged so that the
+// compiler vectorises them: one loop per pair of dimensions over the run's samples, eight
+// consecutive samples (one of each group) to a vector, each lane with its group's scrambles.
+#include <algorithm>
+
+#include "tracer/math.h"
+
+namespace dnb::rt {
+
+void SampleTable::prepare(std::uint64_t seed, std::uint64_t pixel, std::uint64_t begin, std::uint64_t end) {
+  constexpr int G = Sampler::kGroups;
+  static_assert(G == 8, "a vector of eight lanes holds one sample of each group");
+  begin_ = begin;
+  const std::uint64_t pixel_key = mix64(mix64(seed ^ 0x243f6a8885a308d3ULL) + pixel * 0x9e3779b97f4a7c15ULL);
+  for (int g = 0; g < G; ++g) group_key_[g] = mix64(pixel_key + std::uint64_t(g));
+  const int n = int(std::min<std::uint64_t>(end - begin, kMaxSamples) + G - 1) / G * G;  // whole vectors
+  // Lane l of a vector holds sample begin + 8 v + l: group (begin + l) mod 8, point index
+  // (begin + l) / 8 + v.
+  alignas(32) std::uint32_t first[G];
+  for (int l = 0; l < G; ++l) first[l] = std::uint32_t((begin + std::uint64_t(l)) / G);
+  // sobol_dim1_reversed(j) without its data-dependent loop: j < 2^bits when the point index is
+  // (the shuffle keeps every aligned block of 2^k indices in itself), so `bits` direction numbers
+  // suffice.
+  const std::uint32_t last = std::uint32_t((begin + std::uint64_t(n) - 1) / G);
+  int bits = 0;
+  while (bits < 32 && (last >> bits) != 0) ++bits;
+  for (int pair = 0; pair < dims::kSequenceDims / 2; ++pair) {
+    alignas(32) std::uint32_t s1[G], s2[G], s3[G], shift0[G];
+    for (int l = 0; l < G; ++l) {
+      const std::uint64_t h =
+          mix64(group_key_[(begin + std::uint64_t(l)) % G] + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
+      s1[l] = std::uint32_t(h);
+      s2[l] = std::uint32_t(h >> 32);
+      s3[l] = std::uint32_t((h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ULL >> 32);
+      shift0[l] = laine_karras_permutation(0, s1[l]);
+    }
+    float* xs = &values_[std::size_t(2 * pair) * kMaxSamples];
+    float* ys = &values_[std::size_t(2 * pair + 1) * kMaxSamples];
+    for (int v = 0; v < n; v += G) {
+      const std::uint32_t vi = std::uint32_t(v / G);
+      alignas(32) std::uint32_t j[G], d1[G];
+      for (int l = 0; l < G; ++l) {
+        j[l] = reverse_bits(laine_karras_permutation(reverse_bits(first[l] + vi), s1[l]) ^ shift0[l]);
+        d1[l] = 0;
+      }
+      std::uint32_t w = 1;
+      for (int b = 0; b < bits; ++b, w ^= w << 1)
+        for (int l = 0; l < G; ++l) d1[l] ^= (0u - ((j[l] >> b) & 1u)) & w;
+      for (int l = 0; l < G; ++l) {
+        xs[v + l] = u32_to_unit(reverse_bits(laine_karras_permutation(j[l], s2[l])));
+        ys[v + l] = u32_to_unit(reverse_bits(laine_karras_permutation(d1[l], s3[l])));
+      }
+    }
+  }
+}
+
+}  // namespace dnb::rt
