@@ -25,14 +25,18 @@ void SampleTable::prepare(std::uint64_t seed, std::uint64_t pixel, std::uint64_t
   const std::uint32_t last = std::uint32_t((begin + std::uint64_t(n) - 1) / G);
   int bits = 0;
   while (bits < 32 && (last >> bits) != 0) ++bits;
+  alignas(32) std::uint64_t lane_key[G];
+  for (int l = 0; l < G; ++l) lane_key[l] = group_key_[(begin + std::uint64_t(l)) % G];
   for (int pair = 0; pair < dims::kSequenceDims / 2; ++pair) {
+    // The lanes' scrambles for this pair (a loop of 64-bit hashes the compiler vectorises too).
+    alignas(32) std::uint64_t h[G];
     alignas(32) std::uint32_t s1[G], s2[G], s3[G], shift0[G];
+    const std::uint64_t pair_offset = std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL;
+    for (int l = 0; l < G; ++l) h[l] = mix64(lane_key[l] + pair_offset);
     for (int l = 0; l < G; ++l) {
-      const std::uint64_t h =
-          mix64(group_key_[(begin + std::uint64_t(l)) % G] + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
-      s1[l] = std::uint32_t(h);
-      s2[l] = std::uint32_t(h >> 32);
-      s3[l] = std::uint32_t((h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ULL >> 32);
+      s1[l] = std::uint32_t(h[l]);
+      s2[l] = std::uint32_t(h[l] >> 32);
+      s3[l] = std::uint32_t((h[l] ^ (h[l] >> 29)) * 0xbf58476d1ce4e5b9ULL >> 32);
       shift0[l] = laine_karras_permutation(0, s1[l]);
     }
     float* xs = &values_[std::size_t(2 * pair) * kMaxSamples];
