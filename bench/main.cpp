@@ -3,8 +3,12 @@
 // CPU model, the OpenCL device, the build and the nightly reference workload), so that a JSON
 // file (--benchmark_out=FILE --benchmark_out_format=json) says where its numbers come from.
 //
-// One option of its own, removed before Google Benchmark reads the rest:
-//   --dnb_nightly_size=WxH   frame size of the nightly/ cases (default 256x192)
+// Options of its own, removed before Google Benchmark reads the rest:
+//   --dnb_nightly_size=WxH        frame size of the nightly/ cases (default 256x192)
+//   --dnb_count_instructions      nightly/ cases run the method once more after the warm-up
+//                                 with callgrind's collection on, and time nothing: run under
+//                                 `valgrind --tool=callgrind --collect-atstart=no`, the count
+//                                 valgrind reports is that one run's (scripts/nightly_instructions)
 #include <benchmark/benchmark.h>
 
 #include <cstring>
@@ -24,7 +28,7 @@
 #endif
 
 namespace dnb::bench {
-void register_nightly_cases(int width, int height);  // nightly_bench.cpp
+void register_nightly_cases(int width, int height, bool count_instructions);  // nightly_bench.cpp
 }
 
 namespace {
@@ -62,8 +66,13 @@ std::string opencl_device() {
 
 int main(int argc, char** argv) {
   int width = 256, height = 192;
+  bool count_instructions = false;
   std::vector<char*> args;
   for (int i = 0; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--dnb_count_instructions") == 0) {
+      count_instructions = true;
+      continue;
+    }
     const char* flag = "--dnb_nightly_size=";
     if (std::strncmp(argv[i], flag, std::strlen(flag)) == 0) {
       if (std::sscanf(argv[i] + std::strlen(flag), "%dx%d", &width, &height) != 2 || width < 8 || height < 8) {
@@ -75,7 +84,7 @@ int main(int argc, char** argv) {
     args.push_back(argv[i]);
   }
   int n = int(args.size());
-  dnb::bench::register_nightly_cases(width, height);
+  dnb::bench::register_nightly_cases(width, height, count_instructions);
 
   char host[256] = {};
   gethostname(host, sizeof host - 1);

@@ -22,6 +22,7 @@
 // another job on the machine disturbs far less than wall time); threads:all cases measure
 // wall time with every core, so they also see a loss of parallelism.
 #include <benchmark/benchmark.h>
+#include <valgrind/callgrind.h>
 
 #include <algorithm>
 #include <cmath>
@@ -46,6 +47,7 @@ struct NightlyCase {
   std::map<std::string, std::string> params;  // e.g. device=opencl
   int threads = 0;                            // 1, or 0 for all cores
   int width = 256, height = 192;
+  bool count_instructions = false;            // main.cpp's --dnb_count_instructions
 };
 
 // How many runs of the workload last about as long as one run of the method, found at the
@@ -91,6 +93,19 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
   };
   auto run = [&] { benchmark::DoNotOptimize(run_method(*method, in).image.data()); };
 
+  if (c.count_instructions) {
+    // Warm-up outside the count (first-use initialisation in OpenCV, TBB, the allocator), then
+    // one run with callgrind collecting (the macros do nothing outside valgrind).
+    run();
+    CALLGRIND_TOGGLE_COLLECT;
+    run();
+    CALLGRIND_TOGGLE_COLLECT;
+    for (auto _ : state) state.SetIterationTime(1.0);
+    state.counters["counted_runs"] = 1;
+    state.counters["under_valgrind"] = RUNNING_ON_VALGRIND ? 1 : 0;
+    return;
+  }
+
   int& units = workload_units(case_name);
   if (units == 0) {  // first call: warm-up of both, and the workload's repeat count
     run();
@@ -129,7 +144,7 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
 
 }  // namespace
 
-void register_nightly_cases(int width, int height) {
+void register_nightly_cases(int width, int height, bool count_instructions) {
   const auto& registry = MethodRegistry::global();
   std::vector<std::pair<std::string, NightlyCase>> cases;
   auto size = [](int w, int h) { return std::to_string(w) + "x" + std::to_string(h); };
@@ -139,7 +154,7 @@ void register_nightly_cases(int width, int height) {
     const int w = renderer ? std::max(8, width / 2) : width, h = renderer ? std::max(8, height / 2) : height;
     for (int threads : {1, 0})
       cases.push_back({"nightly/" + m->name + "/" + size(w, h) + "/threads:" + (threads ? "1" : "all"),
-                       NightlyCase{m->name, {}, threads, w, h}});
+                       NightlyCase{m->name, {}, threads, w, h, count_instructions}});
   }
   // The OpenCL path of `proposed`: PoCL's CPU device runs its own threads, limited to one with
   // POCL_MAX_PTHREAD_COUNT for threads:1 (read when OpenCL starts in the process).
@@ -147,7 +162,7 @@ void register_nightly_cases(int width, int height) {
   if (std::any_of(params.begin(), params.end(), [](const ParamSpec& p) { return p.name == "device"; }))
     for (int threads : {1, 0})
       cases.push_back({"nightly/proposed:opencl/" + size(width, height) + "/threads:" + (threads ? "1" : "all"),
-                       NightlyCase{"proposed", {{"device", "opencl"}}, threads, width, height}});
+                       NightlyCase{"proposed", {{"device", "opencl"}}, threads, width, height, count_instructions}});
   for (const auto& [name, c] : cases)
     benchmark::RegisterBenchmark(name.c_str(), [name = name, c = c](benchmark::State& s) { run_nightly_case(s, name, c); })
         ->Unit(benchmark::kMillisecond)

@@ -14,6 +14,10 @@
 //   performance  new ratio <= baseline ratio * (1 + tolerance of the case); run only when
 //                the baseline was measured on the same CPU model (else skipped, with a note);
 //                cases listed as report-only (all-core wall times) are shown, never failing
+//   instructions new count <= baseline count * (1 + tolerance): the instructions of one run of
+//                each method (single-threaded, under callgrind: scripts/nightly_instructions,
+//                RUN_DIR/instructions.json), which do not move with the machine's load as wall
+//                times do; same CPU model only, skipped with a note when either side has none
 //
 // Bad input (a missing or malformed file, a scene, method or case of the baseline missing
 // from the run, a run of another config) is an InputError: exit status 2.
@@ -51,6 +55,13 @@ struct PerfEntry {
   std::string error;   // the benchmark's error when the case failed (ratio is then NaN)
 };
 
+// One case of scripts/nightly_instructions: the instructions of one run of the method.
+struct InstrEntry {
+  std::string name;    // the benchmark case, e.g. nightly/guided/64x48/threads:1
+  std::string method;
+  double instructions = 0;
+};
+
 struct Summary {
   std::string date;          // ISO 8601 UTC, when summarised
   std::string git_revision;
@@ -60,6 +71,8 @@ struct Summary {
   std::vector<QualityEntry> quality;
   std::vector<PerfEntry> performance;
   std::string reference_workload;
+  std::vector<InstrEntry> instructions;  // empty when the run counted none
+  std::string instructions_cpu_model;    // the machine that counted them
 
   nlohmann::json to_json() const;
   static Summary from_json(const nlohmann::json& j, const std::string& where);
@@ -72,7 +85,10 @@ Summary summarize(const experiment::ResultsDocument& results, const std::string&
 // Adds the nightly/ cases of a Google Benchmark JSON document to `s` (the median of each case's
 // `ratio` counter over its repetitions) and takes the CPU model from its context.
 void add_benchmarks(Summary& s, const nlohmann::json& bench, const std::string& where_bench);
-// summarize() of RUN_DIR/results.json and, when present, RUN_DIR/bench.json.
+// Adds the cases of scripts/nightly_instructions' JSON document to `s`.
+void add_instructions(Summary& s, const nlohmann::json& doc, const std::string& where);
+// summarize() of RUN_DIR/results.json and, when present, RUN_DIR/bench.json and
+// RUN_DIR/instructions.json.
 Summary summarize_run(const std::string& run_dir);
 
 struct Gates {
@@ -85,6 +101,10 @@ struct Gates {
   // Cases whose name contains one of these are compared and reported, but never fail the run:
   // all-core wall times move with how many cores other jobs leave free (reports/baseline/README.md).
   std::vector<std::string> performance_report_only = {"/threads:all"};
+  // Instructions: one relative tolerance for every case. A method's count repeats to 0.003% or
+  // better for one build and input, so this is not noise to absorb but the size of a change of
+  // work small enough to pass without a deliberate re-accept.
+  double instructions_default = 0.03;
   bool report_only(const std::string& case_name) const;
   // Ahead: `ahead_method` must have a lower MSE than each of `ahead_of` on every scene.
   std::string ahead_method = "proposed";
@@ -98,10 +118,10 @@ struct Gates {
 };
 
 struct Finding {
-  std::string gate;    // quality, ahead, performance
+  std::string gate;    // quality, ahead, performance, instructions
   std::string scene;   // for performance: the benchmark frame
   std::string method;
-  std::string metric;  // mse, time_ratio
+  std::string metric;  // mse, time_ratio, instructions
   double old_value = 0, new_value = 0;
   double limit = 0;    // the largest passing new value (ahead: the other method's MSE)
   std::string compared_with;  // ahead: the baseline method

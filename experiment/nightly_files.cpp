@@ -52,6 +52,9 @@ json Summary::to_json() const {
                  {"reference_ms", e.reference_ms}, {"repetitions", e.repetitions}});
     if (!e.error.empty()) p.back()["error"] = e.error;
   }
+  json ins = json::array();
+  for (const auto& e : instructions)
+    ins.push_back({{"case", e.name}, {"method", e.method}, {"instructions", e.instructions}});
   return {{"format", "denoisebench-nightly-summary-1"},
           {"date", date},
           {"git_revision", git_revision},
@@ -60,7 +63,9 @@ json Summary::to_json() const {
           {"config", config},
           {"reference_workload", reference_workload},
           {"quality", q},
-          {"performance", p}};
+          {"performance", p},
+          {"instructions", ins},
+          {"instructions_cpu_model", instructions_cpu_model}};
 }
 
 Summary Summary::from_json(const json& j, const std::string& where) {
@@ -97,6 +102,17 @@ Summary Summary::from_json(const json& j, const std::string& where) {
     e.repetitions = p[i].value("repetitions", 0);
     e.error = p[i].value("error", "");
     s.performance.push_back(e);
+  }
+  // Optional: summaries written before the instruction gate have none.
+  if (j.contains("instructions")) {
+    const auto ins = json_file::get<json>(j, "instructions", where);
+    if (!ins.is_array()) throw InputError(fmt::format("{}: key 'instructions': expected an array", where));
+    for (std::size_t i = 0; i < ins.size(); ++i) {
+      const std::string w = fmt::format("{}: instructions[{}]", where, i);
+      s.instructions.push_back({json_file::get<std::string>(ins[i], "case", w),
+                                json_file::get<std::string>(ins[i], "method", w), json_file::number(ins[i], "instructions", w)});
+    }
+    s.instructions_cpu_model = j.value("instructions_cpu_model", "");
   }
   return s;
 }
@@ -147,6 +163,28 @@ void add_benchmarks(Summary& s, const json& bench, const std::string& where_benc
     e.reference_ms = stats::median(a.reference_ms);
     e.repetitions = int(a.ratio.size());
     s.performance.push_back(e);
+  }
+}
+
+void add_instructions(Summary& s, const json& doc, const std::string& where) {
+  if (!doc.is_object() || doc.value("format", "") != "denoisebench-instructions-1")
+    throw InputError(fmt::format("{}: key 'format': expected \"denoisebench-instructions-1\"", where));
+  const json context = json_file::get<json>(doc, "context", where);
+  s.instructions_cpu_model = json_file::get<std::string>(context, "cpu_model", where + ": context");
+  const json cases = json_file::get<json>(doc, "cases", where);
+  if (!cases.is_array() || cases.empty())
+    throw InputError(fmt::format("{}: key 'cases': expected a non-empty array", where));
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const std::string w = fmt::format("{}: cases[{}]", where, i);
+    InstrEntry e;
+    e.name = json_file::get<std::string>(cases[i], "name", w);
+    if (e.name.rfind("nightly/", 0) != 0 || std::count(e.name.begin(), e.name.end(), '/') < 3)
+      throw InputError(fmt::format("{}: key 'name': expected nightly/<method>/<size>/threads:<n>, got '{}'", w, e.name));
+    const auto first = e.name.find('/'), second = e.name.find('/', first + 1);
+    e.method = e.name.substr(first + 1, second - first - 1);
+    e.instructions = json_file::number(cases[i], "instructions", w);
+    if (!(e.instructions > 0)) throw InputError(fmt::format("{}: key 'instructions': expected a positive count", w));
+    s.instructions.push_back(e);
   }
 }
 
@@ -202,7 +240,10 @@ Summary summarize_run(const std::string& run_dir) {
   const auto results = experiment::ResultsDocument::load(results_path);
   std::optional<json> bench;
   if (fs::exists(bench_path)) bench = json_file::read(bench_path);
-  return summarize(results, "'" + results_path + "'", bench ? &*bench : nullptr, bench_path);
+  Summary s = summarize(results, "'" + results_path + "'", bench ? &*bench : nullptr, bench_path);
+  const std::string instr_path = run_dir + "/instructions.json";
+  if (fs::exists(instr_path)) add_instructions(s, json_file::read(instr_path), "'" + instr_path + "'");
+  return s;
 }
 
 json Gates::to_json() const {
@@ -210,6 +251,7 @@ json Gates::to_json() const {
           {"quality", {{"metric", "mse"}, {"default_tolerance", quality_default}, {"tolerance", quality}}},
           {"performance", {{"metric", "time_ratio"}, {"default_tolerance", performance_default}, {"tolerance", performance},
                            {"report_only", performance_report_only}}},
+          {"instructions", {{"metric", "instructions"}, {"default_tolerance", instructions_default}}},
           {"ahead", {{"method", ahead_method}, {"of", ahead_of}}},
           {"derivation", derivation}};
 }
@@ -233,6 +275,9 @@ Gates Gates::from_json(const json& j, const std::string& where) {
   const json perf = json_file::get<json>(j, "performance", where);
   tolerances(perf, where + ": performance", g.performance_default, g.performance);
   if (perf.contains("report_only")) g.performance_report_only = json_file::get<std::vector<std::string>>(perf, "report_only", where + ": performance");
+  if (j.contains("instructions"))  // optional: gates written before the instruction gate
+    g.instructions_default =
+        json_file::number(json_file::get<json>(j, "instructions", where), "default_tolerance", where + ": instructions");
   const json ahead = json_file::get<json>(j, "ahead", where);
   g.ahead_method = json_file::get<std::string>(ahead, "method", where + ": ahead");
   g.ahead_of = json_file::get<std::vector<std::string>>(ahead, "of", where + ": ahead");
@@ -305,12 +350,13 @@ std::string Verdict::markdown(const Summary& baseline, const Summary& current) c
       o += "| scene | methods | MSE | baseline method's MSE | |\n|---|---|---:|---:|---|\n";
     else
       o += fmt::format("| {} | method | baseline | new | change | tolerance | |\n|---|---|---:|---:|---:|---:|---|\n",
-                       gate == "performance" ? "case (frame)" : "scene");
+                       gate == "performance" ? "case (frame)" : gate == "instructions" ? "case" : "scene");
     o += t;
   };
   table("quality", "Quality (MSE, 8-bit)");
   table("ahead", "Ahead (MSE must be lower)");
   table("performance", "Performance (time / reference workload)");
+  table("instructions", "Instructions (one run, callgrind)");
   return o;
 }
 
@@ -356,6 +402,7 @@ void append_history(const std::string& path, const Summary& current, const Verdi
   row["failed_checks"] = failed;
   for (const auto& e : current.quality) row[fmt::format("mse/{}/{}", e.scene, e.method)] = fmt::format("{:.9g}", e.mse);
   for (const auto& e : current.performance) row["ratio/" + e.name] = fmt::format("{:.6g}", e.ratio);
+  for (const auto& e : current.instructions) row["instructions/" + e.name] = fmt::format("{:.0f}", e.instructions);
   for (const auto& [k, _] : row)
     if (std::find(header.begin(), header.end(), k) == header.end()) header.push_back(k);
   rows.push_back(row);

@@ -144,6 +144,49 @@ void check_performance(const Summary& baseline, const Summary& current, const Ga
     if (!old_names.count(e.name)) v.notes.push_back(fmt::format("benchmark case {}: new in this run, no baseline (not gated)", e.name));
 }
 
+// Each case's instruction count against the baseline's: same CPU model only (another processor
+// runs other code paths of OpenCV, Embree and the compiler's dispatch), and only when both the
+// baseline and the run counted (a note says why when not).
+void check_instructions(const Summary& baseline, const Summary& current, const Gates& gates, Verdict& v) {
+  if (baseline.instructions.empty()) {
+    if (!current.instructions.empty())
+      v.notes.push_back("instruction gate skipped: the baseline has no instruction counts (accept a run with instructions.json)");
+    return;
+  }
+  if (current.instructions.empty()) {
+    v.notes.push_back("instruction gate skipped: this run has no instruction counts (RUN_DIR/instructions.json, "
+                      "scripts/nightly_instructions)");
+    return;
+  }
+  if (baseline.instructions_cpu_model != current.instructions_cpu_model) {
+    v.notes.push_back(fmt::format("instruction gate skipped: the baseline's counts come from '{}', this run's from '{}'",
+                                  baseline.instructions_cpu_model, current.instructions_cpu_model));
+    return;
+  }
+  std::map<std::string, const InstrEntry*> now;
+  for (const auto& e : current.instructions) now[e.name] = &e;
+  const double tol = gates.instructions_default;
+  for (const auto& old : baseline.instructions) {
+    auto it = now.find(old.name);
+    if (it == now.end())
+      throw InputError(fmt::format("the run has no instruction count for case {} (the baseline has it): run "
+                                   "scripts/nightly_instructions with the same cases",
+                                   old.name));
+    const double n = it->second->instructions;
+    Finding f{"instructions", old.name, old.method, "instructions", old.instructions, n, old.instructions * (1.0 + tol),
+              "", false, ""};
+    f.failed = !(n <= f.limit);
+    f.message = fmt::format("instructions: case {}, method {}, {} from {} to {} ({}, tolerance +{:.1f}%)", old.name,
+                            old.method, f.failed ? "rose" : "went", format_value(old.instructions), format_value(n),
+                            format_percent(n / old.instructions - 1.0), 100.0 * tol);
+    v.findings.push_back(f);
+  }
+  std::set<std::string> old_names;
+  for (const auto& e : baseline.instructions) old_names.insert(e.name);
+  for (const auto& e : current.instructions)
+    if (!old_names.count(e.name)) v.notes.push_back(fmt::format("instruction count of case {}: new in this run, no baseline (not gated)", e.name));
+}
+
 // Why the performance gate cannot run, or "" when it can (InputError where it must and cannot).
 std::string performance_skipped(const Summary& baseline, const Summary& current, const CheckOptions& options) {
   if (!options.performance) return "performance gate not run (asked for quality only)";
@@ -175,6 +218,7 @@ Verdict check(const Summary& baseline, const Summary& current, const Gates& gate
     v.notes.push_back(skipped);
   else
     check_performance(baseline, current, gates, v);
+  if (options.performance) check_instructions(baseline, current, gates, v);
   return v;
 }
 

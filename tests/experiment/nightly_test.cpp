@@ -223,6 +223,76 @@ TEST(NightlyCheck, MissingEntriesAndOtherConfigsAreInputErrors) {
   EXPECT_THAT(message(now), AllOf(HasSubstr("width"), HasSubstr("256"), HasSubstr("64")));
 }
 
+// The instruction gate (scripts/nightly_instructions' counts): a rise beyond the tolerance
+// fails naming the case, method and both counts; within it, or a fall, passes; another CPU or
+// a side without counts skips it with a note; the counts survive the summary's JSON.
+TEST(NightlyCheck, InstructionCountsRisingBeyondTheToleranceFail) {
+  Summary base = example();
+  base.instructions = {{"nightly/guided/64x48/threads:1", "guided", 8.0e7}, {"nightly/proposed/64x48/threads:1", "proposed", 4.0e8}};
+  base.instructions_cpu_model = "CPU X";
+  Summary now = base;
+  now.instructions[1].instructions = 4.2e8;  // +5% > 3%
+  now.instructions[0].instructions = 8.1e7;  // +1.25%: passes
+  Gates g = example_gates();
+  EXPECT_DOUBLE_EQ(g.instructions_default, 0.03);
+  const auto f = failed(check(base, now, g));
+  ASSERT_EQ(f.size(), 1u);
+  EXPECT_EQ(f[0].gate, "instructions");
+  EXPECT_EQ(f[0].method, "proposed");
+  EXPECT_THAT(f[0].message, AllOf(HasSubstr("nightly/proposed/64x48/threads:1"), HasSubstr("rose from 4e+08 to 4.2e+08"),
+                                  HasSubstr("+5.0%"), HasSubstr("tolerance +3.0%")));
+  EXPECT_THAT(check(base, now, g).markdown(base, now), HasSubstr("## Instructions (one run, callgrind)"));
+  g.instructions_default = 0.06;  // read from gates.json
+  EXPECT_TRUE(check(base, now, Gates::from_json(json::parse(g.to_json().dump()), "g")).passed());
+
+  Summary other_cpu = now;
+  other_cpu.instructions_cpu_model = "CPU Y";
+  const Verdict v = check(base, other_cpu, example_gates());
+  EXPECT_TRUE(v.passed());
+  EXPECT_THAT(v.notes, testing::Contains(AllOf(HasSubstr("instruction gate skipped"), HasSubstr("CPU Y"))));
+  Summary uncounted = now;
+  uncounted.instructions.clear();
+  EXPECT_THAT(check(base, uncounted, example_gates()).notes,
+              testing::Contains(HasSubstr("this run has no instruction counts")));
+  Summary missing = now;
+  missing.instructions.pop_back();
+  EXPECT_THROW(check(base, missing, example_gates()), InputError);
+
+  const Summary back = Summary::from_json(json::parse(now.to_json().dump()), "summary");
+  ASSERT_EQ(back.instructions.size(), 2u);
+  EXPECT_EQ(back.instructions[1].instructions, 4.2e8);
+  EXPECT_EQ(back.instructions_cpu_model, "CPU X");
+  // A summary from before the gate (no "instructions" key) still reads, with no counts.
+  json old = base.to_json();
+  old.erase("instructions");
+  EXPECT_TRUE(Summary::from_json(old, "old").instructions.empty());
+}
+
+TEST(NightlySummary, ReadsInstructionCountsAndRefusesMalformedOnes) {
+  const json doc = {{"format", "denoisebench-instructions-1"},
+                    {"context", {{"cpu_model", "CPU X"}}},
+                    {"cases", {{{"name", "nightly/nfor/64x48/threads:1"}, {"instructions", 20241080582}}}}};
+  Summary s;
+  add_instructions(s, doc, "i.json");
+  ASSERT_EQ(s.instructions.size(), 1u);
+  EXPECT_EQ(s.instructions[0].method, "nfor");
+  EXPECT_EQ(s.instructions[0].instructions, 20241080582.0);
+  EXPECT_EQ(s.instructions_cpu_model, "CPU X");
+  auto error = [](json d) { return test::error_of<InputError>([&] { Summary t; add_instructions(t, d, "i.json"); }); };
+  json bad = doc;
+  bad["format"] = "other";
+  EXPECT_THAT(error(bad), AllOf(HasSubstr("i.json"), HasSubstr("format")));
+  bad = doc;
+  bad["cases"][0]["instructions"] = 0;
+  EXPECT_THAT(error(bad), AllOf(HasSubstr("cases[0]"), HasSubstr("positive")));
+  bad = doc;
+  bad["cases"][0]["name"] = "guided";
+  EXPECT_THAT(error(bad), AllOf(HasSubstr("cases[0]"), HasSubstr("nightly/<method>")));
+  bad = doc;
+  bad["cases"] = json::array();
+  EXPECT_THAT(error(bad), HasSubstr("cases"));
+}
+
 TEST(NightlyCheck, NewEntriesAreNotedNotGated) {
   const Summary base = example();
   Summary now = base;
