@@ -84,16 +84,8 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
     state.SkipWithError(e.what());
     return;
   }
-  const ReferenceWorkload workload(c.threads);
-  auto clock = c.threads == 1 ? process_cpu_seconds : wall_seconds;
-  auto time_of = [&](auto&& f) {
-    const double t0 = clock();
-    f();
-    return clock() - t0;
-  };
   auto run = [&] { benchmark::DoNotOptimize(run_method(*method, in).image.data()); };
-
-  if (c.count_instructions) {
+  if (c.count_instructions) {  // no reference workload: nothing is timed
     // Warm-up outside the count (first-use initialisation in OpenCV, TBB, the allocator), then
     // one run with callgrind collecting (the macros do nothing outside valgrind).
     run();
@@ -105,6 +97,14 @@ void run_nightly_case(benchmark::State& state, const std::string& case_name, con
     state.counters["under_valgrind"] = RUNNING_ON_VALGRIND ? 1 : 0;
     return;
   }
+
+  const ReferenceWorkload workload(c.threads);
+  auto clock = c.threads == 1 ? process_cpu_seconds : wall_seconds;
+  auto time_of = [&](auto&& f) {
+    const double t0 = clock();
+    f();
+    return clock() - t0;
+  };
 
   int& units = workload_units(case_name);
   if (units == 0) {  // first call: warm-up of both, and the workload's repeat count

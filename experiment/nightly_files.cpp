@@ -36,6 +36,12 @@ std::string case_name(std::string name) {
   return name;
 }
 
+// The method of a nightly case name, nightly/<method>/<size>/threads:<n>.
+std::string method_of_case(const std::string& name) {
+  const auto first = name.find('/'), second = name.find('/', first + 1);
+  return name.substr(first + 1, second - first - 1);
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -152,9 +158,7 @@ void add_benchmarks(Summary& s, const json& bench, const std::string& where_benc
     PerfEntry e;
     e.name = name;
     e.error = a.error;
-    // nightly/<method>/<size>/threads:<n>
-    const auto first = name.find('/'), second = name.find('/', first + 1);
-    e.method = name.substr(first + 1, second - first - 1);
+    e.method = method_of_case(name);
     e.frame = a.frame;
     e.ratio = stats::median(a.ratio);  // NaN when every repetition failed (e.error says why)
     e.ratio_min = a.ratio.empty() ? NAN : *std::min_element(a.ratio.begin(), a.ratio.end());
@@ -180,8 +184,7 @@ void add_instructions(Summary& s, const json& doc, const std::string& where) {
     e.name = json_file::get<std::string>(cases[i], "name", w);
     if (e.name.rfind("nightly/", 0) != 0 || std::count(e.name.begin(), e.name.end(), '/') < 3)
       throw InputError(fmt::format("{}: key 'name': expected nightly/<method>/<size>/threads:<n>, got '{}'", w, e.name));
-    const auto first = e.name.find('/'), second = e.name.find('/', first + 1);
-    e.method = e.name.substr(first + 1, second - first - 1);
+    e.method = method_of_case(e.name);
     e.instructions = json_file::number(cases[i], "instructions", w);
     if (!(e.instructions > 0)) throw InputError(fmt::format("{}: key 'instructions': expected a positive count", w));
     s.instructions.push_back(e);

@@ -212,11 +212,29 @@ class Sampler {
   // Sequence mode: sample s of pixel `pixel` of a render with `seed`.
   static Sampler pixel_sample(std::uint64_t seed, std::uint64_t pixel, std::uint64_t s) {
     Sampler r;  // not the independent mode's key (three hashes per sample): this mode's, below
-    r.key_ = mix64(mix64(mix64(seed ^ 0x243f6a8885a308d3ULL) + pixel * 0x9e3779b97f4a7c15ULL) + (s % kGroups));
+    r.key_ = group_key(pixel_key(seed, pixel), int(s % kGroups));
     r.index_reversed_ = reverse_bits(std::uint32_t(s / kGroups));
-    r.sample_key_ = mix64(r.key_ + (s / kGroups + 1) * 0x9e3779b97f4a7c15ULL);
+    r.sample_key_ = sample_key(r.key_, s / kGroups);
     r.sequence_ = true;
     return r;
+  }
+
+  // The sequence mode's keys and scrambles, one definition for pixel_sample and SampleTable (whose
+  // numbers must agree bit for bit): a pixel's key, its group g's key, the key of point i of a
+  // group (the hashed dimensions), and the scrambles of a pair of dimensions of a group.
+  static std::uint64_t pixel_key(std::uint64_t seed, std::uint64_t pixel) {
+    return mix64(mix64(seed ^ 0x243f6a8885a308d3ULL) + pixel * 0x9e3779b97f4a7c15ULL);
+  }
+  static std::uint64_t group_key(std::uint64_t pixel_key, int g) { return mix64(pixel_key + std::uint64_t(g)); }
+  static std::uint64_t sample_key(std::uint64_t group_key, std::uint64_t i) {
+    return mix64(group_key + (i + 1) * 0x9e3779b97f4a7c15ULL);
+  }
+  struct PairScrambles {
+    std::uint32_t s1, s2, s3;  // the index shuffle's, and the x and y coordinates'
+  };
+  static PairScrambles pair_scrambles(std::uint64_t group_key, std::uint32_t pair) {
+    const std::uint64_t h = mix64(group_key + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
+    return {std::uint32_t(h), std::uint32_t(h >> 32), std::uint32_t((h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ULL >> 32)};
   }
 
   // The next dimension's uniform number in [0, 1).
@@ -234,10 +252,8 @@ class Sampler {
   void start_vertex(int v) { base_ = std::uint32_t(dims::kFilmDims + dims::kVertexDims * (v - 1)); }
   std::uint32_t dimension() const { return dim_; }
 
-  // A placeholder to assign a sampler to (arrays of samplers); its numbers are not meant for use.
-  Sampler() = default;
-
  private:
+  Sampler() = default;
   // The pair of dimensions holding d: Burley's construction, computed on bit-reversed words
   // (the Laine-Karras permutation scrambles a reversed word's digits), which saves half of the
   // reversals: with R = reverse_bits, LK = laine_karras_permutation, ri = R(index),
@@ -257,11 +273,10 @@ class Sampler {
     if (table_) return table_[d * kTableSamples];
     const std::uint32_t pair = d >> 1;
     if (pair != pair_) {
-      const std::uint64_t h = mix64(key_ + std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL);
-      const std::uint32_t s1 = std::uint32_t(h);
-      j_ = reverse_bits(laine_karras_permutation(index_reversed_, s1) ^ laine_karras_permutation(0, s1));
-      s2_ = std::uint32_t(h >> 32);
-      s3_ = std::uint32_t((h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ULL >> 32);
+      const PairScrambles p = pair_scrambles(key_, pair);
+      j_ = reverse_bits(laine_karras_permutation(index_reversed_, p.s1) ^ laine_karras_permutation(0, p.s1));
+      s2_ = p.s2;
+      s3_ = p.s3;
       pair_ = pair;
     }
     // Each coordinate when asked for (a path uses one of some pairs: the lobe only on coated
@@ -300,7 +315,7 @@ class SampleTable {
     const std::uint64_t i = s / Sampler::kGroups;
     Sampler r;
     r.key_ = group_key_[g];  // index_reversed_ and the pair cache stay unused: the table has them
-    r.sample_key_ = mix64(r.key_ + (i + 1) * 0x9e3779b97f4a7c15ULL);
+    r.sample_key_ = Sampler::sample_key(r.key_, i);
     r.sequence_ = true;
     r.table_ = &values_[std::size_t(s - begin_)];
     return r;

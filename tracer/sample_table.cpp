@@ -12,8 +12,8 @@ void SampleTable::prepare(std::uint64_t seed, std::uint64_t pixel, std::uint64_t
   constexpr int G = Sampler::kGroups;
   static_assert(G == 8, "a vector of eight lanes holds one sample of each group");
   begin_ = begin;
-  const std::uint64_t pixel_key = mix64(mix64(seed ^ 0x243f6a8885a308d3ULL) + pixel * 0x9e3779b97f4a7c15ULL);
-  for (int g = 0; g < G; ++g) group_key_[g] = mix64(pixel_key + std::uint64_t(g));
+  const std::uint64_t pixel_key = Sampler::pixel_key(seed, pixel);
+  for (int g = 0; g < G; ++g) group_key_[g] = Sampler::group_key(pixel_key, g);
   const int n = int(std::min<std::uint64_t>(end - begin, kMaxSamples) + G - 1) / G * G;  // whole vectors
   // Lane l of a vector holds sample begin + 8 v + l: group (begin + l) mod 8, point index
   // (begin + l) / 8 + v.
@@ -29,15 +29,13 @@ void SampleTable::prepare(std::uint64_t seed, std::uint64_t pixel, std::uint64_t
   for (int l = 0; l < G; ++l) lane_key[l] = group_key_[(begin + std::uint64_t(l)) % G];
   for (int pair = 0; pair < dims::kSequenceDims / 2; ++pair) {
     // The lanes' scrambles for this pair (a loop of 64-bit hashes the compiler vectorises too).
-    alignas(32) std::uint64_t h[G];
     alignas(32) std::uint32_t s1[G], s2[G], s3[G], shift0[G];
-    const std::uint64_t pair_offset = std::uint64_t(pair + 1) * 0xd1b54a32d192ed03ULL;
-    for (int l = 0; l < G; ++l) h[l] = mix64(lane_key[l] + pair_offset);
     for (int l = 0; l < G; ++l) {
-      s1[l] = std::uint32_t(h[l]);
-      s2[l] = std::uint32_t(h[l] >> 32);
-      s3[l] = std::uint32_t((h[l] ^ (h[l] >> 29)) * 0xbf58476d1ce4e5b9ULL >> 32);
-      shift0[l] = laine_karras_permutation(0, s1[l]);
+      const Sampler::PairScrambles p = Sampler::pair_scrambles(lane_key[l], std::uint32_t(pair));
+      s1[l] = p.s1;
+      s2[l] = p.s2;
+      s3[l] = p.s3;
+      shift0[l] = laine_karras_permutation(0, p.s1);
     }
     float* xs = &values_[std::size_t(2 * pair) * kMaxSamples];
     float* ys = &values_[std::size_t(2 * pair + 1) * kMaxSamples];
