@@ -20,6 +20,7 @@
 
 #include "core/errors.h"
 #include "denoisers/am_run.h"
+#include "denoisers/transpose8.h"
 
 namespace dnb {
 
@@ -105,36 +106,34 @@ AmRun::AmRun(ConstImageView src, ConstImageView guide, const AmSettings& s, cons
 // horizontal low-pass on the interleaved rows (recursive_interleaved), in pairs of rows; then
 // the vertical half.
 void AmRun::copy_and_low_pass_guide(ConstImageView src, ConstImageView guide) {
-  guide_ = Planes(W_, H_, D_);
-  src_ = Planes(W_, H_, C_);
-  eta_full_ = Planes(W_, H_, D_);
+  // Every element of the three is written below.
+  guide_ = Planes(W_, H_, D_, Planes::Overwritten{});
+  src_ = Planes(W_, H_, C_, Planes::Overwritten{});
+  eta_full_ = Planes(W_, H_, D_, Planes::Overwritten{});
   const int nb = (D_ + 7) / 8, dp = 8 * nb;
   const std::vector<float> a_first = domain_transform::low_pass_weights(W_, s_.sigma_s);
   tbb::parallel_for(tbb::blocked_range<int>(0, (H_ + 1) / 2), [&](const tbb::blocked_range<int>& range) {
-    std::vector<float> buf(std::size_t(2) * W_ * dp, 0.0f);
+    std::vector<float> buf(std::size_t(2) * W_ * dp), zeros(std::size_t(W_), 0.0f), sink(8);
+    std::vector<float*> gp(static_cast<std::size_t>(D_)), sp(static_cast<std::size_t>(C_));
     float* rows[2] = {buf.data(), buf.data() + std::size_t(W_) * dp};
     for (int t = range.begin(); t != range.end(); ++t) {
       const int y0 = 2 * t, n = std::min(2, H_ - y0);
+      // The layout moves by 8 x 8 transposes (transpose8.h): the input's pixels to the planar
+      // copies, the guide's planes to the interleaved rows, and those back to eta's planes.
       for (int r = 0; r < n; ++r) {
         const int y = y0 + r;
-        for (int x = 0; x < W_; ++x) {
-          const float* g = guide.pixel(x, y);
-          float* b = rows[r] + std::size_t(x) * dp;
-          for (int c = 0; c < D_; ++c) {
-            guide_.row(c, y)[x] = g[c];
-            b[c] = g[c];
-          }
-          const float* f = src.pixel(x, y);
-          for (int c = 0; c < C_; ++c) src_.row(c, y)[x] = f[c];
-        }
+        for (int c = 0; c < D_; ++c) gp[std::size_t(c)] = guide_.row(c, y);
+        for (int c = 0; c < C_; ++c) sp[std::size_t(c)] = src_.row(c, y);
+        from_interleaved(guide.pixel(0, y), D_, W_, gp.data(), D_, sink.data());
+        from_interleaved(src.pixel(0, y), C_, W_, sp.data(), C_, sink.data());
+        to_interleaved(gp.data(), D_, W_, rows[r], dp, zeros.data());
       }
       const float* a[2] = {a_first.data(), a_first.data()};
       domain_transform::recursive_interleaved(rows, a, W_, nb, n);
-      for (int r = 0; r < n; ++r)
-        for (int x = 0; x < W_; ++x) {
-          const float* b = rows[r] + std::size_t(x) * dp;
-          for (int c = 0; c < D_; ++c) eta_full_.row(c, y0 + r)[x] = b[c];
-        }
+      for (int r = 0; r < n; ++r) {
+        for (int c = 0; c < D_; ++c) gp[std::size_t(c)] = eta_full_.row(c, y0 + r);
+        from_interleaved(rows[r], dp, W_, gp.data(), D_, sink.data());
+      }
     }
   });
   domain_transform::recursive_filter_vertical(eta_full_, 0, D_, [&](int) { return a_first.data(); });
@@ -154,6 +153,8 @@ void AmRun::index_queries() {
     for (int c = 0; c < D_; ++c) qg_[std::size_t(c) * nq_ + q] = queries_[q].guide[c];
   });
   for (std::size_t q = 0; q < queries_.size(); ++q) {
+    const AmQuery& a = queries_[q];
+    if (a.x < 0 || a.x >= W_ || a.y < 0 || a.y >= H_) throw WorkError("am_filter: a slice query lies outside the image");
     if (q == 0 || queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) qrun_.push_back(q);
   }
   qrun_.push_back(queries_.size());

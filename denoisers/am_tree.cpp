@@ -18,6 +18,7 @@
 #include <tbb/parallel_for.h>
 
 #include "denoisers/am_run.h"
+#include "denoisers/transpose8.h"
 
 namespace dnb::am_detail {
 
@@ -339,21 +340,21 @@ void AmRun::splat_children_row(int y, const float* tl, const float* tr, float* c
   }
 }
 
-// The children's column sums of reduced row sy, reduced per block into their interleaved rows.
+// The children's column sums of reduced row sy, reduced per block into planar rows, then moved
+// to their interleaved rows (transpose8.h; the padding channels get zeros).
 void AmRun::store_children_block(Node* nodes, int m, int sy, Scratch& sc, float inv_rows) const {
   const std::size_t kid_cols = std::size_t(2 * (D_ + 1)) * W_;
-  float* tmp = sc.tmp.data();
+  sc.kid.resize(std::size_t(D_ + 1) * sw_);
+  sc.zeros.resize(std::size_t(sw_));  // only ever zeros
+  sc.ptrs.resize(std::size_t(D_ + 1));
+  for (int c = 0; c <= D_; ++c) sc.ptrs[std::size_t(c)] = sc.kid.data() + std::size_t(c) * sw_;
   for (int k = 0; k < m; ++k) {
     const float* col = sc.colsum.data() + std::size_t(k) * kid_cols;
     for (int side = 0; side < 2; ++side) {
       Interleaved& kid = nodes[k].kids[side];
-      float* out = kid.row(sy);
-      for (int c = 0; c <= D_; ++c) {
-        grid_.reduce_columns(col + std::size_t(side * (D_ + 1) + c) * W_, tmp, inv_rows);
-        for (int sx = 0; sx < sw_; ++sx) out[std::size_t(sx) * kid.dp + c] = tmp[std::size_t(sx)];
-      }
-      for (int sx = 0; sx < sw_; ++sx)
-        for (int c = D_ + 1; c < kid.dp; ++c) out[std::size_t(sx) * kid.dp + c] = 0.0f;
+      for (int c = 0; c <= D_; ++c)
+        grid_.reduce_columns(col + std::size_t(side * (D_ + 1) + c) * W_, sc.ptrs[std::size_t(c)], inv_rows);
+      to_interleaved(sc.ptrs.data(), D_ + 1, sw_, kid.row(sy), kid.dp, sc.zeros.data());
     }
   }
 }
@@ -367,15 +368,20 @@ void AmRun::make_children(Node& n, std::vector<Node>& next) const {
     Node child;
     child.id = 2 * n.id + c2;
     child.eta_small = Planes(sw_, sh_, D_, Planes::Overwritten{});
-    tbb::parallel_for(0, sh_, [&](int sy) {
-      const float* px = p.row(sy);
-      const int dp = p.dp;
-      for (int c = 0; c < D_; ++c) {
-        const float* parent = n.eta_small.row(c, sy);
-        float* e = child.eta_small.row(c, sy);
-        for (int i = 0; i < sw_; ++i) {
-          const float num = px[std::size_t(i) * dp + c], dn = px[std::size_t(i) * dp + D_];
-          e[i] = dn > 1e-20f ? num / dn : parent[i];
+    // Each reduced row's sums moved to planar rows first (transpose8.h), so that the divisions
+    // run along rows in vector code.
+    tbb::parallel_for(tbb::blocked_range<int>(0, sh_), [&](const tbb::blocked_range<int>& range) {
+      std::vector<float> planar(std::size_t(D_ + 1) * sw_), sink(8);
+      std::vector<float*> rows(std::size_t(D_ + 1));
+      for (int c = 0; c <= D_; ++c) rows[std::size_t(c)] = planar.data() + std::size_t(c) * sw_;
+      const float* dn = rows[std::size_t(D_)];
+      for (int sy = range.begin(); sy != range.end(); ++sy) {
+        from_interleaved(p.row(sy), p.dp, sw_, rows.data(), D_ + 1, sink.data());
+        for (int c = 0; c < D_; ++c) {
+          const float* parent = n.eta_small.row(c, sy);
+          const float* num = rows[std::size_t(c)];
+          float* e = child.eta_small.row(c, sy);
+          for (int i = 0; i < sw_; ++i) e[i] = dn[i] > 1e-20f ? num[i] / dn[i] : parent[i];
         }
       }
     });

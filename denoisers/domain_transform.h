@@ -19,6 +19,7 @@
 #include <tbb/parallel_for.h>
 
 #include "denoisers/buffer_pool.h"
+#include "denoisers/transpose8.h"
 
 namespace dnb::domain_transform {
 
@@ -115,26 +116,6 @@ inline void recursive_interleaved(float* const* rows, const float* const* a, int
   }
 }
 
-// Moves row y of planes [first, first + count) to the pixel-interleaved row `il` (stride dp),
-// or back when kBack, in blocks of 8 pixels so the transposes stay in registers.
-template <bool kBack>
-void interleave(Planes& p, int first, int count, int y, float* il, int dp) {
-  float* rows[32];
-  for (int c0 = 0; c0 < count; c0 += 32) {
-    const int m = std::min(32, count - c0);
-    for (int c = 0; c < m; ++c) rows[c] = p.row(first + c0 + c, y);
-    for (int x0 = 0; x0 < p.w; x0 += 8) {
-      const int xn = std::min(8, p.w - x0);
-      for (int c = 0; c < m; ++c)
-        for (int k = 0; k < xn; ++k) {
-          float& v = il[std::size_t(x0 + k) * dp + c0 + c];
-          if constexpr (kBack) rows[c][x0 + k] = v;
-          else v = rows[c][x0 + k];
-        }
-    }
-  }
-}
-
 // Recursive filter, one causal and one anti-causal pass per direction (Gastal and Oliveira
 // 2011, domain transform RF): out[x] += a_x (out[x-1] - out[x]) with a per-edge feedback a_x.
 // `wh(y)` returns the w-1 horizontal edge weights of row y, `wv(y)` the w vertical weights
@@ -147,7 +128,10 @@ void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
   const int nb = (count + 7) / 8, dp = 8 * nb;
   const int groups = (h + kRowGroup - 1) / kRowGroup;
   tbb::parallel_for(tbb::blocked_range<int>(0, groups), [&](const tbb::blocked_range<int>& range) {
-    std::vector<float> buf(std::size_t(kRowGroup) * w * dp, 0.0f);
+    // The rows' planes moved to interleaved buffers and back (am_detail's 8 x 8 transposes);
+    // `zeros` fills the padding channels, `sink` takes their way back.
+    std::vector<float> buf(std::size_t(kRowGroup) * w * dp), zeros(std::size_t(w), 0.0f), sink(8);
+    std::vector<float*> planes(static_cast<std::size_t>(count));
     float* rows[kRowGroup];
     const float* a[kRowGroup];
     for (int r = 0; r < kRowGroup; ++r) rows[r] = buf.data() + std::size_t(r) * w * dp;
@@ -155,10 +139,14 @@ void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
       const int y0 = g * kRowGroup, n = std::min(kRowGroup, h - y0);
       for (int r = 0; r < n; ++r) {
         a[r] = wh(y0 + r);
-        interleave<false>(p, first, count, y0 + r, rows[r], dp);
+        for (int c = 0; c < count; ++c) planes[std::size_t(c)] = p.row(first + c, y0 + r);
+        am_detail::to_interleaved(planes.data(), count, w, rows[r], dp, zeros.data());
       }
       recursive_interleaved(rows, a, w, nb, n);
-      for (int r = 0; r < n; ++r) interleave<true>(p, first, count, y0 + r, rows[r], dp);
+      for (int r = 0; r < n; ++r) {
+        for (int c = 0; c < count; ++c) planes[std::size_t(c)] = p.row(first + c, y0 + r);
+        am_detail::from_interleaved(rows[r], dp, w, planes.data(), count, sink.data());
+      }
     }
   });
   recursive_filter_vertical(p, first, count, wv);
