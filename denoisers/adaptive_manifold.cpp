@@ -47,14 +47,18 @@ Image make_guide(const std::vector<GuideGroup>& groups, float sigma_r) {
     d += g.image.channels;
   }
   Image out(w, h, d);
+  // Group by group along each row (a group's scale and channel count fixed for the row's loop).
   tbb::parallel_for(0, h, [&](int y) {
-    float* o = out.pixel(0, y);
-    for (int x = 0; x < w; ++x) {
-      for (const auto& g : groups) {
-        const float s = sigma_r / g.sigma;
-        const float* p = g.image.pixel(x, y);
-        for (int c = 0; c < g.image.channels; ++c) *o++ = s * p[c];
-      }
+    float* const row = out.pixel(0, y);
+    int off = 0;
+    for (const auto& g : groups) {
+      const float s = sigma_r / g.sigma;
+      const float* p = g.image.pixel(0, y);
+      const int n = g.image.channels;
+      float* o = row + off;
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < n; ++c) o[std::size_t(x) * d + c] = s * p[std::size_t(x) * n + c];
+      off += n;
     }
   });
   return out;
@@ -195,17 +199,26 @@ Image AmRun::run(std::vector<float>* query_out) {
 Image AmRun::normalised_output() const {
   Image out(W_, H_, C_);
   const float alpha_k = float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r));
-  tbb::parallel_for(0, H_, [&](int y) {
-    for (int x = 0; x < W_; ++x) {
-      const std::size_t i = std::size_t(y) * W_ + x;
-      const float den = acc_.row(C_, y)[x];
-      const float alpha = s_.adjust_outliers ? std::exp(alpha_k * min_d2_[i]) : 1.0f;
-      float* o = out.pixel(x, y);
+  // Row by row: the adjustment's weights first (libm's exp, one call a pixel), then each channel
+  // in a loop of its own, which vectorises.
+  tbb::parallel_for(tbb::blocked_range<int>(0, H_), [&](const tbb::blocked_range<int>& range) {
+    std::vector<float> alpha(std::size_t(W_), 1.0f);
+    for (int y = range.begin(); y != range.end(); ++y) {
+      if (s_.adjust_outliers) {
+        const float* md = min_d2_.data() + std::size_t(y) * W_;
+        for (int x = 0; x < W_; ++x) alpha[std::size_t(x)] = std::exp(alpha_k * md[x]);
+      }
+      const float* __restrict den = acc_.row(C_, y);
+      const float* __restrict al = alpha.data();
+      float* __restrict o = out.pixel(0, y);
       for (int c = 0; c < C_; ++c) {
-        const float f = src_.row(c, y)[x];
-        // No manifold reached this pixel (all weights underflowed): it is its own estimate.
-        const float g = den > kAmMinWeight ? acc_.row(c, y)[x] / den : f;
-        o[c] = f + alpha * (g - f);
+        const float* __restrict f = src_.row(c, y);
+        const float* __restrict a = acc_.row(c, y);
+        for (int x = 0; x < W_; ++x) {
+          // No manifold reached this pixel (all weights underflowed): it is its own estimate.
+          const float g = den[x] > kAmMinWeight ? a[x] / den[x] : f[x];
+          o[std::size_t(x) * C_ + c] = f[x] + al[x] * (g - f[x]);
+        }
       }
     }
   });
