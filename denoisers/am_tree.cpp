@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 
 #include <opencv2/core/hal/hal.hpp>
 #include <tbb/parallel_for.h>
@@ -120,15 +121,22 @@ void AmRun::splat_block(Node* nodes, int m, bool split, int sy) {
 // (into n.w), the nearest distance so far, and (w src, w) added to the column sums `col`.
 void AmRun::weigh_and_splat_row(Node& n, int y, Scratch& sc, float* col) {
   eta_row(n.eta_full, n.eta_small, y, sc.eta.data(), sc.tmp.data());
-  std::fill(sc.d2.begin(), sc.d2.end(), 0.0f);
+  // The first channel sets d2 (X^2 is what 0 + X^2 rounds to, fused or not), the others add.
   for (int c = 0; c < D_; ++c) {
     const float* g = guide_.row(c, y);
     const float* e = sc.eta.data() + std::size_t(c) * W_;
     float* X = sc.x.data() + std::size_t(c) * W_;
     float* d2 = sc.d2.data();
-    for (int x = 0; x < W_; ++x) {
-      X[x] = g[x] - e[x];
-      d2[x] += X[x] * X[x];
+    if (c == 0) {
+      for (int x = 0; x < W_; ++x) {
+        X[x] = g[x] - e[x];
+        d2[x] = X[x] * X[x];
+      }
+    } else {
+      for (int x = 0; x < W_; ++x) {
+        X[x] = g[x] - e[x];
+        d2[x] += X[x] * X[x];
+      }
     }
   }
   float* wrow = n.w.data() + std::size_t(y) * W_;
@@ -371,9 +379,10 @@ void AmRun::make_children(Node& n, std::vector<Node>& next) const {
     // Each reduced row's sums moved to planar rows first (transpose8.h), so that the divisions
     // run along rows in vector code.
     tbb::parallel_for(tbb::blocked_range<int>(0, sh_), [&](const tbb::blocked_range<int>& range) {
-      std::vector<float> planar(std::size_t(D_ + 1) * sw_), sink(8);
+      std::unique_ptr<float[]> planar(new float[std::size_t(D_ + 1) * sw_]);  // overwritten row by row
+      std::vector<float> sink(8);
       std::vector<float*> rows(std::size_t(D_ + 1));
-      for (int c = 0; c <= D_; ++c) rows[std::size_t(c)] = planar.data() + std::size_t(c) * sw_;
+      for (int c = 0; c <= D_; ++c) rows[std::size_t(c)] = planar.get() + std::size_t(c) * sw_;
       const float* dn = rows[std::size_t(D_)];
       for (int sy = range.begin(); sy != range.end(); ++sy) {
         from_interleaved(p.row(sy), p.dp, sw_, rows.data(), D_ + 1, sink.data());

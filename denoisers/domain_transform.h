@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 #include <tbb/blocked_range.h>
@@ -130,11 +131,12 @@ void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
   tbb::parallel_for(tbb::blocked_range<int>(0, groups), [&](const tbb::blocked_range<int>& range) {
     // The rows' planes moved to interleaved buffers and back (am_detail's 8 x 8 transposes);
     // `zeros` fills the padding channels, `sink` takes their way back.
-    std::vector<float> buf(std::size_t(kRowGroup) * w * dp), zeros(std::size_t(w), 0.0f), sink(8);
+    std::unique_ptr<float[]> buf(new float[std::size_t(kRowGroup) * w * dp]);  // written in full by the moves
+    std::vector<float> zeros(std::size_t(w), 0.0f), sink(8);
     std::vector<float*> planes(static_cast<std::size_t>(count));
     float* rows[kRowGroup];
     const float* a[kRowGroup];
-    for (int r = 0; r < kRowGroup; ++r) rows[r] = buf.data() + std::size_t(r) * w * dp;
+    for (int r = 0; r < kRowGroup; ++r) rows[r] = buf.get() + std::size_t(r) * w * dp;
     for (int g = range.begin(); g != range.end(); ++g) {
       const int y0 = g * kRowGroup, n = std::min(kRowGroup, h - y0);
       for (int r = 0; r < n; ++r) {
