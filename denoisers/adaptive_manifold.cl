@@ -230,8 +230,9 @@ __kernel void splat_group(int W, int H, int sw, int sh, int df, int m, __global 
       // The covariance only where a lane holds a pixel of the cluster: elsewhere every term is a
       // zero, which changes no sum (below the root a cluster holds part of each row: on
       // conference at 1024x768, 43% of the pixels of the rows it reaches).
-      if (split && any(lab == (int8)(id0 + k))) {
-        const float8 mine = convert_float8(lab == (int8)(id0 + k)) * -1.0f * valid;
+      const int8 in_cluster = lab == (int8)(id0 + k);  // -1 or 0
+      if (split && any(in_cluster)) {
+        const float8 mine = convert_float8(in_cluster) * -1.0f * valid;
         int e = 0;
         for (int a = 0; a < DIMS; ++a) {
           const float8 xa = X[a] * mine;

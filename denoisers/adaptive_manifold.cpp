@@ -14,6 +14,7 @@
 #include <cstring>
 #include <random>
 
+#include <fmt/format.h>
 #include <opencv2/core/hal/hal.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -94,6 +95,11 @@ AmRunShape::AmRunShape(ConstImageView src, ConstImageView guide, const AmSetting
   sh_ = (H_ + df_ - 1) / df_;
   inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
   seed_ = guide_seed(guide);
+  // Both paths index their buffers by the queries' pixels.
+  for (std::size_t q = 0; q < queries.size(); ++q)
+    if (queries[q].x < 0 || queries[q].x >= W_ || queries[q].y < 0 || queries[q].y >= H_)
+      throw WorkError(fmt::format("adaptive-manifold filter: slice query {} at pixel ({}, {}) lies outside the {}x{} image", q,
+                                  queries[q].x, queries[q].y, W_, H_));
 }
 
 AmRun::AmRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
@@ -117,7 +123,7 @@ void AmRun::copy_and_low_pass_guide(ConstImageView src, ConstImageView guide) {
   const int nb = (D_ + 7) / 8, dp = 8 * nb;
   const std::vector<float> a_first = domain_transform::low_pass_weights(W_, s_.sigma_s);
   tbb::parallel_for(tbb::blocked_range<int>(0, (H_ + 1) / 2), [&](const tbb::blocked_range<int>& range) {
-    std::vector<float> buf(std::size_t(2) * W_ * dp), zeros(std::size_t(W_), 0.0f), sink(8);
+    std::vector<float> buf(std::size_t(2) * W_ * dp);
     std::vector<float*> gp(static_cast<std::size_t>(D_)), sp(static_cast<std::size_t>(C_));
     float* rows[2] = {buf.data(), buf.data() + std::size_t(W_) * dp};
     for (int t = range.begin(); t != range.end(); ++t) {
@@ -128,15 +134,15 @@ void AmRun::copy_and_low_pass_guide(ConstImageView src, ConstImageView guide) {
         const int y = y0 + r;
         for (int c = 0; c < D_; ++c) gp[std::size_t(c)] = guide_.row(c, y);
         for (int c = 0; c < C_; ++c) sp[std::size_t(c)] = src_.row(c, y);
-        from_interleaved(guide.pixel(0, y), D_, W_, gp.data(), D_, sink.data());
-        from_interleaved(src.pixel(0, y), C_, W_, sp.data(), C_, sink.data());
-        to_interleaved(gp.data(), D_, W_, rows[r], dp, zeros.data());
+        from_interleaved(guide.pixel(0, y), D_, W_, gp.data(), D_);
+        from_interleaved(src.pixel(0, y), C_, W_, sp.data(), C_);
+        to_interleaved(gp.data(), D_, W_, rows[r], dp);
       }
       const float* a[2] = {a_first.data(), a_first.data()};
       domain_transform::recursive_interleaved(rows, a, W_, nb, n);
       for (int r = 0; r < n; ++r) {
         for (int c = 0; c < D_; ++c) gp[std::size_t(c)] = eta_full_.row(c, y0 + r);
-        from_interleaved(rows[r], dp, W_, gp.data(), D_, sink.data());
+        from_interleaved(rows[r], dp, W_, gp.data(), D_);
       }
     }
   });
@@ -157,8 +163,6 @@ void AmRun::index_queries() {
     for (int c = 0; c < D_; ++c) qg_[std::size_t(c) * nq_ + q] = queries_[q].guide[c];
   });
   for (std::size_t q = 0; q < queries_.size(); ++q) {
-    const AmQuery& a = queries_[q];
-    if (a.x < 0 || a.x >= W_ || a.y < 0 || a.y >= H_) throw WorkError("am_filter: a slice query lies outside the image");
     if (q == 0 || queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) qrun_.push_back(q);
   }
   qrun_.push_back(queries_.size());

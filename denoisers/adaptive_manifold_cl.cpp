@@ -184,8 +184,6 @@ class ClRun : private am_detail::AmRunShape {
       std::vector<int> xy(2 * queries_.size());
       std::vector<float> qg(queries_.size() * D_);
       for (std::size_t q = 0; q < queries_.size(); ++q) {
-        if (queries_[q].x < 0 || queries_[q].x >= W_ || queries_[q].y < 0 || queries_[q].y >= H_)
-          throw WorkError("am_filter_opencl: a slice query lies outside the image");
         xy[2 * q] = queries_[q].x, xy[2 * q + 1] = queries_[q].y;
         for (int c = 0; c < D_; ++c) qg[q * D_ + c] = queries_[q].guide[c];
       }

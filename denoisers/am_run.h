@@ -49,7 +49,7 @@ class AmRun : private AmRunShape {
     std::vector<float> qrow;            // a reduced eta row blended vertically (D x sw)
     std::vector<float> colsum;  // per-column sums over the rows of one reduced-grid row
     std::vector<float> cov;     // lane-split covariance sums (kLanes per entry)
-    std::vector<float> kid, zeros;  // a child's reduced row, planar (D + 1 rows); sw zeros
+    std::vector<float> kid;         // a child's reduced row, planar (D + 1 rows)
     std::vector<float*> ptrs;       // kid's rows
   };
 

@@ -353,7 +353,6 @@ void AmRun::splat_children_row(int y, const float* tl, const float* tr, float* c
 void AmRun::store_children_block(Node* nodes, int m, int sy, Scratch& sc, float inv_rows) const {
   const std::size_t kid_cols = std::size_t(2 * (D_ + 1)) * W_;
   sc.kid.resize(std::size_t(D_ + 1) * sw_);
-  sc.zeros.resize(std::size_t(sw_));  // only ever zeros
   sc.ptrs.resize(std::size_t(D_ + 1));
   for (int c = 0; c <= D_; ++c) sc.ptrs[std::size_t(c)] = sc.kid.data() + std::size_t(c) * sw_;
   for (int k = 0; k < m; ++k) {
@@ -362,7 +361,7 @@ void AmRun::store_children_block(Node* nodes, int m, int sy, Scratch& sc, float 
       Interleaved& kid = nodes[k].kids[side];
       for (int c = 0; c <= D_; ++c)
         grid_.reduce_columns(col + std::size_t(side * (D_ + 1) + c) * W_, sc.ptrs[std::size_t(c)], inv_rows);
-      to_interleaved(sc.ptrs.data(), D_ + 1, sw_, kid.row(sy), kid.dp, sc.zeros.data());
+      to_interleaved(sc.ptrs.data(), D_ + 1, sw_, kid.row(sy), kid.dp);
     }
   }
 }
@@ -380,12 +379,11 @@ void AmRun::make_children(Node& n, std::vector<Node>& next) const {
     // run along rows in vector code.
     tbb::parallel_for(tbb::blocked_range<int>(0, sh_), [&](const tbb::blocked_range<int>& range) {
       std::unique_ptr<float[]> planar(new float[std::size_t(D_ + 1) * sw_]);  // overwritten row by row
-      std::vector<float> sink(8);
       std::vector<float*> rows(std::size_t(D_ + 1));
       for (int c = 0; c <= D_; ++c) rows[std::size_t(c)] = planar.get() + std::size_t(c) * sw_;
       const float* dn = rows[std::size_t(D_)];
       for (int sy = range.begin(); sy != range.end(); ++sy) {
-        from_interleaved(p.row(sy), p.dp, sw_, rows.data(), D_ + 1, sink.data());
+        from_interleaved(p.row(sy), p.dp, sw_, rows.data(), D_ + 1);
         for (int c = 0; c < D_; ++c) {
           const float* parent = n.eta_small.row(c, sy);
           const float* num = rows[std::size_t(c)];

@@ -129,10 +129,8 @@ void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
   const int nb = (count + 7) / 8, dp = 8 * nb;
   const int groups = (h + kRowGroup - 1) / kRowGroup;
   tbb::parallel_for(tbb::blocked_range<int>(0, groups), [&](const tbb::blocked_range<int>& range) {
-    // The rows' planes moved to interleaved buffers and back (am_detail's 8 x 8 transposes);
-    // `zeros` fills the padding channels, `sink` takes their way back.
+    // The rows' planes moved to interleaved buffers and back (am_detail's 8 x 8 transposes).
     std::unique_ptr<float[]> buf(new float[std::size_t(kRowGroup) * w * dp]);  // written in full by the moves
-    std::vector<float> zeros(std::size_t(w), 0.0f), sink(8);
     std::vector<float*> planes(static_cast<std::size_t>(count));
     float* rows[kRowGroup];
     const float* a[kRowGroup];
@@ -142,12 +140,12 @@ void recursive_filter(Planes& p, int first, int count, WH wh, WV wv) {
       for (int r = 0; r < n; ++r) {
         a[r] = wh(y0 + r);
         for (int c = 0; c < count; ++c) planes[std::size_t(c)] = p.row(first + c, y0 + r);
-        am_detail::to_interleaved(planes.data(), count, w, rows[r], dp, zeros.data());
+        am_detail::to_interleaved(planes.data(), count, w, rows[r], dp);
       }
       recursive_interleaved(rows, a, w, nb, n);
       for (int r = 0; r < n; ++r) {
         for (int c = 0; c < count; ++c) planes[std::size_t(c)] = p.row(first + c, y0 + r);
-        am_detail::from_interleaved(rows[r], dp, w, planes.data(), count, sink.data());
+        am_detail::from_interleaved(rows[r], dp, w, planes.data(), count);
       }
     }
   });

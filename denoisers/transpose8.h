@@ -50,29 +50,30 @@ inline void transpose8x8(const float* const* in, float* const* out) {
 }
 
 // Planar rows planes[0 .. n) (w floats each) into the interleaved row `il` (w pixels of dp
-// floats): il[x dp + c] = planes[c][x] for c < n, and 0 for n <= c < dp. `zeros` holds at least
-// w zeros (read for the padding channels).
-inline void to_interleaved(const float* const* planes, int n, int w, float* il, int dp, const float* zeros) {
+// floats): il[x dp + c] = planes[c][x] for c < n, and 0 for n <= c < dp.
+inline void to_interleaved(const float* const* planes, int n, int w, float* il, int dp) {
+  static constexpr float kZeros[8] = {};  // a padding channel's 8 pixels
   for (int b = 0; b < dp; b += 8) {
-    const float* in[8];
-    for (int c = 0; c < 8; ++c) in[c] = b + c < n ? planes[b + c] : zeros;
     int x = 0;
     for (; x + 8 <= w; x += 8) {
       const float* src[8];
       float* dst[8];
-      for (int k = 0; k < 8; ++k) src[k] = in[k] + x, dst[k] = il + std::size_t(x + k) * dp + b;
+      for (int k = 0; k < 8; ++k) {
+        src[k] = b + k < n ? planes[b + k] + x : kZeros;
+        dst[k] = il + std::size_t(x + k) * dp + b;
+      }
       transpose8x8(src, dst);
     }
     for (; x < w; ++x)
-      for (int c = 0; c < 8; ++c) il[std::size_t(x) * dp + b + c] = in[c][x];
+      for (int c = 0; c < 8; ++c) il[std::size_t(x) * dp + b + c] = b + c < n ? planes[b + c][x] : 0.0f;
   }
 }
 
 // The inverse for the first n channels, from pixels `stride` floats apart (any stride >= n: an
-// interleaved row, or an image's pixels): planes[c][x] = il[x stride + c], c < n. `sink` holds
-// at least 8 floats (the transposes' rows of channels past n land there). A transpose reads 8
-// floats from each pixel, so it is used where those stay inside the row.
-inline void from_interleaved(const float* il, int stride, int w, float* const* planes, int n, float* sink) {
+// interleaved row, or an image's pixels): planes[c][x] = il[x stride + c], c < n. A transpose
+// reads 8 floats from each pixel, so it is used where those stay inside the row.
+inline void from_interleaved(const float* il, int stride, int w, float* const* planes, int n) {
+  float sink[8];  // the transposes' rows of channels past n
   const std::size_t row_end = std::size_t(w) * stride;
   for (int b = 0; b < n; b += 8) {
     int x = 0;

@@ -27,11 +27,10 @@ TEST(Transpose8, PlanarToInterleavedAndBack) {
         for (int x = 0; x < w; ++x) planes[std::size_t(c)][std::size_t(x)] = value(c, x);
         in[std::size_t(c)] = planes[std::size_t(c)].data();
       }
-      const std::vector<float> zeros(std::size_t(w), 0.0f);
       // The interleaved row between guards; stale values where the padding goes.
       std::vector<float> il(std::size_t(w) * dp + 16, 99.0f);
       for (int k = 0; k < 8; ++k) il[std::size_t(k)] = il[il.size() - 1 - std::size_t(k)] = kGuard;
-      to_interleaved(in.data(), n, w, il.data() + 8, dp, zeros.data());
+      to_interleaved(in.data(), n, w, il.data() + 8, dp);
       for (int k = 0; k < 8; ++k) {
         EXPECT_EQ(il[std::size_t(k)], kGuard);
         EXPECT_EQ(il[il.size() - 1 - std::size_t(k)], kGuard);
@@ -44,8 +43,7 @@ TEST(Transpose8, PlanarToInterleavedAndBack) {
       std::vector<std::vector<float>> back(std::size_t(n), std::vector<float>(std::size_t(w) + 16, kGuard));
       std::vector<float*> out(static_cast<std::size_t>(n));
       for (int c = 0; c < n; ++c) out[std::size_t(c)] = back[std::size_t(c)].data() + 8;
-      std::vector<float> sink(8);
-      from_interleaved(il.data() + 8, dp, w, out.data(), n, sink.data());
+      from_interleaved(il.data() + 8, dp, w, out.data(), n);
       for (int c = 0; c < n; ++c)
         for (int x = -8; x < w + 8; ++x)
           ASSERT_EQ(back[std::size_t(c)][std::size_t(x + 8)], x >= 0 && x < w ? value(c, x) : kGuard)
@@ -66,8 +64,7 @@ TEST(Transpose8, PixelsOfAnyStrideToPlanar) {
       std::vector<std::vector<float>> planes(std::size_t(n), std::vector<float>(std::size_t(w) + 16, kGuard));
       std::vector<float*> out(static_cast<std::size_t>(n));
       for (int c = 0; c < n; ++c) out[std::size_t(c)] = planes[std::size_t(c)].data() + 8;
-      std::vector<float> sink(8);
-      from_interleaved(row.data(), stride, w, out.data(), n, sink.data());
+      from_interleaved(row.data(), stride, w, out.data(), n);
       for (int c = 0; c < n; ++c)
         for (int x = -8; x < w + 8; ++x)
           ASSERT_EQ(planes[std::size_t(c)][std::size_t(x + 8)], x >= 0 && x < w ? value(c, x) : kGuard)
