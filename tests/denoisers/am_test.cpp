@@ -7,6 +7,7 @@
 
 #include <opencv2/ximgproc/edge_filter.hpp>
 
+#include "core/errors.h"
 #include "denoisers/adaptive_manifold.h"
 #include "denoisers/am_opencv.h"
 #include "denoisers/hdr_mapping.h"
@@ -135,6 +136,24 @@ TEST(AdaptiveManifold, SliceQueryReproducesThePixel) {
       for (int c = 0; c < 3; ++c) EXPECT_NEAR(out[k * 3 + c], img.at(q[k].x, q[k].y, c), 1e-4f * img.at(q[k].x, q[k].y, c));
     // Pixel (44, 10) on the dark side asked with a bright-side guide: answered near the bright side.
     EXPECT_GT(out[4 * 3], img.at(44, 10, 0) + 0.2f);
+  }
+}
+
+// A slice query outside the image is refused with the query and the image size named (both
+// paths index buffers by the queries' pixels: on the CPU path it used to read out of range).
+TEST(AdaptiveManifold, SliceQueryOutsideTheImageIsRefused) {
+  Input in = make_input(32, 24, 5);
+  for (auto [x, y] : {std::pair{32, 3}, std::pair{-1, 3}, std::pair{3, 24}, std::pair{3, -1}}) {
+    const std::vector<AmQuery> q{{0, 0, in.guide.pixel(0, 0), nullptr}, {x, y, in.guide.pixel(0, 0), nullptr}};
+    std::vector<float> out;
+    try {
+      am_filter(in.src.cview(), in.guide.cview(), AmSettings{}, q, &out);
+      ADD_FAILURE() << "no error for a query at (" << x << ", " << y << ")";
+    } catch (const WorkError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("slice query 1 at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ")"), std::string::npos) << what;
+      EXPECT_NE(what.find("32x24"), std::string::npos) << what;
+    }
   }
 }
 
