@@ -20,6 +20,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/errors.h"
+#include "denoisers/am_capture.h"
 #include "denoisers/am_run.h"
 #include "denoisers/transpose8.h"
 
@@ -317,6 +318,7 @@ Image am_filter(ConstImageView src, ConstImageView guide, const AmSettings& sett
   if (!(settings.sigma_s >= 1.0) || !(settings.sigma_r > 0.0))
     throw WorkError("am_filter: needs sigma_s >= 1 and sigma_r > 0");
   am_detail::AmRun run(src, guide, settings, queries);
+  am_capture_if_asked(src, guide, settings, queries);
   return run.run(query_out);
 }
 
