@@ -447,6 +447,55 @@ __kernel void rf_cols(int w, int h, __global float* p, int p0, __global const fl
   }
 }
 
+// The recursive filters for a GPU: one row (rf_rows1) or one column (rf_cols1) of a plane per
+// work-item, the same arithmetic per element as rf_rows and rf_cols. Measured on an H200 through
+// NVIDIA's OpenCL (bench/device/am_device.cpp, DNB_OPENCL_PROFILE): with 8 lanes per work-item
+// the recursive filters launched a few hundred work-items and took 72% of the device's time of a
+// 1024x768 call; a GPU needs the work-items, and neighbouring columns' work-items read
+// neighbouring floats. The host picks these on a GPU device (DNB_OPENCL_LANES overrides).
+__kernel void rf_rows1(int w, int h, __global float* p, int p0, __global const float* ah, int hstride, float fixed_a) {
+  const int y = get_global_id(0), c = p0 + get_global_id(1);
+  if (y >= h) return;
+  __global float* r = p + ((size_t)c * h + y) * w;
+  __global const float* a = ah + (size_t)y * hstride;
+  float prev = r[0];
+  for (int x = 1; x < w; ++x) {
+    const float k = fixed_a != 0 ? fixed_a : a[x - 1];
+    float cur = r[x];
+    cur += k * (prev - cur);
+    r[x] = cur;
+    prev = cur;
+  }
+  for (int x = w - 2; x >= 0; --x) {
+    const float k = fixed_a != 0 ? fixed_a : a[x];
+    float cur = r[x];
+    cur += k * (prev - cur);
+    r[x] = cur;
+    prev = cur;
+  }
+}
+
+__kernel void rf_cols1(int w, int h, __global float* p, int p0, __global const float* av, float fixed_a) {
+  const int x = get_global_id(0), c = p0 + get_global_id(1);
+  if (x >= w) return;
+  __global float* q = p + (size_t)c * h * w + x;
+  float prev = q[0];
+  for (int y = 1; y < h; ++y) {
+    const float k = fixed_a != 0 ? fixed_a : av[(size_t)(y - 1) * w + x];
+    float cur = q[(size_t)y * w];
+    cur += k * (prev - cur);
+    q[(size_t)y * w] = cur;
+    prev = cur;
+  }
+  for (int y = h - 2; y >= 0; --y) {
+    const float k = fixed_a != 0 ? fixed_a : av[(size_t)y * w + x];
+    float cur = q[(size_t)y * w];
+    cur += k * (prev - cur);
+    q[(size_t)y * w] = cur;
+    prev = cur;
+  }
+}
+
 // v . eta of each manifold of a group on the reduced grid (planes (e0 + k) D of eta, v: D
 // floats per manifold), one plane per manifold into veta: v . (g - eta) = v . g - v . eta, and
 // v . eta is linear in eta, so slice_split_group upsamples one plane instead of D (as the CPU

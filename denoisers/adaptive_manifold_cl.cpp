@@ -1,16 +1,20 @@
 #include "denoisers/adaptive_manifold_cl.h"
 
 #include "core/errors.h"
+#include "denoisers/am_capture.h"
 
 #ifdef DNB_WITH_OPENCL
 #define CL_HPP_ENABLE_EXCEPTIONS
 #include <CL/opencl.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <deque>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 
@@ -28,6 +32,7 @@ bool am_opencl_available(std::string* why) {
   if (why) *why = "this build has no OpenCL (configure with -DDNB_WITH_OPENCL=ON)";
   return false;
 }
+std::string am_opencl_device_name() { return {}; }
 Image am_filter_opencl(ConstImageView, ConstImageView, const AmSettings&, const std::vector<AmQuery>&, std::vector<float>*) {
   throw WorkError("device=opencl: this build has no OpenCL (configure with -DDNB_WITH_OPENCL=ON)");
 }
@@ -51,6 +56,13 @@ struct ClState {
   std::mutex mutex;
   std::string error;
   bool ok = false;
+  bool gpu = false;  // the device is a GPU: the recursive filters' one-lane kernels (rf_rows1, rf_cols1)
+  // DNB_OPENCL_PROFILE=1: every kernel, write and read of a run timed by the device (queue
+  // profiling), summed per name and printed to stderr after the run (bench/device/am_device.cpp).
+  const bool profile = [] {
+    const char* p = std::getenv("DNB_OPENCL_PROFILE");
+    return p && *p && std::string(p) != "0";
+  }();
 
   ClState() {
     try {
@@ -64,8 +76,9 @@ struct ClState {
       platforms[pick].getDevices(CL_DEVICE_TYPE_ALL, &devices);
       if (devices.empty()) throw std::runtime_error("no OpenCL device on the platform");
       device = devices[0];
+      gpu = (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
       context = cl::Context(device);
-      queue = cl::CommandQueue(context, device);
+      queue = cl::CommandQueue(context, device, profile ? cl_command_queue_properties(CL_QUEUE_PROFILING_ENABLE) : 0);
       ok = true;
     } catch (const std::exception& e) {
       error = e.what();
@@ -126,18 +139,11 @@ ClState& state() {
   return s;
 }
 
-template <typename T>
-cl::Buffer buffer(cl::Context& ctx, const std::vector<T>& v) {
-  return cl::Buffer(ctx, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, sizeof(T) * std::max<std::size_t>(v.size(), 1),
-                    const_cast<T*>(v.data()));
-}
-
 class ClRun : private am_detail::AmRunShape {
  public:
   ClRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
       : AmRunShape(src, guide, s, queries), st_(state()) {
     prog_ = st_.program(D_, C_);
-    auto& ctx = st_.context;
     const std::size_t N = std::size_t(W_) * H_;
     std::vector<float> g(N * D_), f(N * C_);
     tbb::parallel_for(0, H_, [&](int y) {  // interleaved to planar, a row per task
@@ -150,9 +156,9 @@ class ClRun : private am_detail::AmRunShape {
       }
     });
     guide_ = take(sizeof(float) * g.size());
-    st_.queue.enqueueWriteBuffer(guide_, CL_TRUE, 0, sizeof(float) * g.size(), g.data());
+    st_.queue.enqueueWriteBuffer(guide_, CL_TRUE, 0, sizeof(float) * g.size(), g.data(), nullptr, event("write guide"));
     src_ = take(sizeof(float) * f.size());
-    st_.queue.enqueueWriteBuffer(src_, CL_TRUE, 0, sizeof(float) * f.size(), f.data());
+    st_.queue.enqueueWriteBuffer(src_, CL_TRUE, 0, sizeof(float) * f.size(), f.data(), nullptr, event("write source"));
     auto filled = [&](std::size_t count, auto value) {  // filled on the device, no host copy
       cl::Buffer b = take(sizeof(value) * count);
       st_.queue.enqueueFillBuffer(b, value, 0, sizeof(value) * count);
@@ -167,19 +173,19 @@ class ClRun : private am_detail::AmRunShape {
     std::vector<float> fx, fy;
     am_detail::bilinear_table(W_, sw_, df_, x0, x1, fx);
     am_detail::bilinear_table(H_, sh_, df_, y0, y1, fy);
-    tx0_ = buffer(ctx, x0), tx1_ = buffer(ctx, x1), tfx_ = buffer(ctx, fx);
-    ty0_ = buffer(ctx, y0), ty1_ = buffer(ctx, y1), tfy_ = buffer(ctx, fy);
+    tx0_ = upload(x0), tx1_ = upload(x1), tfx_ = upload(fx);
+    ty0_ = upload(y0), ty1_ = upload(y1), tfy_ = upload(fy);
     // The splat kernel's work-items cover 8 full-resolution columns each (adaptive_manifold.cl).
     nwx_ = (W_ + 7) / 8;
     // Column sums only where a block is wider than a work-item's 8 columns (block_store).
     colsum_ = take(sizeof(float) * (8 % df_ == 0 ? 1 : std::size_t(kMaxGroup) * std::max(C_ + 1, 2 * (D_ + 1)) * sh_ * W_));
     const std::size_t tri = std::size_t(D_) * (D_ + 1) / 2;  // the covariances' upper triangles
     cov_ = take(sizeof(float) * std::size_t(kMaxGroup) * nwx_ * sh_ * tri);
-    cov_rows_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sh_ * tri);
-    vetas_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(kMaxGroup) * sw_ * sh_);
+    cov_rows_ = take(sizeof(float) * std::size_t(kMaxGroup) * sh_ * tri);
+    vetas_ = take(sizeof(float) * std::size_t(kMaxGroup) * sw_ * sh_);
     const int hstride = std::max(sw_ - 1, 1);
-    ah_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(sh_) * hstride);
-    av_ = cl::Buffer(ctx, CL_MEM_READ_WRITE, sizeof(float) * std::size_t(std::max(sh_ - 1, 1)) * sw_);
+    ah_ = take(sizeof(float) * std::size_t(sh_) * hstride);
+    av_ = take(sizeof(float) * std::size_t(std::max(sh_ - 1, 1)) * sw_);
     if (!queries_.empty()) {
       std::vector<int> xy(2 * queries_.size());
       std::vector<float> qg(queries_.size() * D_);
@@ -193,22 +199,26 @@ class ClRun : private am_detail::AmRunShape {
         if (queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) runs.push_back(int(q));
       nruns_ = int(runs.size());
       runs.push_back(int(queries_.size()));
-      runs_ = buffer(ctx, runs);
-      qxy_ = buffer(ctx, xy);
-      qguide_ = buffer(ctx, qg);
-      qacc_ = buffer(ctx, std::vector<float>(queries_.size() * (C_ + 1), 0.0f));
-      qmin_ = buffer(ctx, std::vector<float>(queries_.size(), INFINITY));
+      runs_ = upload(runs);
+      qxy_ = upload(xy);
+      qguide_ = upload(qg);
+      qacc_ = filled(queries_.size() * (C_ + 1), 0.0f);
+      qmin_ = filled(queries_.size(), float(INFINITY));
     }
   }
 
   ~ClRun() {
+    // Every write of upload() done before its host data goes (a run that threw may leave some queued).
+    try {
+      st_.queue.finish();
+    } catch (...) {
+    }
     for (auto& [bytes, b] : owned_) st_.give(bytes, b);
   }
   ClRun(const ClRun&) = delete;
   ClRun& operator=(const ClRun&) = delete;
 
   Image run(std::vector<float>* query_out) {
-    auto& ctx = st_.context;
     auto& q = st_.queue;
     const std::size_t N = std::size_t(W_) * H_;
     // The first manifold: the guide low-passed at full resolution.
@@ -227,12 +237,12 @@ class ClRun : private am_detail::AmRunShape {
       level = next;
     }
 
-    cl::Buffer out(ctx, CL_MEM_WRITE_ONLY, sizeof(float) * N * C_);
+    cl::Buffer out = take(sizeof(float) * N * C_);
     cl::Kernel& k = kernel("finish");
     set(k, W_, H_, acc_, src_, min_d2_, int(s_.adjust_outliers), float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)), out);
     launch(k, W_, H_);
     Image img(W_, H_, C_);
-    q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data());
+    q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data(), nullptr, event("read output"));
     if (query_out && !queries_.empty()) {
       std::vector<float> acc(queries_.size() * (C_ + 1)), mn(queries_.size());
       q.enqueueReadBuffer(qacc_, CL_TRUE, 0, sizeof(float) * acc.size(), acc.data());
@@ -251,6 +261,7 @@ class ClRun : private am_detail::AmRunShape {
     } else if (query_out) {
       query_out->clear();
     }
+    if (st_.profile) print_profile();
     return img;
   }
 
@@ -259,6 +270,20 @@ class ClRun : private am_detail::AmRunShape {
   cl::Buffer take(std::size_t bytes) {
     cl::Buffer b = st_.take(bytes);
     owned_.emplace_back(bytes, b);
+    return b;
+  }
+  // A pooled buffer holding v, not a buffer made with CL_MEM_COPY_HOST_PTR: that was a device
+  // allocation each time, about 20 per run. The write does not block (a blocking one waits for
+  // every kernel queued before it): v is kept until the run ends.
+  template <typename T>
+  cl::Buffer upload(std::vector<T> v) {
+    const std::size_t bytes = sizeof(T) * std::max<std::size_t>(v.size(), 1);
+    cl::Buffer b = take(bytes);
+    if (!v.empty()) {
+      auto kept = std::make_shared<std::vector<T>>(std::move(v));
+      st_.queue.enqueueWriteBuffer(b, CL_FALSE, 0, bytes, kept->data(), nullptr, event("write tables"));
+      uploaded_.push_back(std::move(kept));
+    }
     return b;
   }
   struct Temp {
@@ -291,7 +316,43 @@ class ClRun : private am_detail::AmRunShape {
   // choose work-groups of one item, which it cannot vectorise across.
   void launch(cl::Kernel& k, std::size_t gx, std::size_t gy = 1) {
     const std::size_t lx = std::min<std::size_t>(kGroup, gx);
-    st_.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((gx + lx - 1) / lx * lx, gy), cl::NDRange(lx, 1));
+    st_.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((gx + lx - 1) / lx * lx, gy), cl::NDRange(lx, 1),
+                                   nullptr, st_.profile ? event(k.getInfo<CL_KERNEL_FUNCTION_NAME>()) : nullptr);
+  }
+
+  // With DNB_OPENCL_PROFILE: an event to time the next command by, else null.
+  cl::Event* event(const std::string& name) {
+    if (!st_.profile) return nullptr;
+    events_.emplace_back(name, cl::Event());
+    return &events_.back().second;
+  }
+  // The device's time per command name over the run, largest first, and the run's wall time.
+  void print_profile() {
+    st_.queue.finish();
+    std::map<std::string, std::pair<double, int>> by_name;
+    double total = 0;
+    for (auto& [name, e] : events_) {
+      const double ms = double(e.getProfilingInfo<CL_PROFILING_COMMAND_END>() - e.getProfilingInfo<CL_PROFILING_COMMAND_START>()) * 1e-6;
+      by_name[name].first += ms;
+      ++by_name[name].second;
+      total += ms;
+    }
+    std::vector<std::pair<double, std::string>> order;
+    for (auto& [name, t] : by_name)
+      order.emplace_back(t.first, fmt_entry(name, t.first, t.second));
+    std::sort(order.rbegin(), order.rend());
+    std::string line = "opencl profile: " + std::to_string(W_) + "x" + std::to_string(H_) + ", " +
+                       std::to_string(events_.size()) + " commands, device time " + std::to_string(total) + " ms, wall " +
+                       std::to_string(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started_).count()) +
+                       " ms:";
+    for (auto& [t, entry] : order) line += " " + entry;
+    std::fprintf(stderr, "%s\n", line.c_str());
+    events_.clear();
+  }
+  static std::string fmt_entry(const std::string& name, double ms, int n) {
+    char b[160];
+    std::snprintf(b, sizeof b, "%s %.2f ms/%d;", name.c_str(), ms, n);
+    return b;
   }
   static constexpr std::size_t kGroup = 32;
 
@@ -308,12 +369,20 @@ class ClRun : private am_detail::AmRunShape {
     recursive(p, p0, w, h, n, a);
   }
   void recursive(cl::Buffer& p, int p0, int w, int h, int n, float constant) {
-    cl::Kernel& rows = kernel("rf_rows");
-    cl::Kernel& cols = kernel("rf_cols");
+    cl::Kernel& rows = kernel(lanes_ == 1 ? "rf_rows1" : "rf_rows");
+    cl::Kernel& cols = kernel(lanes_ == 1 ? "rf_cols1" : "rf_cols");
     set(rows, w, h, p, p0, ah_, std::max(w - 1, 1), constant);
     set(cols, w, h, p, p0, av_, constant);
-    launch(rows, (std::size_t(h) + 7) / 8, n);  // 8 rows per work-item
-    launch(cols, (std::size_t(w) + 7) / 8, n);  // 8 columns per work-item
+    launch(rows, (std::size_t(h) + lanes_ - 1) / lanes_, n);  // `lanes_` rows per work-item
+    launch(cols, (std::size_t(w) + lanes_ - 1) / lanes_, n);  // `lanes_` columns per work-item
+  }
+  // Rows or columns per work-item of the recursive filters: 8 (float8, for a CPU device's vector
+  // lanes) or 1 (a GPU's); DNB_OPENCL_LANES=1 or 8 overrides the device's type, read per run.
+  static int lanes_for(bool gpu) {
+    const char* e = std::getenv("DNB_OPENCL_LANES");
+    if (e && std::string(e) == "1") return 1;
+    if (e && std::string(e) == "8") return 8;
+    return gpu ? 1 : 8;
   }
 
   // One level of the tree: `count` manifolds with ids first_id .. first_id + count - 1, D planes
@@ -327,7 +396,6 @@ class ClRun : private am_detail::AmRunShape {
   // Manifolds k0 .. k0 + m - 1 of `level`: splat (one pass over the images for the group), blur
   // each, answer the queries, slice and split (one pass), and the children into next.etas.
   void group(const Level& level, int k0, int m, bool split, Level& next) {
-    auto& ctx = st_.context;
     auto& q = st_.queue;
     const std::size_t n = std::size_t(sw_) * sh_;
     const int id0 = level.first_id + k0;
@@ -357,7 +425,7 @@ class ClRun : private am_detail::AmRunShape {
       }
       const std::size_t tri = std::size_t(D_) * (D_ + 1) / 2;  // upper triangles, row by row
       std::vector<float> rows(std::size_t(m) * sh_ * tri);
-      q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data());
+      q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data(), nullptr, event("read covariances"));
       for (int j = 0; j < m; ++j) {
         std::vector<double> cov(D_ * D_, 0.0);
         for (int sy = 0; sy < sh_; ++sy) {
@@ -396,7 +464,7 @@ class ClRun : private am_detail::AmRunShape {
           ty0_, ty1_, tfy_, inv_sr2_, qacc_, qmin_);
       launch(k, std::size_t(nruns_));
     }
-    cl::Buffer vb = buffer(ctx, v);
+    cl::Buffer vb = upload(v);
     if (split && !level.full) {
       cl::Kernel& k = kernel("veta");
       set(k, int(n), m, small, k0, vb, vetas_);
@@ -433,6 +501,10 @@ class ClRun : private am_detail::AmRunShape {
   cl::Buffer colsum_;  // a group's column sums: the splat's (C + 1 planes of sh x W per manifold), the split's (2 (D + 1))
   cl::Buffer vetas_;
   std::map<std::string, cl::Kernel> kernels_;
+  std::vector<std::shared_ptr<void>> uploaded_;  // host data of upload()'s writes, kept until the run ends
+  int lanes_ = lanes_for(st_.gpu);
+  std::deque<std::pair<std::string, cl::Event>> events_;  // DNB_OPENCL_PROFILE only (deque: stable addresses)
+  std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
   std::vector<std::pair<std::size_t, cl::Buffer>> owned_;  // given back to the pool by the destructor   // a group's v . eta on the reduced grid (one plane per manifold)
   int nwx_ = 1;        // the splat's work-items per row
   cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_;
@@ -447,6 +519,13 @@ bool am_opencl_available(std::string* why) {
   return s.ok;
 }
 
+std::string am_opencl_device_name() {
+  ClState& s = state();
+  if (!s.ok) return {};
+  const cl::Platform platform(s.device.getInfo<CL_DEVICE_PLATFORM>());
+  return platform.getInfo<CL_PLATFORM_NAME>() + " / " + s.device.getInfo<CL_DEVICE_NAME>();
+}
+
 Image am_filter_opencl(ConstImageView src, ConstImageView guide, const AmSettings& settings,
                        const std::vector<AmQuery>& queries, std::vector<float>* query_out) {
   std::string why;
@@ -455,6 +534,7 @@ Image am_filter_opencl(ConstImageView src, ConstImageView guide, const AmSetting
   if (src.empty()) return Image(src.width, src.height, src.channels);
   try {
     ClRun run(src, guide, settings, queries);
+    am_capture_if_asked(src, guide, settings, queries);
     return run.run(query_out);
   } catch (const cl::Error& e) {
     throw WorkError(std::string("OpenCL error in the adaptive-manifold core: ") + e.what() + " (" + std::to_string(e.err()) + ")");

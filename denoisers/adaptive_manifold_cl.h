@@ -20,6 +20,9 @@ namespace dnb {
 // True when the build has OpenCL and a device answers; `why` says what is missing otherwise.
 bool am_opencl_available(std::string* why = nullptr);
 
+// The platform and device the OpenCL path runs on ("platform / device"), or "" when none.
+std::string am_opencl_device_name();
+
 // am_filter() on the OpenCL device. Throws WorkError when OpenCL is unavailable or fails.
 Image am_filter_opencl(ConstImageView src, ConstImageView guide, const AmSettings& settings,
                        const std::vector<AmQuery>& queries = {}, std::vector<float>* query_out = nullptr);
