@@ -447,34 +447,12 @@ __kernel void rf_cols(int w, int h, __global float* p, int p0, __global const fl
   }
 }
 
-// The recursive filters for a GPU: one row (rf_rows1) or one column (rf_cols1) of a plane per
-// work-item, the same arithmetic per element as rf_rows and rf_cols. Measured on an H200 through
+// The column filter for a GPU: one column of a plane per work-item, the same arithmetic per
+// element as rf_cols; neighbouring work-items read neighbouring floats. The rows run as columns of
+// the transposed planes (transpose_planes, ClRun::recursive). Measured on an H200 through
 // NVIDIA's OpenCL (bench/device/am_device.cpp, DNB_OPENCL_PROFILE): with 8 lanes per work-item
 // the recursive filters launched a few hundred work-items and took 72% of the device's time of a
-// 1024x768 call; a GPU needs the work-items, and neighbouring columns' work-items read
-// neighbouring floats. The host picks these on a GPU device (DNB_OPENCL_LANES overrides).
-__kernel void rf_rows1(int w, int h, __global float* p, int p0, __global const float* ah, int hstride, float fixed_a) {
-  const int y = get_global_id(0), c = p0 + get_global_id(1);
-  if (y >= h) return;
-  __global float* r = p + ((size_t)c * h + y) * w;
-  __global const float* a = ah + (size_t)y * hstride;
-  float prev = r[0];
-  for (int x = 1; x < w; ++x) {
-    const float k = fixed_a != 0 ? fixed_a : a[x - 1];
-    float cur = r[x];
-    cur += k * (prev - cur);
-    r[x] = cur;
-    prev = cur;
-  }
-  for (int x = w - 2; x >= 0; --x) {
-    const float k = fixed_a != 0 ? fixed_a : a[x];
-    float cur = r[x];
-    cur += k * (prev - cur);
-    r[x] = cur;
-    prev = cur;
-  }
-}
-
+// 1024x768 call. The host picks this form on a GPU device (DNB_OPENCL_LANES overrides).
 __kernel void rf_cols1(int w, int h, __global float* p, int p0, __global const float* av, float fixed_a) {
   const int x = get_global_id(0), c = p0 + get_global_id(1);
   if (x >= w) return;
@@ -495,6 +473,25 @@ __kernel void rf_cols1(int w, int h, __global float* p, int p0, __global const f
     prev = cur;
   }
 }
+
+// Planes s0 + z of src (w x h each, row-major) transposed into planes d0 + z of dst (h x w), in
+// 16 x 16 tiles through local memory so that both the reads and the writes of neighbouring
+// work-items touch neighbouring floats. The GPU's row filter (ClRun::recursive) runs as
+// transpose, column filter, transpose back: a row per work-item (each reading a different row)
+// took 3x the column filter's time for the same data on the H200.
+#define TT 16
+__kernel void transpose_planes(int w, int h, __global const float* src, int s0, __global float* dst, int d0) {
+  __local float tile[TT][TT + 1];
+  const int z = get_global_id(2);
+  const int bx = get_group_id(0) * TT, by = get_group_id(1) * TT;
+  const int lx = get_local_id(0), ly = get_local_id(1);
+  const size_t plane = (size_t)w * h;
+  if (bx + lx < w && by + ly < h) tile[ly][lx] = src[(size_t)(s0 + z) * plane + (size_t)(by + ly) * w + bx + lx];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  // Element (x, y) of src is element (y, x) of dst, whose rows are h long.
+  if (by + lx < h && bx + ly < w) dst[(size_t)(d0 + z) * plane + (size_t)(bx + ly) * h + by + lx] = tile[lx][ly];
+}
+#undef TT
 
 // v . eta of each manifold of a group on the reduced grid (planes (e0 + k) D of eta, v: D
 // floats per manifold), one plane per manifold into veta: v . (g - eta) = v . g - v . eta, and

@@ -56,7 +56,7 @@ struct ClState {
   std::mutex mutex;
   std::string error;
   bool ok = false;
-  bool gpu = false;  // the device is a GPU: the recursive filters' one-lane kernels (rf_rows1, rf_cols1)
+  bool gpu = false;  // the device is a GPU: the recursive filters one column per work-item (rf_cols1, transposes)
   // DNB_OPENCL_PROFILE=1: every kernel, write and read of a run timed by the device (queue
   // profiling), summed per name and printed to stderr after the run (bench/device/am_device.cpp).
   const bool profile = [] {
@@ -369,12 +369,38 @@ class ClRun : private am_detail::AmRunShape {
     recursive(p, p0, w, h, n, a);
   }
   void recursive(cl::Buffer& p, int p0, int w, int h, int n, float constant) {
-    cl::Kernel& rows = kernel(lanes_ == 1 ? "rf_rows1" : "rf_rows");
     cl::Kernel& cols = kernel(lanes_ == 1 ? "rf_cols1" : "rf_cols");
+    if (lanes_ == 1) {
+      // A GPU: the rows as columns of the transposed planes (transpose_planes in the kernels).
+      Temp t(st_, sizeof(float) * std::size_t(w) * h * n);
+      transpose(p, p0, w, h, n, t.b, 0);
+      cl::Buffer coef = av_;  // unread with a constant feedback
+      std::unique_ptr<Temp> coef_t;
+      if (constant == 0 && w > 1) {  // ah (h rows of w - 1) transposed: row x - 1 holds every row's a[x - 1]
+        coef_t = std::make_unique<Temp>(st_, sizeof(float) * std::size_t(w - 1) * h);
+        transpose(ah_, 0, w - 1, h, 1, coef_t->b, 0);
+        coef = coef_t->b;
+      }
+      set(cols, h, w, t.b, 0, coef, constant);
+      launch(cols, std::size_t(h), n);
+      transpose(t.b, 0, h, w, n, p, p0);
+      set(cols, w, h, p, p0, av_, constant);
+      launch(cols, std::size_t(w), n);
+      return;
+    }
+    cl::Kernel& rows = kernel("rf_rows");
     set(rows, w, h, p, p0, ah_, std::max(w - 1, 1), constant);
     set(cols, w, h, p, p0, av_, constant);
-    launch(rows, (std::size_t(h) + lanes_ - 1) / lanes_, n);  // `lanes_` rows per work-item
-    launch(cols, (std::size_t(w) + lanes_ - 1) / lanes_, n);  // `lanes_` columns per work-item
+    launch(rows, (std::size_t(h) + 7) / 8, n);  // 8 rows per work-item
+    launch(cols, (std::size_t(w) + 7) / 8, n);  // 8 columns per work-item
+  }
+  // Planes s0 .. s0 + n - 1 of src (w x h) transposed into planes d0 .. of dst (h x w).
+  void transpose(cl::Buffer& src, int s0, int w, int h, int n, cl::Buffer& dst, int d0) {
+    cl::Kernel& k = kernel("transpose_planes");
+    set(k, w, h, src, s0, dst, d0);
+    constexpr std::size_t T = 16;
+    st_.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((std::size_t(w) + T - 1) / T * T, (std::size_t(h) + T - 1) / T * T, n),
+                                   cl::NDRange(T, T, 1), nullptr, st_.profile ? event("transpose_planes") : nullptr);
   }
   // Rows or columns per work-item of the recursive filters: 8 (float8, for a CPU device's vector
   // lanes) or 1 (a GPU's); DNB_OPENCL_LANES=1 or 8 overrides the device's type, read per run.

@@ -74,7 +74,8 @@ TEST(OpenCl, MatchesCpuPath) {
   std::vector<float> qv(7, 0.1f);
   std::vector<AmQuery> queries{{10, 10, qv.data(), nullptr}, {w - 1, h - 1, guide.pixel(w - 1, h - 1), nullptr}};
   // The recursive filters' two forms: 8 rows or columns per work-item (a CPU device's, PoCL's
-  // default) and one (a GPU's, rf_rows1 and rf_cols1), which CI can run only by asking for it.
+  // default) and one column per work-item with the rows through transposes (a GPU's: rf_cols1,
+  // transpose_planes), which CI can run only by asking for it.
   for (const char* lanes : {"8", "1"})
   for (bool adjust : {false, true})
     for (double sigma_s : {8.0, 16.0}) {
