@@ -155,10 +155,12 @@ class ClRun : private am_detail::AmRunShape {
         for (int c = 0; c < C_; ++c) f[c * N + i] = sp[c];
       }
     });
+    host_mark("planar");
     guide_ = take(sizeof(float) * g.size());
     st_.queue.enqueueWriteBuffer(guide_, CL_TRUE, 0, sizeof(float) * g.size(), g.data(), nullptr, event("write guide"));
     src_ = take(sizeof(float) * f.size());
     st_.queue.enqueueWriteBuffer(src_, CL_TRUE, 0, sizeof(float) * f.size(), f.data(), nullptr, event("write source"));
+    host_mark("upload");
     auto filled = [&](std::size_t count, auto value) {  // filled on the device, no host copy
       cl::Buffer b = take(sizeof(value) * count);
       st_.queue.enqueueFillBuffer(b, value, 0, sizeof(value) * count);
@@ -205,6 +207,7 @@ class ClRun : private am_detail::AmRunShape {
       qacc_ = filled(queries_.size() * (C_ + 1), 0.0f);
       qmin_ = filled(queries_.size(), float(INFINITY));
     }
+    host_mark("tables and queries");
   }
 
   ~ClRun() {
@@ -236,6 +239,7 @@ class ClRun : private am_detail::AmRunShape {
         group(level, k0, std::min(kMaxGroup, level.count - k0), split, next);
       level = next;
     }
+    host_mark("tree (enqueue, covariance waits)");
 
     cl::Buffer out = take(sizeof(float) * N * C_);
     cl::Kernel& k = kernel("finish");
@@ -243,6 +247,7 @@ class ClRun : private am_detail::AmRunShape {
     launch(k, W_, H_);
     Image img(W_, H_, C_);
     q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data(), nullptr, event("read output"));
+    host_mark("finish and read-back");
     if (query_out && !queries_.empty()) {
       std::vector<float> acc(queries_.size() * (C_ + 1)), mn(queries_.size());
       q.enqueueReadBuffer(qacc_, CL_TRUE, 0, sizeof(float) * acc.size(), acc.data());
@@ -261,6 +266,7 @@ class ClRun : private am_detail::AmRunShape {
     } else if (query_out) {
       query_out->clear();
     }
+    host_mark("queries' read-back and results");
     if (st_.profile) print_profile();
     return img;
   }
@@ -326,7 +332,15 @@ class ClRun : private am_detail::AmRunShape {
     events_.emplace_back(name, cl::Event());
     return &events_.back().second;
   }
-  // The device's time per command name over the run, largest first, and the run's wall time.
+  // With DNB_OPENCL_PROFILE: the host's time since the previous mark, under `what`.
+  void host_mark(const char* what) {
+    if (!st_.profile) return;
+    const auto now = std::chrono::steady_clock::now();
+    host_.emplace_back(what, std::chrono::duration<double, std::milli>(now - last_mark_).count());
+    last_mark_ = now;
+  }
+  // The device's time per command name over the run, largest first, the run's wall time, and the
+  // host's steps (host_mark) in order.
   void print_profile() {
     st_.queue.finish();
     std::map<std::string, std::pair<double, int>> by_name;
@@ -346,6 +360,8 @@ class ClRun : private am_detail::AmRunShape {
                        std::to_string(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started_).count()) +
                        " ms:";
     for (auto& [t, entry] : order) line += " " + entry;
+    line += " host:";
+    for (auto& [what, ms] : host_) line += " " + fmt_entry(what, ms, 1);
     std::fprintf(stderr, "%s\n", line.c_str());
     events_.clear();
   }
@@ -530,7 +546,8 @@ class ClRun : private am_detail::AmRunShape {
   std::vector<std::shared_ptr<void>> uploaded_;  // host data of upload()'s writes, kept until the run ends
   int lanes_ = lanes_for(st_.gpu);
   std::deque<std::pair<std::string, cl::Event>> events_;  // DNB_OPENCL_PROFILE only (deque: stable addresses)
-  std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now(), last_mark_ = started_;
+  std::vector<std::pair<const char*, double>> host_;  // DNB_OPENCL_PROFILE: host_mark()'s steps
   std::vector<std::pair<std::size_t, cl::Buffer>> owned_;  // given back to the pool by the destructor   // a group's v . eta on the reduced grid (one plane per manifold)
   int nwx_ = 1;        // the splat's work-items per row
   cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_;
