@@ -493,6 +493,13 @@ __kernel void transpose_planes(int w, int h, __global const float* src, int s0, 
 }
 #undef TT
 
+// n pixels of ch interleaved floats (il) to ch planes of n (planar), one pixel per work-item.
+__kernel void to_planar(int n, int ch, __global const float* il, __global float* planar) {
+  const int i = get_global_id(0);
+  if (i >= n) return;
+  for (int c = 0; c < ch; ++c) planar[(size_t)c * n + i] = il[(size_t)i * ch + c];
+}
+
 // v . eta of each manifold of a group on the reduced grid (planes (e0 + k) D of eta, v: D
 // floats per manifold), one plane per manifold into veta: v . (g - eta) = v . g - v . eta, and
 // v . eta is linear in eta, so slice_split_group upsamples one plane instead of D (as the CPU
