@@ -5,12 +5,15 @@
 // DNB_AM_CAPTURE (denoisers/am_capture.h); scripts/am_device_bundle makes the bundle (this
 // program, its two shared libraries and the captures) and says how to run it.
 //
-//   denoisebench_am_device [--repeat N] [--json OUT] CAPTURE.bin...
+//   denoisebench_am_device [--repeat N] [--json OUT] [--perturb EPS] CAPTURE.bin...
 //
 // For each capture: one OpenCL run that builds the program (timed on its own), then N timed runs;
 // the same on the CPU path (am_filter, all cores); the medians, and the relative RMS difference
 // between the two outputs (the image and the slice queries), which tests/denoisers/opencl_test.cpp
-// holds below 1e-4 on PoCL. Times are wall-clock milliseconds of the whole call: the upload of the
+// holds below 1e-4 on PoCL. --perturb EPS also runs the CPU path on the guide with its values
+// scaled by 1 + EPS u (u uniform in [-1, 1], fixed seed; not those that seed the splits) and reports how far that moves the output:
+// the input's own sensitivity, against which to read the two paths' difference (a split whose
+// cluster has no dominant direction moves with rounding). Times are wall-clock milliseconds of the whole call: the upload of the
 // source and guide, every kernel, the host's tree walk and the read-back.
 #include <algorithm>
 #include <chrono>
@@ -18,6 +21,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -72,7 +76,7 @@ struct Result {
   std::string file;
   int w = 0, h = 0, c = 0, d = 0;
   std::size_t queries = 0;
-  double cl_first = 0, cl_median = 0, cpu_median = 0, rms_image = 0, rms_queries = 0;
+  double cl_first = 0, cl_median = 0, cpu_median = 0, rms_image = 0, rms_queries = 0, rms_perturbed = -1;
   std::size_t pixels_off = 0;
 };
 
@@ -80,23 +84,26 @@ struct Result {
 
 int main(int argc, char** argv) {
   int repeat = 10;
+  double perturb = 0;
   std::string json;
   std::vector<std::string> files;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--repeat" && i + 1 < argc) {
       repeat = std::atoi(argv[++i]);
+    } else if (a == "--perturb" && i + 1 < argc) {
+      perturb = std::atof(argv[++i]);
     } else if (a == "--json" && i + 1 < argc) {
       json = argv[++i];
     } else if (a == "-h" || a == "--help" || a.rfind("--", 0) == 0) {
-      std::fprintf(stderr, "usage: %s [--repeat N] [--json OUT] CAPTURE.bin...\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--repeat N] [--json OUT] [--perturb EPS] CAPTURE.bin...\n", argv[0]);
       return a == "-h" || a == "--help" ? 0 : 2;
     } else {
       files.push_back(a);
     }
   }
   if (files.empty() || repeat < 1) {
-    std::fprintf(stderr, "usage: %s [--repeat N >= 1] [--json OUT] CAPTURE.bin...\n", argv[0]);
+    std::fprintf(stderr, "usage: %s [--repeat N >= 1] [--json OUT] [--perturb EPS] CAPTURE.bin...\n", argv[0]);
     return 2;
   }
   std::string why;
@@ -137,6 +144,19 @@ int main(int argc, char** argv) {
       r.cpu_median = median(t_cpu);
       r.rms_image = relative_rms(out_cl.data(), out_cpu.data(), out_cpu.size());
       r.pixels_off = pixels_off(out_cl, out_cpu);
+      if (perturb > 0) {
+        dnb::Image g = cap.guide;
+        std::mt19937 rng(1);
+        std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+        // Not the floats that seed the power iteration (adaptive_manifold.cpp's guide_seed reads
+        // every 61st): a new seed would start every split from another random vector.
+        for (std::size_t k = 0; k < g.size(); ++k)
+          if (k % 61 != 0) g.data()[k] *= 1.0f + float(perturb) * u(rng);
+        const dnb::Image moved = dnb::am_filter(cap.src.cview(), g.cview(), cap.settings, cap.queries);
+        r.rms_perturbed = relative_rms(moved.data(), out_cpu.data(), out_cpu.size());
+        std::printf("%s: the CPU path on the guide perturbed by %g: relative RMS %.2e (%zu pixels off)\n", f.c_str(),
+                    perturb, r.rms_perturbed, pixels_off(moved, out_cpu));
+      }
       r.rms_queries = q_cpu.size() == q_cl.size() ? relative_rms(q_cl.data(), q_cpu.data(), q_cpu.size()) : -1.0;
       std::printf("%s: %dx%d, %d source and %d guide channels, %zu queries: OpenCL first %.1f ms, median %.2f ms; "
                   "CPU median %.2f ms; relative RMS image %.2e (%zu pixels off by over 1%% of its RMS), queries %.2e\n",
@@ -166,7 +186,8 @@ int main(int argc, char** argv) {
         << ", \"source_channels\": " << r.c << ", \"guide_channels\": " << r.d << ", \"queries\": " << r.queries
         << ", \"opencl_first_ms\": " << r.cl_first << ", \"opencl_median_ms\": " << r.cl_median
         << ", \"cpu_median_ms\": " << r.cpu_median << ", \"relative_rms_image\": " << r.rms_image
-        << ", \"relative_rms_queries\": " << r.rms_queries << ", \"pixels_off\": " << r.pixels_off << "}" << (i + 1 < results.size() ? "," : "") << "\n";
+        << ", \"relative_rms_queries\": " << r.rms_queries << ", \"pixels_off\": " << r.pixels_off
+        << ", \"relative_rms_perturbed\": " << r.rms_perturbed << "}" << (i + 1 < results.size() ? "," : "") << "\n";
     }
     o << "  ],\n  \"opencl_ms_sum\": " << sum_cl << ",\n  \"cpu_ms_sum\": " << sum_cpu << "\n}\n";
     o.close();
