@@ -72,6 +72,32 @@ std::size_t pixels_off(const dnb::Image& a, const dnb::Image& b) {
   return n;
 }
 
+// A JSON string literal of s (quotes, backslashes and control characters escaped).
+std::string json_string(const std::string& s) {
+  std::string r = "\"";
+  for (const unsigned char ch : s) {
+    if (ch == '"' || ch == '\\') {
+      r += '\\';
+      r += char(ch);
+    } else if (ch < 0x20) {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\u%04x", ch);
+      r += b;
+    } else {
+      r += char(ch);
+    }
+  }
+  return r + "\"";
+}
+
+// A JSON number, or null for NaN and infinities (which JSON cannot hold).
+std::string json_number(double v) {
+  if (!std::isfinite(v)) return "null";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.9g", v);
+  return b;
+}
+
 struct Result {
   std::string file;
   int w = 0, h = 0, c = 0, d = 0;
@@ -178,18 +204,18 @@ int main(int argc, char** argv) {
   if (!json.empty()) {
     // Written by hand: this program links no JSON library, so that it travels with two shared libraries.
     std::ofstream o(json + ".tmp");
-    o << "{\n  \"device\": \"" << device << "\",\n  \"cpu_threads\": " << tbb::info::default_concurrency()
+    o << "{\n  \"device\": " << json_string(device) << ",\n  \"cpu_threads\": " << tbb::info::default_concurrency()
       << ",\n  \"repeat\": " << repeat << ",\n  \"captures\": [\n";
     for (std::size_t i = 0; i < results.size(); ++i) {
       const Result& r = results[i];
-      o << "    {\"file\": \"" << r.file << "\", \"width\": " << r.w << ", \"height\": " << r.h
+      o << "    {\"file\": " << json_string(r.file) << ", \"width\": " << r.w << ", \"height\": " << r.h
         << ", \"source_channels\": " << r.c << ", \"guide_channels\": " << r.d << ", \"queries\": " << r.queries
-        << ", \"opencl_first_ms\": " << r.cl_first << ", \"opencl_median_ms\": " << r.cl_median
-        << ", \"cpu_median_ms\": " << r.cpu_median << ", \"relative_rms_image\": " << r.rms_image
-        << ", \"relative_rms_queries\": " << r.rms_queries << ", \"pixels_off\": " << r.pixels_off
-        << ", \"relative_rms_perturbed\": " << r.rms_perturbed << "}" << (i + 1 < results.size() ? "," : "") << "\n";
+        << ", \"opencl_first_ms\": " << json_number(r.cl_first) << ", \"opencl_median_ms\": " << json_number(r.cl_median)
+        << ", \"cpu_median_ms\": " << json_number(r.cpu_median) << ", \"relative_rms_image\": " << json_number(r.rms_image)
+        << ", \"relative_rms_queries\": " << json_number(r.rms_queries) << ", \"pixels_off\": " << r.pixels_off
+        << ", \"relative_rms_perturbed\": " << json_number(r.rms_perturbed) << "}" << (i + 1 < results.size() ? "," : "") << "\n";
     }
-    o << "  ],\n  \"opencl_ms_sum\": " << sum_cl << ",\n  \"cpu_ms_sum\": " << sum_cpu << "\n}\n";
+    o << "  ],\n  \"opencl_ms_sum\": " << json_number(sum_cl) << ",\n  \"cpu_ms_sum\": " << json_number(sum_cpu) << "\n}\n";
     o.close();
     if (!o || std::rename((json + ".tmp").c_str(), json.c_str()) != 0) {
       std::fprintf(stderr, "am_device: cannot write %s\n", json.c_str());
