@@ -311,8 +311,12 @@ class ClRun : private am_detail::AmRunShape {
   // choose work-groups of one item, which it cannot vectorise across.
   void launch(cl::Kernel& k, std::size_t gx, std::size_t gy = 1) {
     const std::size_t lx = std::min<std::size_t>(kGroup, gx);
-    st_.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((gx + lx - 1) / lx * lx, gy), cl::NDRange(lx, 1),
-                                   nullptr, st_.profile ? event(k.getInfo<CL_KERNEL_FUNCTION_NAME>()) : nullptr);
+    enqueue(k, cl::NDRange((gx + lx - 1) / lx * lx, gy), cl::NDRange(lx, 1));
+  }
+  // Every kernel launch goes through here (timed under the kernel's name with DNB_OPENCL_PROFILE).
+  void enqueue(cl::Kernel& k, const cl::NDRange& global, const cl::NDRange& local) {
+    st_.queue.enqueueNDRangeKernel(k, cl::NullRange, global, local, nullptr,
+                                   st_.profile ? event(k.getInfo<CL_KERNEL_FUNCTION_NAME>()) : nullptr);
   }
 
   // With DNB_OPENCL_PROFILE: an event to time the next command by, else null.
@@ -326,14 +330,14 @@ class ClRun : private am_detail::AmRunShape {
   cl::Buffer planar_on_device(ConstImageView v, int ch, const char* what) {
     const std::size_t N = std::size_t(W_) * H_, row = std::size_t(W_) * ch;
     Temp il(st_, sizeof(float) * N * ch);
-    if (v.row_stride == row) {
-      st_.queue.enqueueWriteBuffer(il.b, CL_FALSE, 0, sizeof(float) * N * ch, v.data, nullptr, event(what));
-    } else {
+    const float* data = v.data;
+    if (v.row_stride != row) {
       auto rows = std::make_shared<std::vector<float>>(N * ch);
       tbb::parallel_for(0, H_, [&](int y) { std::copy(v.row(y), v.row(y) + row, rows->data() + y * row); });
-      st_.queue.enqueueWriteBuffer(il.b, CL_FALSE, 0, sizeof(float) * N * ch, rows->data(), nullptr, event(what));
+      data = rows->data();
       uploaded_.push_back(std::move(rows));
     }
+    st_.queue.enqueueWriteBuffer(il.b, CL_FALSE, 0, sizeof(float) * N * ch, data, nullptr, event(what));
     cl::Buffer planes = take(sizeof(float) * N * ch);
     cl::Kernel& k = kernel("to_planar");
     set(k, int(N), ch, il.b, planes);
@@ -423,9 +427,8 @@ class ClRun : private am_detail::AmRunShape {
   void transpose(cl::Buffer& src, int s0, int w, int h, int n, cl::Buffer& dst, int d0) {
     cl::Kernel& k = kernel("transpose_planes");
     set(k, w, h, src, s0, dst, d0);
-    constexpr std::size_t T = 16;
-    st_.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((std::size_t(w) + T - 1) / T * T, (std::size_t(h) + T - 1) / T * T, n),
-                                   cl::NDRange(T, T, 1), nullptr, st_.profile ? event("transpose_planes") : nullptr);
+    constexpr std::size_t T = 16;  // the kernel's tile
+    enqueue(k, cl::NDRange((std::size_t(w) + T - 1) / T * T, (std::size_t(h) + T - 1) / T * T, n), cl::NDRange(T, T, 1));
   }
   // Rows or columns per work-item of the recursive filters: 8 (float8, for a CPU device's vector
   // lanes) or 1 (a GPU's); DNB_OPENCL_LANES=1 or 8 overrides the device's type, read per run.
@@ -550,14 +553,14 @@ class ClRun : private am_detail::AmRunShape {
   cl::Program prog_;
   cl::Buffer guide_, src_, acc_, w_, min_d2_, label_, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, cov_, cov_rows_, ah_, av_;
   cl::Buffer colsum_;  // a group's column sums: the splat's (C + 1 planes of sh x W per manifold), the split's (2 (D + 1))
-  cl::Buffer vetas_;
+  cl::Buffer vetas_;  // a group's v . eta on the reduced grid (one plane per manifold)
   std::map<std::string, cl::Kernel> kernels_;
   std::vector<std::shared_ptr<void>> uploaded_;  // host data of upload()'s writes, kept until the run ends
   int lanes_ = lanes_for(st_.gpu);
   std::deque<std::pair<std::string, cl::Event>> events_;  // DNB_OPENCL_PROFILE only (deque: stable addresses)
   std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now(), last_mark_ = started_;
   std::vector<std::pair<const char*, double>> host_;  // DNB_OPENCL_PROFILE: host_mark()'s steps
-  std::vector<std::pair<std::size_t, cl::Buffer>> owned_;  // given back to the pool by the destructor   // a group's v . eta on the reduced grid (one plane per manifold)
+  std::vector<std::pair<std::size_t, cl::Buffer>> owned_;  // given back to the pool by the destructor
   int nwx_ = 1;        // the splat's work-items per row
   cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_;
   int nruns_ = 0;
