@@ -19,13 +19,6 @@ namespace fs = std::filesystem;
 
 namespace dnb::experiment {
 
-std::string safe_file_name(const std::string& s) {
-  std::string o = s;
-  for (char& ch : o)
-    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_' && ch != '.') ch = '_';
-  return o;
-}
-
 std::map<std::string, std::optional<double>> score_image(
     const Image& image, const Reference& reference, const std::string& out_dir, const std::string& stem,
     std::map<std::string, std::string>& files, const std::vector<std::pair<std::string, std::string>>& attributes) {

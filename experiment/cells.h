@@ -141,7 +141,4 @@ std::map<std::string, std::optional<double>> score_image(
 void keep_frame(const std::string& frame_file, const std::string& out_dir, const std::string& rel,
                 std::map<std::string, std::string>& files);
 
-// `s` with every character other than letters, digits, '-', '_' and '.' replaced by '_'.
-std::string safe_file_name(const std::string& s);
-
 }  // namespace dnb::experiment

@@ -14,6 +14,7 @@
 #include "core/config.h"
 #include "interop/import.h"
 #include "core/errors.h"
+#include "core/file_names.h"
 #include "core/hash.h"
 #include "denoisers/method.h"
 #include "experiment/input_files.h"
@@ -107,7 +108,7 @@ void read_methods(ConfigTable& root, ExperimentConfig& c) {
   }
   for (auto& v : root.tables("variant")) {
     MethodSpec s;
-    s.name = v.require_string("name");
+    s.name = file_names::checked(v.require_string("name"), v.where("name"));
     s.method = v.require_string("method");
     s.group = v.get("group", "");
     role_of_group(s.group, v.where("group"));
@@ -148,8 +149,11 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir, const std::stri
   SceneFiles f;
   f.frame = scene_file(t, "frame", config_dir);
   f.reference = scene_file(t, "reference", config_dir);
-  SceneSpec s{t.get("label", fs::path(f.frame).stem().string()), std::nullopt};
-  if (s.name.empty()) throw InputError(fmt::format("{}: expected a non-empty name", t.where("label")));
+  // A label the config gives is refused unless it is a file name; the default, the frame file's
+  // stem, is mapped to one.
+  SceneSpec s{t.contains("label") ? file_names::checked(t.require_string("label"), t.where("label"))
+                                  : file_names::mapped(fs::path(f.frame).stem().string()),
+              std::nullopt};
   const int spp = t.contains("spp") ? t.get("spp", 0, bounds::kSpp) : 0;
   f.input_format = t.get("input_format", input_format);
   t.finish();
@@ -202,11 +206,18 @@ void read_scenes(ConfigTable& root, ExperimentConfig& c) {
   if (c.scenes.empty())
     throw InputError(fmt::format("{}: expected a non-empty list of scene names{}", root.where("scenes"),
                                  listed ? "" : " (or [[scene]] tables)"));
-  std::set<std::string> names;
-  for (const auto& s : c.scenes)
-    if (!names.insert(s.name).second)
+  // Rendered scenes may be named by a scene file's path: their folders take the mapped name, so
+  // two scenes must differ in that too.
+  std::map<std::string, std::string> folders;
+  for (const auto& s : c.scenes) {
+    const auto [it, fresh] = folders.emplace(file_names::mapped(s.name), s.name);
+    if (fresh) continue;
+    if (it->second == s.name)
       throw InputError(fmt::format("{}: scene '{}' is named twice (a [[scene]] read from files takes `label = \"...\"`)",
                                    root.where(listed ? "scenes" : "scene"), s.name));
+    throw InputError(fmt::format("{}: scenes '{}' and '{}' would share the folder name '{}': rename one",
+                                 root.where(listed ? "scenes" : "scene"), it->second, s.name, it->first));
+  }
 }
 
 bool any_rendered(const ExperimentConfig& c) {
@@ -230,7 +241,10 @@ ExperimentConfig load_config(const std::string& path) {
   ConfigTable root = file.root();
   ExperimentConfig c;
   c.path = path;
-  c.name = root.get("name", fs::path(path).stem().string());
+  // The default results folder is results/<name>: a name the config writes must be a file name,
+  // the default (the config file's stem) is mapped to one.
+  c.name = root.contains("name") ? file_names::checked(root.require_string("name"), root.where("name"))
+                                 : file_names::mapped(fs::path(path).stem().string());
   c.width = root.get("width", c.width, bounds::kSide);
   c.height = root.get("height", c.height, bounds::kSide);
   if (std::int64_t(c.width) * c.height > bounds::kMaxPixels)

@@ -15,6 +15,7 @@
 #include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "core/file_names.h"
 #include "core/hash.h"
 #include "core/progress.h"
 #include "core/stats.h"
@@ -65,8 +66,8 @@ RenderSettings input_settings(const ExperimentConfig& c, int spp, std::uint64_t 
 SceneCells scene_cells(const std::string& out_dir, const std::string& name, const Reference& ref) {
   SceneCells s;
   s.scene = name;
-  s.image_dir = "images/" + safe_file_name(name);
-  s.frame_dir = "frames/" + safe_file_name(name);
+  s.image_dir = "images/" + file_names::mapped(name);
+  s.frame_dir = "frames/" + file_names::mapped(name);
   s.width = ref.color.width();
   s.height = ref.color.height();
   s.reference = &ref;
@@ -328,7 +329,7 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodSpec& m, const Scene
   // A plug-in's code is not in the build: its folder's hash is (built-in cells keep their keys).
   if (!info.content_hash.empty()) p.identity["method_content"] = info.content_hash;
   p.contain_failures = true;
-  p.stem = safe_file_name(m.name) + "_" + std::to_string(spp);
+  p.stem = file_names::mapped(m.name) + "_" + std::to_string(spp);
   p.compute = [&c, &m, &info, scene, &frame] {
     auto method = MethodRegistry::global().create(m.method, m.params);
     const MethodInput in = frame_input(frame.get(), scene);

@@ -18,6 +18,7 @@
 
 #include "core/config.h"
 #include "core/exr_io.h"
+#include "core/file_names.h"
 #include "core/hash.h"
 #include "core/subprocess.h"
 #include "core/timer.h"
@@ -424,9 +425,8 @@ PluginManifest manifest_from(const ConfigFile& file, const std::string& path, co
   PluginManifest m;
   m.path = fs::absolute(path).lexically_normal().string();
   m.folder = fs::path(m.path).parent_path().string();
-  m.name = pl->require_string("name");
-  if (!std::regex_match(m.name, std::regex("[A-Za-z0-9][A-Za-z0-9_.-]*")))
-    throw InputError(fmt::format("{}: name '{}': expected letters, digits, '_', '-' or '.'", pl->where("name"), m.name));
+  // A plug-in's name is a method's name: it becomes its cells' image stems.
+  m.name = file_names::checked(pl->require_string("name"), pl->where("name"));
   if (std::find(builtins.begin(), builtins.end(), m.name) != builtins.end())
     throw InputError(fmt::format("{}: name '{}' is a built-in method's; choose another", pl->where("name"), m.name));
   m.description = pl->get("description", "");

@@ -16,6 +16,7 @@
 #include "core/csv.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "core/file_names.h"
 #include "interop/import.h"
 #include "metrics/metrics.h"
 
@@ -163,14 +164,15 @@ ScoreOutcome score(const ScoreRequest& q) {
     out.hdrflip_exposures = hdrflip_exposures(ref.rgb);
   // Error-map file names: the image's stem, numbered when two images share one.
   std::map<std::string, int> stem_count;
-  for (const auto& p : q.images) ++stem_count[fs::path(p).stem().string()];
+  const auto stem_of = [](const std::string& p) { return file_names::mapped(fs::path(p).stem().string()); };
+  for (const auto& p : q.images) ++stem_count[stem_of(p)];
   if (!q.error_maps_dir.empty()) create_folder(q.error_maps_dir);
   for (std::size_t k = 0; k < images.size(); ++k) {
     const ScoredFile& im = images[k];
     check_pair(im.rgb, ref.rgb, "'" + im.path + "'", "'" + ref.path + "'");
     ImageScore row;
     row.image = im.path;
-    std::string stem = fs::path(im.path).stem().string();
+    std::string stem = stem_of(im.path);
     if (stem_count[stem] > 1) stem = fmt::format("{}-{}", k + 1, stem);
     for (const auto& name : out.metrics) {
       const MetricInfo& m = metric(name);
