@@ -2,33 +2,31 @@
 
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <memory>
 
-#include <OpenEXR/openexr.h>
-#include <OpenImageIO/deepdata.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
-#include <unistd.h>
 
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 
 #include "core/atomic_file.h"
-#include "core/bounds.h"
-#include "core/hash.h"
 #include "core/errors.h"
+#include "core/exr_edges.h"
+#include "core/exr_header.h"
+#include "core/hash.h"
+#include "core/memory_budget.h"
 
 namespace dnb {
 namespace fs = std::filesystem;
 using OIIO::TypeDesc;
+using exr::open_input;
 
 static const char* kAttrPrefix = "denoisebench:";
 static const char* kExtraPrefix = "denoisebench:extra:";
@@ -86,141 +84,6 @@ FrameMeta get_meta(const OIIO::ImageSpec& spec, std::size_t* edge_pixels) {
   return m;
 }
 
-// Walks the OpenEXR header(s) of `path` (magic, version, then attributes: name, type name,
-// int32 size, value; an empty name ends a header, and an empty header the list of a multi-part
-// file) and refuses a value size that is negative or runs past the end of the file: OpenEXR
-// 3.1's C++ reader allocates an attribute at its declared size before reading it, and its C
-// core (below) did not refuse every such header. What this walk cannot follow (a name without
-// its terminator) is left to OpenEXR, which reports it.
-void check_attribute_sizes(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::error_code ec;
-  const auto file_size = fs::file_size(path, ec);
-  if (!f || ec) return;  // OIIO reports it
-  char magic[4];
-  std::uint32_t version = 0;
-  if (!f.read(magic, 4) || !f.read(reinterpret_cast<char*>(&version), 4)) return;
-  const bool multipart = version & 0x1000;
-  auto read_name = [&](std::string& name) -> bool {
-    name.clear();
-    for (char c; f.get(c);) {
-      if (c == '\0') return true;
-      if (name.size() == 255) return false;  // the longest name OpenEXR writes
-      name += c;
-    }
-    return false;
-  };
-  std::string name, type;
-  for (bool header_empty = true;;) {
-    if (!read_name(name)) return;
-    if (name.empty()) {  // the end of a header; a multi-part file lists headers up to an empty one
-      if (!multipart || header_empty) return;
-      header_empty = true;
-      continue;
-    }
-    header_empty = false;
-    if (!read_name(type)) return;
-    std::int32_t size = 0;
-    if (!f.read(reinterpret_cast<char*>(&size), 4)) return;
-    const auto at = std::uint64_t(f.tellg());
-    if (size < 0 || std::uint64_t(size) > file_size - std::min<std::uint64_t>(at, file_size))
-      throw InputError(fmt::format("'{}': OpenEXR header attribute '{}' ({}) declares {} bytes, more than the "
-                                   "{}-byte file holds after it",
-                                   path, name, type, size, file_size - std::min<std::uint64_t>(at, file_size)));
-    if (type == "chlist") {
-      // OpenEXR's C++ reader reads channels up to an empty name, whatever the declared size, and
-      // goes on reading attributes from there: the list must end exactly at the declared size.
-      const auto end = at + std::uint64_t(size);
-      std::string channel;
-      while (read_name(channel) && !channel.empty()) f.seekg(16, std::ios::cur);  // type, linear, sampling
-      if (!f || std::uint64_t(f.tellg()) != end)
-        throw InputError(fmt::format("'{}': OpenEXR channel list does not end at its declared size ({} bytes)", path, size));
-      continue;
-    }
-    f.seekg(size, std::ios::cur);
-  }
-}
-
-// Reads the OpenEXR header(s) of `path` with OpenEXR's C core (openexr.h) before OIIO opens it
-// with the C++ library. The C++ library of OpenEXR 3.1 allocates an attribute at the size the
-// file declares before reading it, and reads fixed-size attributes whatever size is declared (so
-// later attributes are read out of step): a 5 KB frame that declares a 2 GB string took 4 GB of
-// memory (found by fuzz/frame_fuzz.cpp). The C core checks each attribute's size against its
-// type and the file's size; its allocations are capped here as well, so a header it accepts is
-// one the C++ library reads in step, with allocations bounded by the file.
-struct ExrHeaderCheck {
-  std::uint64_t limit = 0;
-  std::string error;
-};
-
-// What the header's layout promises that no file of this size can hold, or "": every part's data
-// window must be non-empty and within the harness's image sides, and the file must hold at
-// least the part's chunk offset table (8 bytes a chunk): a header no reader should act on.
-std::string layout_error(exr_const_context_t ctx, std::uint64_t file_size) {
-  int parts = 0;
-  if (exr_get_count(ctx, &parts) != EXR_ERR_SUCCESS || parts < 1) return "no image part in its header";
-  for (int p = 0; p < parts; ++p) {
-    exr_attr_box2i_t dw{};
-    if (exr_get_data_window(ctx, p, &dw) != EXR_ERR_SUCCESS) return fmt::format("part {} has no dataWindow", p);
-    const std::int64_t w = std::int64_t(dw.max.x) - dw.min.x + 1, h = std::int64_t(dw.max.y) - dw.min.y + 1;
-    if (w < bounds::kSide.min || h < bounds::kSide.min || w > bounds::kSide.max || h > bounds::kSide.max)
-      return fmt::format("dataWindow ({}, {}) - ({}, {}) of part {} is {}x{} pixels: expected {}..{} on each side ({})",
-                         dw.min.x, dw.min.y, dw.max.x, dw.max.y, p, w, h, bounds::kSide.min, bounds::kSide.max,
-                         bounds::kSide.why);
-    std::int32_t chunks = 0;
-    if (exr_get_chunk_count(ctx, p, &chunks) == EXR_ERR_SUCCESS && std::uint64_t(chunks) * 8 > file_size)
-      return fmt::format("part {}'s offset table alone needs {} bytes ({} chunks) and the file has {}: truncated",
-                         p, std::uint64_t(chunks) * 8, chunks, file_size);
-  }
-  return {};
-}
-
-void check_exr_header(const std::string& path) {
-  {
-    std::ifstream f(path, std::ios::binary);
-    char magic[4] = {};
-    if (f.read(magic, 4) && std::memcmp(magic, "\x76\x2f\x31\x01", 4) != 0)
-      throw InputError(fmt::format("'{}': not an OpenEXR file (frames and images are read as OpenEXR only)", path));
-  }
-  check_attribute_sizes(path);
-  std::error_code ec;
-  const auto file_size = fs::file_size(path, ec);
-  if (ec) return;  // OIIO reports it
-  // A header never needs more than the file holds; 1 MiB over it leaves room for the core's
-  // own tables.
-  static thread_local ExrHeaderCheck* check = nullptr;
-  ExrHeaderCheck state{file_size + (std::uint64_t(1) << 20), {}};
-  check = &state;
-  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-  init.error_handler_fn = [](exr_const_context_t, exr_result_t code, const char* msg) {
-    if (check && check->error.empty()) check->error = msg ? msg : exr_get_default_error_message(code);
-  };
-  init.alloc_fn = [](std::size_t bytes) -> void* { return check && bytes > check->limit ? nullptr : std::malloc(bytes); };
-  init.free_fn = [](void* p) { std::free(p); };
-  exr_context_t ctx = nullptr;
-  const exr_result_t rv = exr_start_read(&ctx, path.c_str(), &init);
-  const std::string layout = rv == EXR_ERR_SUCCESS ? layout_error(ctx, file_size) : std::string();
-  exr_finish(&ctx);
-  check = nullptr;
-  // Any complaint counts, also one the core reports and reads past (an attribute whose size
-  // disagrees with its type: the C++ reader then reads the rest out of step).
-  if (rv != EXR_ERR_SUCCESS || !state.error.empty())
-    throw InputError(fmt::format("'{}': not a readable OpenEXR header: {}", path,
-                                 state.error.empty() ? exr_get_default_error_message(rv) : state.error));
-  if (!layout.empty()) throw InputError(fmt::format("'{}': {}", path, layout));
-}
-
-std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
-  if (!fs::exists(path)) throw InputError(fmt::format("'{}': no such file", path));
-  check_exr_header(path);
-  // The OpenEXR reader only: ImageInput::open(path) tries every other format's reader when the
-  // OpenEXR one refuses a file, so a damaged frame reached every decoder OIIO links.
-  auto in = OIIO::ImageInput::create("openexr");
-  OIIO::ImageSpec spec;
-  if (!in || !in->open(path, spec))
-    throw InputError(fmt::format("'{}': cannot open as an OpenEXR image: {}", path, in ? in->geterror() : OIIO::geterror()));
-  return in;
-}
 
 // Layer of an EXR channel name: "R" -> color, "direct.R" -> direct, "refl1.normal.X" -> refl1.normal.
 std::string layer_of(const std::string& channel) {
@@ -294,98 +157,6 @@ void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, cons
   stage_image(path, spec, data)->commit();
 }
 
-const char* kDeepChannels[] = {"normal.X", "normal.Y", "normal.Z", "Z",          "albedo.R",
-                               "albedo.G", "albedo.B", "direct.R", "direct.G",   "direct.B",
-                               "indirect.R", "indirect.G", "indirect.B"};
-constexpr int kDeepCount = 13;
-
-void pack(const EdgeSample& s, float* v) {
-  v[0] = s.normal[0]; v[1] = s.normal[1]; v[2] = s.normal[2]; v[3] = s.depth;
-  for (int c = 0; c < 3; ++c) { v[4 + c] = s.albedo[c]; v[7 + c] = s.direct[c]; v[10 + c] = s.indirect[c]; }
-}
-void unpack(const float* v, EdgeSample& s) {
-  s.normal[0] = v[0]; s.normal[1] = v[1]; s.normal[2] = v[2]; s.depth = v[3];
-  for (int c = 0; c < 3; ++c) { s.albedo[c] = v[4 + c]; s.direct[c] = v[7 + c]; s.indirect[c] = v[10 + c]; }
-}
-
-// The edge file written to its temporary file and read back, not yet committed; `digest` gets
-// the SHA-256 of its bytes (the frame records it, so that a reader never pairs a frame with
-// an edge file of another render).
-std::unique_ptr<AtomicOutput> stage_edges(const EdgeSubpixels& e, int width, int height, const std::string& path,
-                                          std::string& digest) {
-  OIIO::ImageSpec spec(width, height, kDeepCount, TypeDesc::FLOAT);
-  spec.deep = true;
-  spec.channelnames.assign(std::begin(kDeepChannels), std::end(kDeepChannels));
-  spec.z_channel = 3;
-  spec.attribute("compression", "zips");
-  OIIO::DeepData dd;
-  dd.init(spec);
-  for (std::size_t i = 0; i < e.size(); ++i) dd.set_samples(e.pixels[i], EdgeSubpixels::kPerPixel);
-  float v[kDeepCount];
-  for (std::size_t i = 0; i < e.size(); ++i)
-    for (int s = 0; s < EdgeSubpixels::kPerPixel; ++s) {
-      pack(e.of(i)[s], v);
-      for (int c = 0; c < kDeepCount; ++c) dd.set_deep_value(e.pixels[i], c, s, v[c]);
-    }
-  // OpenImageIO's OpenEXR writer encodes deep images to files only (through an IOProxy it writes
-  // nothing and reports success), and it does not notice a full disk: the file is read back
-  // before it may be committed.
-  auto out = std::make_unique<AtomicOutput>(path);
-  errno = 0;
-  auto o = OIIO::ImageOutput::create(out->temp_path());
-  if (!o || !o->open(out->temp_path(), spec) || !o->write_deep_image(dd) || !o->close()) {
-    const int err = errno;  // the system's reason, when the writer's file calls failed
-    // The writer's message names the temporary file; the user gave `path`.
-    std::string why = o ? o->geterror() : OIIO::geterror();
-    for (auto at = why.find(out->temp_path()); at != std::string::npos; at = why.find(out->temp_path()))
-      why.replace(at, out->temp_path().size(), path);
-    throw WorkError(
-        fmt::format("cannot write '{}': {}{}", path, why, err ? fmt::format(" ({})", std::strerror(err)) : ""));
-  }
-  o.reset();
-  auto in = OIIO::ImageInput::open(out->temp_path());
-  OIIO::DeepData back;
-  if (!in || !in->read_native_deep_image(0, 0, back) || back.pixels() != dd.pixels() ||
-      back.all_samples().size() != dd.all_samples().size())
-    throw WorkError(fmt::format("cannot write '{}': the file did not read back ({})", path,
-                                in ? in->geterror() : OIIO::geterror()));
-  in.reset();
-  digest = sha256_file(out->temp_path());
-  return out;
-}
-
-EdgeSubpixels read_edges(const std::string& path, int width, int height) {
-  auto in = open_input(path);
-  const auto& spec = in->spec();
-  if (!spec.deep || spec.width != width || spec.height != height)
-    throw InputError(fmt::format("'{}': expected a deep {}x{} image of edge sub-pixels", path, width, height));
-  int idx[kDeepCount];
-  for (int c = 0; c < kDeepCount; ++c) {
-    idx[c] = spec.channelindex(kDeepChannels[c]);
-    if (idx[c] < 0)
-      throw InputError(fmt::format("'{}': missing deep channel '{}'", path, kDeepChannels[c]));
-  }
-  OIIO::DeepData dd;
-  if (!in->read_native_deep_image(0, 0, dd))
-    throw InputError(fmt::format("'{}': cannot read deep data: {}", path, in->geterror()));
-  EdgeSubpixels e;
-  float v[kDeepCount];
-  for (std::int64_t p = 0; p < std::int64_t(width) * height; ++p) {
-    int n = dd.samples(p);
-    if (n == 0) continue;
-    if (n != EdgeSubpixels::kPerPixel)
-      throw InputError(fmt::format("'{}': pixel ({}, {}) has {} sub-pixel samples, expected {}", path,
-                                   p % width, p / width, n, EdgeSubpixels::kPerPixel));
-    e.pixels.push_back(std::int32_t(p));
-    for (int s = 0; s < n; ++s) {
-      for (int c = 0; c < kDeepCount; ++c) v[c] = dd.deep_value(p, idx[c], s);
-      EdgeSample es;
-      unpack(v, es);
-      e.samples.push_back(es);
-    }
-  }
-  return e;
-}
 
 }  // namespace
 
@@ -466,7 +237,7 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
   std::unique_ptr<AtomicOutput> edges;
   if (with_edges) {
     std::string digest;
-    edges = stage_edges(*frame.edges, w, h, edges_path(path), digest);
+    edges = exr::stage_edges(*frame.edges, w, h, edges_path(path), digest);
     spec.attribute(std::string(kAttrPrefix) + "edges_sha256", digest);
   }
   auto image = stage_image_with(path, spec, options.compress ? "zip" : "none", write_strips);
@@ -474,82 +245,6 @@ void write_frame(const AovFrame& frame, const std::string& path, const FrameWrit
   image->commit();
 }
 
-double physical_memory_bytes() {
-  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
-  return pages > 0 && page > 0 ? double(pages) * double(page) : 0.0;
-}
-
-double parse_memory_size(const std::string& text, const std::string& what) {
-  std::size_t used = 0;
-  double value = -1;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  double scale = 1;
-  if (used > 0 && used + 1 == text.size()) {
-    const std::string units = "KMGT";
-    const auto k = units.find(char(std::toupper(static_cast<unsigned char>(text.back()))));
-    if (k != std::string::npos) scale = std::ldexp(1.0, 10 * int(k + 1)), ++used;
-  }
-  if (used == 0 || used != text.size() || !std::isfinite(value) || value <= 0)
-    throw InputError(fmt::format("{} '{}': expected a size in bytes above 0, or with K, M, G or T (e.g. 4G)", what, text));
-  return value * scale;
-}
-
-namespace {
-
-// A cgroup memory limit file's value in bytes, or 0 when it has none ("max", missing, or v1's
-// "unlimited", a number near 2^63).
-double cgroup_limit(const std::string& file) {
-  std::ifstream f(file);
-  std::string v;
-  if (!(f >> v) || v == "max") return 0;
-  char* end = nullptr;
-  const double bytes = std::strtod(v.c_str(), &end);
-  return (end && *end == 0 && bytes > 0 && bytes < 0x1p62) ? bytes : 0;
-}
-
-// Lowers `budget` to `limit` when the limit is known (> 0) and lower; 0 is "unknown" for both.
-void lower_to(double& budget, double limit) {
-  if (limit > 0 && (budget == 0 || limit < budget)) budget = limit;
-}
-
-}  // namespace
-
-double memory_budget_bytes() {
-  double budget = physical_memory_bytes();
-  lower_to(budget, cgroup_limit("/sys/fs/cgroup/memory/memory.limit_in_bytes"));  // v1, the mount's own cgroup
-  lower_to(budget, cgroup_limit("/sys/fs/cgroup/memory.max"));                     // v2, the mount's root
-  std::ifstream self("/proc/self/cgroup");
-  for (std::string line; std::getline(self, line);) {
-    if (!line.starts_with("0::/")) continue;  // v2: limits of the process's cgroup and its parents
-    for (std::filesystem::path p = line.substr(3); p.has_relative_path(); p = p.parent_path())
-      lower_to(budget, cgroup_limit("/sys/fs/cgroup" + p.string() + "/memory.max"));
-  }
-  if (const char* env = std::getenv("DENOISEBENCH_MEMORY_LIMIT"); env && *env)
-    lower_to(budget, parse_memory_size(env, "$DENOISEBENCH_MEMORY_LIMIT"));
-  return budget;
-}
-
-namespace {
-// InputError when decoding `path` (width x height, `channels` in the file) needs more than
-// `available_bytes` (0: unknown, nothing refused).
-void refuse_decode_beyond(const std::string& path, int width, int height, int channels, double need,
-                          double available_bytes) {
-  if (available_bytes > 0 && need > available_bytes)
-    throw InputError(fmt::format("'{}': decoding {}x{} with {} channels needs about {:.1f} GiB, more than the "
-                                 "{:.1f} GiB this process may use (memory, cgroup limit, $DENOISEBENCH_MEMORY_LIMIT)",
-                                 path, width, height, channels, need / double(1ull << 30),
-                                 available_bytes / double(1ull << 30)));
-}
-}  // namespace
-
-void check_decode_memory(const std::string& path, int width, int height, int channels, double available_bytes) {
-  refuse_decode_beyond(path, width, height, channels, 2.0 * double(width) * double(height) * double(channels) * sizeof(float),
-                       available_bytes);
-}
 
 AovFrame read_frame(const std::string& path, const std::vector<std::string>& required,
                     const std::optional<std::vector<std::string>>& only) {
@@ -642,7 +337,7 @@ AovFrame read_frame(const std::string& path, const std::vector<std::string>& req
       throw InputError(fmt::format("'{}': the edge file '{}' is not the one written with this frame (its SHA-256 "
                                    "differs from the frame's record): render the frame again",
                                    path, ep));
-    frame.edges = read_edges(ep, w, h);
+    frame.edges = exr::read_edges(ep, w, h);
     if (frame.edges->size() != edge_pixels)
       throw InputError(fmt::format("'{}': holds {} edge pixels, '{}' lists {}", ep, frame.edges->size(),
                                    path, edge_pixels));

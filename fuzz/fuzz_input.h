@@ -31,7 +31,7 @@ inline const std::filesystem::path& private_dir() {
     }
     std::atexit([] { std::error_code ec; std::filesystem::remove_all(private_dir(), ec); });
     // The readers refuse a decode larger than the memory the process may use
-    // (core/exr_io.h memory_budget_bytes()). Under libFuzzer that is its -rss_limit_mb of
+    // (core/memory_budget.h memory_budget_bytes()). Under libFuzzer that is its -rss_limit_mb of
     // 2048 MB (scripts/fuzz), not the machine's memory. 128 MB: well below it with ASan's own
     // overhead, and small enough that an input declaring an image just under the budget does
     // not take seconds to zero-fill (at 512 MB such inputs took 12 s and the target ran at 9

@@ -9,6 +9,7 @@
 #include "core/config.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "core/memory_budget.h"
 
 namespace dnb::rt {
 namespace {

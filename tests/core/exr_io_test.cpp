@@ -19,6 +19,7 @@
 #include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "core/memory_budget.h"
 #include "test_util.h"
 
 namespace dnb {
