@@ -24,17 +24,7 @@
 // checks it against the seed-to-seed variance over many seeds. The half buffers half0.* and
 // half1.* are the even and the odd groups: two independent half-sample estimates.
 //
-// Edge set G (paper 3.1), from the finished normal and depth layers: pixel p is in G when
-//  - its own samples disagree: |mean normal| < kEdgeNormalLength (normals spread over > ~25
-//    degrees, or hits mixed with misses) or the relative standard deviation of its depth
-//    samples exceeds kEdgeDepthSpread; or
-//  - a 4-neighbour q differs: the angle between their mean normals exceeds kEdgeNormalAngle,
-//    one is a miss and the other not, or |depth_p - depth_q| > kEdgeDepthRel * min(depth_p,
-//    depth_q) (both then belong to G).
-// For pixels of G the samples are traced again (the same random numbers give the same paths)
-// and averaged per 4x4 sub-pixel stratum: sub-pixel (i, j) holds the samples whose film position
-// falls in [i/4, (i+1)/4) x [j/4, (j+1)/4) of the pixel. With spp = 256 each holds 16 samples.
-// A sub-pixel that no sample falls in (spp < 16) gets the pixel's means.
+// Edge set G and its sub-pixels: tracer/render_edges.cpp.
 //
 // Pixel means of D and I are albedo-weighted ("demodulated"): per channel c,
 //   D_c = sum_s D_c(s) T_c(s) / sum_s T_c(s)   (and likewise I), T_c = mean of T_c(s),
@@ -62,120 +52,17 @@
 #include "tracer/integrator.h"
 #include "tracer/pixel_sums.h"
 #include "tracer/render.h"
+#include "tracer/render_internal.h"
 #include "tracer/scene.h"
 #include "tracer/scene_loader.h"
 
 namespace dnb {
 using namespace rt;
+using namespace render_pass;
 
 namespace {
 
-constexpr float kEdgeNormalLength = 0.95f;  // |mean of unit normals| below: normals disagree inside
-constexpr float kEdgeNormalAngle = 25.0f;   // degrees between neighbours' normals
-constexpr float kEdgeDepthRel = 0.05f;      // relative depth jump between neighbours
-constexpr float kEdgeDepthSpread = 0.02f;   // relative std. deviation of depth inside a pixel
-constexpr int kTile = 16;
-
-// Embree and the integrator want denormals flushed (speed); set on every rendering task, so
-// every thread computes the same bits.
-void set_ftz_daz() { enable_flush_to_zero(); }
-
-void check_settings(const RenderSettings& s) {
-  Image::check_size(s.width, s.height, 3, "render size");
-  check_bound(s.spp, bounds::kSpp, "render: spp");
-  check_bound(s.max_depth, bounds::kMaxDepth, "render: max depth");
-  if (s.reflection_levels < 0 || s.reflection_levels > kMaxReflectionLevels)
-    throw InputError(fmt::format("reflection levels must be in 0..{} (got {})", kMaxReflectionLevels,
-                                 s.reflection_levels));
-  check_bound(s.threads, bounds::kThreads, "render: threads");
-}
-
-// Film position of a sample inside its pixel, in [0, 1)^2: its sampler's first two dimensions.
-inline void sample_position(Sampler& rng, float& fx, float& fy) {
-  fx = rng.next();
-  fy = rng.next();
-}
-
-inline bool sample_finite(const SampleResult& r) {
-  float acc = 0;
-  for (int k = 0; k < r.levels; ++k) {
-    const LevelSample& l = r.level[k];
-    acc += l.direct.x + l.direct.y + l.direct.z + l.indirect.x + l.indirect.y + l.indirect.z + l.reflection.x +
-           l.reflection.y + l.reflection.z + l.emission.x + l.emission.y + l.emission.z + l.tint.x + l.tint.y +
-           l.tint.z + l.depth;
-  }
-  return std::isfinite(acc) && is_finite(r.level[0].color());
-}
-
-// Runs f inside an arena of `threads` threads (0: TBB's default, all cores).
-template <typename F>
-void run_in_arena(int threads, F&& f) {
-  if (threads > 0) {
-    tbb::task_arena arena(threads);
-    arena.execute(f);
-  } else {
-    f();
-  }
-}
-
-// Runs f(tile_x0, tile_y0, tile_x1, tile_y1) over all tiles with `threads` threads (0: all).
-template <typename F>
-void for_each_tile(int width, int height, int threads, F&& f) {
-  const int tx = (width + kTile - 1) / kTile, ty = (height + kTile - 1) / kTile;
-  run_in_arena(threads, [&] {
-    tbb::parallel_for(0, tx * ty, [&](int t) {
-      set_ftz_daz();
-      int x0 = (t % tx) * kTile, y0 = (t / tx) * kTile;
-      f(x0, y0, std::min(width, x0 + kTile), std::min(height, y0 + kTile));
-    });
-  });
-}
-
-PathTracer::Options tracer_options(const RenderSettings& s) {
-  PathTracer::Options o;
-  o.max_depth = s.max_depth;
-  o.reflection_levels = s.reflection_levels;
-  return o;
-}
-
-Vec3 pixel_vec(const Image& img, int x, int y) {
-  const float* p = img.pixel(x, y);
-  return {p[0], p[1], p[2]};
-}
-
-// What tracing one sample needs: the scene's camera, the tracer, the image size and the seed.
-struct SampleSource {
-  const Scene& scene;
-  const PathTracer& tracer;
-  int width, height;
-  std::uint64_t seed;
-
-  // Traces the samples s = begin .. end - 1 of pixel (x, y) in order, calling f(s, r, fx, fy)
-  // after each with its layers in r and its film position inside the pixel in fx, fy; their
-  // sequence dimensions are made in `table` (math.h's SampleTable). Returns the rays traced.
-  // (Tracing the camera rays of a pixel eight at a time as an Embree packet gave the same hits
-  // bit for bit but no measurable speed-up: 2.82 M paths/s against 2.85 M on McGuire's box.)
-  template <typename F>
-  std::uint64_t trace_samples(SampleTable& table, int x, int y, int begin, int end, SampleResult& r, F&& f) const {
-    std::uint64_t rays = 0;
-    for_pixel_samples(table, seed, std::uint64_t(y) * width + x, std::uint64_t(begin), std::uint64_t(end),
-                      [&](std::uint64_t s, Sampler rng) {
-                        float fx, fy;
-                        sample_position(rng, fx, fy);
-                        PathContext ctx{rng};
-                        tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, width, height), ctx, r);
-                        rays += ctx.rays;
-                        f(int(s), r, fx, fy);
-                      });
-    return rays;
-  }
-};
-
 // ---- The frame's layers ----
-
-struct LevelImages {
-  Image *direct, *indirect, *albedo, *reflection, *emission, *normal, *depth, *tint;  // tint: k > 0
-};
 
 // One half buffer's layers (core/aov_frame.h's layer::kHalfLayers).
 struct HalfImages {
@@ -247,10 +134,6 @@ FrameLayers layers_of(AovFrame& frame, int K) {
 }
 
 // ---- Main pass: per-pixel sums, then the pixel's layers ----
-
-constexpr int kGroups = Sampler::kGroups;
-static_assert(kGroups == kSampleGroups, "render.h's group count is the sampler's");
-static_assert(kGroups % 2 == 0, "the half buffers are the even and the odd groups");
 
 // The sums of one sample group (rt::Sampler): level 0's layers and the colour. The pixel's
 // level-0 sums, its half buffers and the variances of its means are all made from them.
@@ -409,114 +292,6 @@ void warn_clamped_variance(const AovFrame& frame) {
                  std::numeric_limits<float>::max());
 }
 
-// ---- Edge set G (see top of file) ----
-
-void mark_edge_set(const LevelImages& l0, const Image& depth_spread, Image& edge, int threads) {
-  const Image& normal = *l0.normal;
-  const Image& depth = *l0.depth;
-  const int W = edge.width(), H = edge.height();
-  const float cos_edge = std::cos(kEdgeNormalAngle * kPi / 180);
-  auto differ = [&](int xa, int ya, int xb, int yb) {
-    Vec3 na = pixel_vec(normal, xa, ya), nb = pixel_vec(normal, xb, yb);
-    float la = length(na), lb = length(nb);
-    if ((la < 1e-3f) != (lb < 1e-3f)) return true;
-    if (la >= 1e-3f && dot(na, nb) < cos_edge * la * lb) return true;
-    float da = depth.at(xa, ya, 0), db = depth.at(xb, yb, 0);
-    return std::fabs(da - db) > kEdgeDepthRel * std::min(da, db);
-  };
-  // Each pixel tests itself and its four neighbours (so rows can run in parallel).
-  run_in_arena(threads, [&] {
-    tbb::parallel_for(0, H, [&](int y) {
-      for (int x = 0; x < W; ++x) {
-        Vec3 n = pixel_vec(normal, x, y);
-        float ln = length(n);
-        bool in_g = (ln > 1e-3f && ln < kEdgeNormalLength) || depth_spread.at(x, y, 0) > kEdgeDepthSpread ||
-                    (x + 1 < W && differ(x, y, x + 1, y)) || (x > 0 && differ(x, y, x - 1, y)) ||
-                    (y + 1 < H && differ(x, y, x, y + 1)) || (y > 0 && differ(x, y, x, y - 1));
-        edge.at(x, y, 0) = in_g ? 1.0f : 0.0f;
-      }
-    });
-  });
-}
-
-// ---- Edge sub-pixels: G's samples traced again, averaged per 4x4 stratum ----
-
-struct SubpixelSums {
-  int n = 0;
-  D3 normal, albedo, direct, indirect, direct_t, indirect_t;
-  double depth = 0;
-};
-
-void trace_subpixels(const SampleSource& src, int spp, int x, int y, SampleTable& table, SampleResult& r,
-                     SubpixelSums (&sub)[EdgeSubpixels::kPerPixel]) {
-  constexpr int side = EdgeSubpixels::kPerSide;
-  src.trace_samples(table, x, y, 0, spp, r, [&](int, const SampleResult& sr, float fx, float fy) {
-    if (!sample_finite(sr)) return;
-    SubpixelSums& b = sub[int(fy * side) * side + int(fx * side)];
-    const LevelSample& l0 = sr.level[0];
-    ++b.n;
-    b.normal.add(l0.normal);
-    b.albedo.add(l0.albedo);
-    b.direct.add(l0.direct);
-    b.indirect.add(l0.indirect);
-    b.direct_t.add(l0.direct * l0.albedo);
-    b.indirect_t.add(l0.indirect * l0.albedo);
-    b.depth += l0.depth;
-  });
-}
-
-// The sub-pixels' means; one that no sample fell in gets the pixel's means from level 0's layers.
-void store_subpixels(const SubpixelSums (&sub)[EdgeSubpixels::kPerPixel], const LevelImages& l0, int x, int y,
-                     EdgeSample* out) {
-  for (int k = 0; k < EdgeSubpixels::kPerPixel; ++k) {
-    EdgeSample& e = out[k];
-    if (sub[k].n == 0) {
-      for (int c = 0; c < 3; ++c) {
-        e.normal[c] = l0.normal->at(x, y, c);
-        e.albedo[c] = l0.albedo->at(x, y, c);
-        e.direct[c] = l0.direct->at(x, y, c);
-        e.indirect[c] = l0.indirect->at(x, y, c);
-      }
-      e.depth = l0.depth->at(x, y, 0);
-      continue;
-    }
-    const double inv = 1.0 / sub[k].n;
-    for (int c = 0; c < 3; ++c) {
-      e.normal[c] = float(sub[k].normal.v[c] * inv);
-      e.albedo[c] = float(sub[k].albedo.v[c] * inv);
-    }
-    e.depth = float(sub[k].depth * inv);
-    demodulated(sub[k].direct_t.v, sub[k].direct.v, sub[k].albedo.v, sub[k].n, e.direct);
-    demodulated(sub[k].indirect_t.v, sub[k].indirect.v, sub[k].albedo.v, sub[k].n, e.indirect);
-  }
-}
-
-// The sub-pixel data of every pixel of G, in parallel over chunks of edge pixels.
-EdgeSubpixels render_edge_subpixels(const SampleSource& src, int spp, const Image& edge, const LevelImages& l0,
-                                    int threads) {
-  const int W = edge.width(), H = edge.height();
-  EdgeSubpixels es;
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      if (edge.at(x, y, 0) > 0) es.pixels.push_back(std::int32_t(y * W + x));
-  es.samples.resize(es.pixels.size() * EdgeSubpixels::kPerPixel);
-  const std::size_t chunk = 64;
-  const std::size_t chunks = (es.pixels.size() + chunk - 1) / chunk;
-  run_in_arena(threads, [&] {
-    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
-      set_ftz_daz();
-      SampleResult r;
-      SampleTable table;
-      for (std::size_t i = c * chunk; i < std::min(es.pixels.size(), (c + 1) * chunk); ++i) {
-        const int x = es.pixels[i] % W, y = es.pixels[i] / W;
-        SubpixelSums sub[EdgeSubpixels::kPerPixel];
-        trace_subpixels(src, spp, x, y, table, r, sub);
-        store_subpixels(sub, l0, x, y, &es.samples[i * EdgeSubpixels::kPerPixel]);
-      }
-    });
-  });
-  return es;
-}
 
 void write_meta(FrameMeta& meta, const Scene& scene, const RenderSettings& settings, const PassCounts& counts) {
   meta.scene = scene_name(scene);
@@ -564,144 +339,6 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   write_meta(frame.meta, scene, settings, PassCounts{dropped.load(), rays.load()});
   frame.meta.render_seconds = clock.seconds();
   return frame;
-}
-
-ColorSums render_color_sums(const Scene& scene, const RenderSettings& settings, int sample_begin, int sample_end) {
-  check_settings(settings);
-  if (sample_begin < 0 || sample_end > settings.spp || sample_begin > sample_end)
-    throw InputError(fmt::format("sample range [{}, {}) is not inside [0, {})", sample_begin, sample_end,
-                                 settings.spp));
-  const int W = settings.width, H = settings.height;
-  PathTracer tracer(scene, tracer_options(settings));
-  const SampleSource src{scene, tracer, W, H, settings.seed};
-  ColorSums out;
-  out.width = W;
-  out.height = H;
-  out.samples = sample_end - sample_begin;
-  for (int s = sample_begin; s < sample_end; ++s) ++out.group_samples[s % kGroups];
-  out.sum.assign(std::size_t(W) * H * 3, 0.0);
-  out.group_sum.assign(std::size_t(W) * H * 3 * kGroups, 0.0);
-  std::atomic<std::int64_t> dropped{0};
-  for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
-    SampleResult r;
-    SampleTable table;
-    std::int64_t tile_dropped = 0;
-    for (int y = y0; y < y1; ++y)
-      for (int x = x0; x < x1; ++x) {
-        const std::uint64_t pixel = std::uint64_t(y) * W + x;
-        double* s1 = &out.sum[pixel * 3];
-        double* sg = &out.group_sum[pixel * 3 * kGroups];
-        src.trace_samples(table, x, y, sample_begin, sample_end, r, [&](int s, const SampleResult& sr, float, float) {
-          // A dropped sample counts as 0 (mean() divides by the attempted samples).
-          Vec3 f{0, 0, 0};
-          if (sample_finite(sr)) f = sr.level[0].color();
-          else ++tile_dropped;
-          double* g = sg + 3 * (s % kGroups);
-          for (int c = 0; c < 3; ++c) {
-            s1[c] += f[c];
-            g[c] += f[c];
-          }
-        });
-      }
-    dropped += tile_dropped;
-    if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * (sample_end - sample_begin));
-  });
-  out.dropped = dropped.load();
-  return out;
-}
-
-void render_color_prefixes(const Scene& scene, const RenderSettings& settings, const std::vector<int>& prefixes,
-                           const std::function<void(std::size_t, Image, double)>& on_prefix) {
-  check_settings(settings);
-  for (std::size_t k = 0; k < prefixes.size(); ++k)
-    if (prefixes[k] < 1 || (k > 0 && prefixes[k] <= prefixes[k - 1]) || prefixes[k] > settings.spp)
-      throw InputError(fmt::format("render prefixes must rise from 1 to at most the spp ({}); got {} at position {}",
-                                   settings.spp, prefixes[k], k + 1));
-  Stopwatch clock;
-  const int W = settings.width, H = settings.height;
-  PathTracer tracer(scene, tracer_options(settings));
-  const SampleSource src{scene, tracer, W, H, settings.seed};
-  // Per pixel and group: the colour's sums and the finite samples, as render_tile keeps them
-  // (GroupSums' colour and level-0 count), so that a prefix's image is made by the same
-  // additions in the same order as render_frame's colour layer.
-  struct GroupColor {
-    double c[3] = {0, 0, 0};
-    std::int64_t n = 0;
-  };
-  std::vector<GroupColor> groups(std::size_t(W) * H * kGroups);
-  int done = 0;
-  for (std::size_t k = 0; k < prefixes.size(); ++k) {
-    const int begin = done, end = prefixes[k];
-    Image color(W, H, 3);
-    for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
-      SampleResult r;
-      SampleTable table;
-      for (int y = y0; y < y1; ++y)
-        for (int x = x0; x < x1; ++x) {
-          GroupColor* g = &groups[(std::size_t(y) * W + x) * kGroups];
-          src.trace_samples(table, x, y, begin, end, r, [&](int s, const SampleResult& sr, float, float) {
-            if (!sample_finite(sr)) return;
-            const Vec3 f = sr.level[0].color();
-            GroupColor& gs = g[s % kGroups];
-            for (int c = 0; c < 3; ++c) gs.c[c] += double(f[c]);
-            ++gs.n;
-          });
-          // add_groups' order: the groups' sums added to 0 in group order.
-          double sum[3] = {0, 0, 0};
-          std::int64_t n = 0;
-          for (int j = 0; j < kGroups; ++j) {
-            n += g[j].n;
-            for (int c = 0; c < 3; ++c) sum[c] += g[j].c[c];
-          }
-          store(color, x, y, sum, n > 0 ? 1.0 / n : 0.0);
-        }
-      if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * (end - begin));
-    });
-    done = end;
-    on_prefix(k, std::move(color), clock.seconds());
-  }
-}
-
-void ColorSums::add(const ColorSums& o) {
-  if (sum.empty()) {
-    *this = o;
-    return;
-  }
-  if (o.width != width || o.height != height)
-    throw WorkError(fmt::format("cannot add colour sums of {}x{} to {}x{}", o.width, o.height, width, height));
-  samples += o.samples;
-  for (int g = 0; g < kSampleGroups; ++g) group_samples[g] += o.group_samples[g];
-  dropped += o.dropped;
-  for (std::size_t i = 0; i < sum.size(); ++i) sum[i] += o.sum[i];
-  for (std::size_t i = 0; i < group_sum.size(); ++i) group_sum[i] += o.group_sum[i];
-}
-
-Image ColorSums::mean() const {
-  // `samples` counts per-pixel samples attempted; dropped samples (rare) are spread over the
-  // image, so dividing by the attempted count biases by at most dropped / (pixels x samples).
-  Image img(width, height, 3);
-  const double inv = samples > 0 ? 1.0 / double(samples) : 0.0;
-  for (std::size_t i = 0; i < sum.size(); ++i) img.data()[i] = float(sum[i] * inv);
-  return img;
-}
-
-double ColorSums::variance_of_mean(std::size_t i) const {
-  // pixel_sums.h's group_ratio_variance with weight 1 per sample.
-  double a[kGroups], b[kGroups];
-  std::int64_t n[kGroups];
-  const std::size_t pixel = i / 3, c = i % 3;
-  for (int g = 0; g < kGroups; ++g) {
-    a[g] = group_sum[(pixel * kGroups + std::size_t(g)) * 3 + c];
-    b[g] = double(group_samples[g]);
-    n[g] = group_samples[g];
-  }
-  return group_ratio_variance(a, b, n, sum[i], double(samples));
-}
-
-Image ColorSums::variance_of_mean() const {
-  Image img(width, height, 3);
-  for (std::size_t i = 0; i < sum.size(); ++i) img.data()[i] = float(variance_of_mean(i));
-  return img;
 }
 
 }  // namespace dnb
