@@ -10,6 +10,7 @@
 #include "core/exr_io.h"
 #include "interop/import.h"
 #include "methods/denoise.h"
+#include "methods/plugins.h"
 
 namespace dnb::app {
 
@@ -31,8 +32,11 @@ void add_import(CLI::App& app, Action& action) {
       ->check(in_bounds(bounds::kSpp));
   cmd->add_option("--layer", o->layer, "the prefix of the passes (a Cycles view layer's name) when the file holds several");
   cmd->add_flag("--json", o->json, "print the report as JSON");
-  cmd->callback([&action, o] {
-    action = [o] {
+  // The methods listed as able to run on the frame include the plug-ins `denoise` would load.
+  auto plugins = add_plugins_option(cmd);
+  cmd->callback([&action, o, plugins] {
+    action = [o, plugins] {
+      load_plugins(*plugins);
       require_exr_output(o->output);
       // The frame and its edge file both replace what is there: neither may be the input.
       require_output_is_not_input(o->output, {{"input", o->input}});

@@ -467,3 +467,34 @@ TEST(ProposedWithoutTheSplit, DemodulatesByTheAlbedoFiltersTheColourOrRefuses) {
 
 }  // namespace
 }  // namespace dnb
+
+namespace dnb {
+namespace {
+
+// `import` lists the plug-ins among the methods that can run on the frame, loaded as `denoise`
+// loads them (--plugins, $DENOISEBENCH_PLUGINS, the repository's plugins/): one that reads the
+// colour only is listed for a pbrt frame, one that needs the split it lacks is not.
+TEST(ImportCommand, TheMethodsThatCanRunIncludeThePlugins) {
+  test::TempDir dir;
+  test::write_exr(dir.file("p.exr"), kW, kH, pbrt_channels(false));
+  const auto manifest = [](const std::string& name, const std::string& layers) {
+    return "[plugin]\nname = \"" + name + "\"\ncommand = [\"/bin/true\"]\nprotocol = \"frame\"\nlayers = [" + layers + "]\n";
+  };
+  test::write(dir.path() / "plug" / "a" / "a.toml", manifest("colour_only", "\"color\""));
+  test::write(dir.path() / "plug" / "b" / "b.toml", manifest("needs_split", "\"color\", \"direct\""));
+  auto r = test::run_denoisebench_stdout("import pbrt " + dir.file("p.exr") + " -o " + dir.file("f.exr") + " --json --plugins " +
+                                         dir.file("plug"));
+  ASSERT_EQ(r.exit_code, 0) << r.errors;
+  const auto methods = nlohmann::json::parse(r.output)["methods"].get<std::vector<std::string>>();
+  EXPECT_THAT(methods, ::testing::Contains("colour_only"));
+  EXPECT_THAT(methods, ::testing::Not(::testing::Contains("needs_split")));
+  EXPECT_THAT(methods, ::testing::Contains("bilateral"));
+  // The same plug-in folder through the environment, in the text report.
+  r = test::run_command("DENOISEBENCH_PLUGINS='" + dir.file("plug") + "' '" + test::binary().string() + "' import pbrt " +
+                        dir.file("p.exr") + " -o " + dir.file("g.exr"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("colour_only"));
+}
+
+}  // namespace
+}  // namespace dnb
