@@ -1,6 +1,7 @@
 // denoisebench render SCENE [--spp N] [--size WxH] [--seed S] [--threads T] [--max-depth D]
 //                          [--reflection-levels K] [--scenes-dir DIR] -o FRAME.exr
-// Renders every AOV layer of DESIGN.md (plus the edge file FRAME.edges.exr) with the shared tracer.
+// Renders every AOV layer of docs/design.md, "AOV frame file" (plus the edge file FRAME.edges.exr)
+// with the shared tracer.
 #include "apps/args.h"
 #include "apps/commands.h"
 #include "tracer/jobs.h"

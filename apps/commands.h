@@ -1,5 +1,5 @@
 // Sub-commands of the denoisebench program. Each lives in its own cmd_*.cpp and only parses
-// arguments and calls the libraries (DESIGN.md: apps hold no algorithms).
+// arguments and calls the libraries (docs/design.md, "Where code lives": apps hold no algorithms).
 #pragma once
 
 #include <functional>

@@ -1,4 +1,4 @@
-// denoisebench: the command-line program (DESIGN.md, "Command line"). Exit status: 0 success,
+// denoisebench: the command-line program (docs/design.md, "Command line"). Exit status: 0 success,
 // 1 failure of the work, 2 bad usage or bad input.
 #include <cstdlib>
 #include <exception>

@@ -1,6 +1,6 @@
 // The adaptive-manifold core against OpenCV ximgproc's AdaptiveManifoldFilter at equal
 // parameters (sigma_s 16, sigma_r 0.2, tree height from them, one PCA iteration, no outlier
-// adjustment), 1024x768, a 3-channel source and an 8-channel guide (issue 5's speed goal:
+// adjustment), 1024x768, a 3-channel source and an 8-channel guide (the speed goal:
 // ours at least 2.5x faster), our core on OpenCL (PoCL's CPU device here), and the whole
 // `proposed` method (both layers, one reflection level, edge pixels) on the CPU and on OpenCL
 // when built with it.
@@ -227,7 +227,7 @@ const bool proposed_registered = [] {
     benchmark::RegisterBenchmark(("proposed/" + d + "/1024x768/cpu").c_str(), [d](benchmark::State& s) { BM_proposed(s, d); })
         ->Arg(1)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->MinTime(0.5)->Repetitions(5)->ReportAggregatesOnly(true);
   }
-  // The speed option (not the default: the paper and the issue filter D and I apart on every
+  // The speed option (not the default: the paper's method filters D and I apart on every
   // level), measured in the same process as the default so the two read as a ratio.
   benchmark::RegisterBenchmark("proposed/cpu/1024x768/reflection_sum",
                                [](benchmark::State& s) { BM_proposed(s, "cpu", {{"reflection_sum", "true"}}); })

@@ -45,7 +45,7 @@ double wall_seconds();
 // The reference workload of the nightly performance gate: a fixed small path-tracing job
 // (the built-in cornell-box, 32x24 pixels, 4 spp, path length 8, colour only; a few ms on
 // one core). Methods are timed as multiples of it, which cancels most of a machine's speed
-// and of its momentary load (issue 9).
+// and of its momentary load, so the gate can compare runs on a shared machine.
 class ReferenceWorkload {
  public:
   explicit ReferenceWorkload(int threads);

@@ -1,7 +1,7 @@
 // The cases the nightly performance gate reads (.ci/nightly, experiment/nightly.h): every
 // method on a rendered frame, timed as a multiple of a fixed reference workload run in the
 // same process, interleaved with it, so that the machine's speed and its momentary load
-// cancel out of the ratio (issue 9: "ratios, not absolute times").
+// cancel out of the ratio: the gate compares ratios, not absolute times.
 //
 //   scripts/nightly_bench bench.json      # what the nightly runs: each case in its own process,
 //                                         # --benchmark_repetitions=5 --benchmark_min_time=0.2

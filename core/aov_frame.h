@@ -1,5 +1,5 @@
-// The AOV frame: every layer the shared tracer writes for one render (DESIGN.md, "AOV frame
-// file"), the sub-pixel data of edge pixels (paper 3.1), and the header metadata.
+// The AOV frame: every layer the shared tracer writes for one render (docs/design.md, "AOV
+// frame file"), the sub-pixel data of edge pixels (paper 3.1), and the header metadata.
 #pragma once
 
 #include <cstdint>
@@ -33,7 +33,7 @@ inline constexpr const char* kTint = "tint";            // only at reflection le
 inline constexpr int kMaxLevels = 8;
 // "refl<k>.<base>" for reflection level k >= 1; level 0 returns base itself.
 std::string at_level(int level, const std::string& base);
-// Half buffers (issue 27): the level-0 layers below over half of the samples only: half 0 the
+// Half buffers: the level-0 layers below over half of the samples only: half 0 the
 // even samples 0, 2, 4, ..., half 1 the odd ones. Those are the tracer's even and odd sample
 // groups (tracer/render.cpp's top: eight independently scrambled groups, sample s in group s mod 8),
 // so each half is stratified on its own and the two halves are independent estimates of the pixel

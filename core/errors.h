@@ -1,4 +1,4 @@
-// Error kinds of denoisebench and the exit codes they map to (DESIGN.md, "Command line").
+// Error kinds of denoisebench and the exit codes they map to (docs/design.md, "Command line").
 #pragma once
 
 #include <stdexcept>

@@ -4,8 +4,8 @@
 //
 // Written by hand on posix_spawn and poll because the one packaged library for this in Debian
 // 12, Boost.Process 1.74, has timed waits that block for the whole timeout or forever
-// (boostorg/process issues 69, 107, 204) and are not thread-safe (issue 347, a process-wide
-// SIGCHLD handler); everything here is plain POSIX, about two hundred lines.
+// (github.com/boostorg/process/issues/69, /107, /204) and are not thread-safe (/347: a
+// process-wide SIGCHLD handler); everything here is plain POSIX, about two hundred lines.
 //
 //   Subprocess p({.argv = {"/usr/bin/python3", "x.py"}, .pipe_stdin = true, .pipe_stdout = true});
 //   p.write_line("{...}");

@@ -1,7 +1,7 @@
 // The adaptive-manifold core's inputs (source, guide, settings, slice queries) recorded to files,
 // so that the core can be run and timed on another machine without the harness and its libraries
-// (bench/am_device.cpp: a GPU's OpenCL driver, issue 23). A developer's facility, off unless
-// DNB_AM_CAPTURE names a folder: then every call of am_filter() and am_filter_opencl() writes its
+// (bench/device/am_device.cpp: a GPU's OpenCL driver; docs/opencl-gpu.md). A developer's
+// facility, off unless DNB_AM_CAPTURE names a folder: then every call of am_filter() and am_filter_opencl() writes its
 // inputs there as am-<pid>-<n>.bin (n counts the process's calls from 1), whole or not at all
 // (written to a temporary name, then renamed). DNB_AM_CAPTURE_MAX=N keeps only the first N calls
 // (a benchmark's warm-up run, say).

@@ -1,5 +1,5 @@
-// The paper's decomposition F = (D + I) * T + R + E (NOTES.md, formula 1), shared by the
-// methods that filter the untextured illumination instead of the colour (guided, atrous):
+// The paper's decomposition F = (D + I) * T + R + E (its formula 1 plus the emission E seen
+// directly; docs/paper.md), shared by the methods that filter the untextured illumination instead of the colour (guided, atrous):
 // filtering L = D + I lets a pixel borrow lighting from neighbours with a different texture,
 // so textures stay sharp. The tracer writes D and I already demodulated (untextured), so no
 // division by the albedo is needed.

@@ -1,4 +1,4 @@
-// The one interface every method implements (DESIGN.md, "One interface for every method").
+// The one interface every method implements (docs/design.md, "One interface for every method").
 // Modelled on Intel Open Image Denoise's filters (created by name, named images, typed
 // parameters, execute) and pbrt-v4's Create factories (unknown names and parameters are errors).
 //

@@ -1,4 +1,4 @@
-// proposed: the paper's filter (NOTES.md section 3; Gruzdev, Frolov, Ignatenko). Each
+// proposed: the paper's filter (its section 3, docs/paper.md; Gruzdev, Frolov, Ignatenko). Each
 // illumination layer, direct D and indirect I separately, is filtered by the adaptive-manifold
 // filter (denoisers/adaptive_manifold.h) whose guide is the layer's non-local-means vector
 // (denoisers/nlm_space.h), the shading normal and the depth, each group scaled by its own
@@ -549,7 +549,7 @@ class Proposed final : public Method {
     });
   }
 
-  // The detail guard (not in the paper; issue 25's thin features): where the filter moved a
+  // The detail guard (not in the paper; it keeps thin dark features): where the filter moved a
   // pixel further from its input than the pixel's own noise explains, it removed signal, not
   // noise (a 1-2 px dark groove or gap whose guide - NLM patch, normal, depth - looks like its
   // neighbours', so the slice fills it with their light). Each channel's change is clamped to
@@ -565,8 +565,8 @@ class Proposed final : public Method {
   //     underestimated over an area (rare bright paths that every pixel there missed; a frame
   //     whose variance layer is too small), the filter's changes are large everywhere around
   //     and the band widens with them; a feature of one or two pixels is less than half of the
-  //     window and leaves the median, so it keeps its narrow band. (The same median of |F' - F|
-  //     in absolute units was tried: it gives a dark groove the band of the bright, noisier wall
+  //     window and leaves the median, so it keeps its narrow band. (Not the same median of |F' - F|
+  //     in absolute units: that gives a dark groove the band of the bright, noisier wall
   //     around it, and the groove is lost again.)
   // A firefly's change stays inside its own wide band (its variance is of its own size), so the
   // firefly cut is kept. A frame without variance or colour layers is left as filtered.

@@ -8,7 +8,7 @@
 // from files (docs/results.md, "Scenes read from files"):
 //
 //   [[scene]]
-//   frame = "frames/in.exr"       # an AOV frame (DESIGN.md), relative to the config's folder
+//   frame = "frames/in.exr"       # an AOV frame (docs/design.md), relative to the config's folder
 //   reference = "frames/ref.exr"  # its reference (R,G,B; variance.* used when present)
 //   label = "kitchen"             # optional: the scene's name in the tables (default: the
 //                                 # frame's file stem)

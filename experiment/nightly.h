@@ -1,4 +1,4 @@
-// The nightly quality and performance gates (issue 9; `denoisebench nightly`, `.ci/nightly`).
+// The nightly quality and performance gates (`denoisebench nightly`, `.ci/nightly`).
 //
 // A nightly run folder holds the experiment's results.json (`denoisebench run`) and the
 // benchmark program's bench.json (denoisebench_bench, nightly/ cases). Its *summary* keeps only

@@ -229,7 +229,7 @@ Verdict check(const Summary& baseline, const Summary& current, const Gates& gate
 // (no rule when the run has no `proposed`). Renderer-type methods (the irradiance cache) are
 // left out: they render the scene with their own sample budget, not the run's input frame, so
 // at the nightly's 16 spp the comparison says nothing about the filter (the irradiance cache
-// against `proposed` is issue 7's comparison, at the paper's setting).
+// is compared with `proposed` at the paper's setting, configs/paper.toml).
 void default_ahead(Gates& g, const Summary& s) {
   g.ahead_of.clear();
   if (std::none_of(s.quality.begin(), s.quality.end(), [&](const QualityEntry& e) { return e.method == g.ahead_method; })) {

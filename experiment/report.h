@@ -1,5 +1,5 @@
 // `denoisebench report RESULTS_DIR`: everything is derived from results.json (and the images it
-// names), never typed by hand (STYLE.md 10).
+// names), never typed by hand.
 //
 //   table1_<metric>.{md,csv,tex}   rows scenes, columns methods (the paper's Table 1 layout;
 //                                  table1_mse is Table 1 itself)
@@ -73,7 +73,8 @@ Table ratio_table(const ResultsDocument& results, const std::string& method);
 // Whether `method` is ahead of each of today's baselines present in the run (kModernBaselines,
 // and variants of them), per scene and metric (mse, mse_hdr): "ahead", "behind" or "no
 // significant difference" by a paired t-test over the seeds (p < 0.05), with the mean per-seed
-// error ratio and its 95% interval. Reported, never gated (issue 27). Empty rows without any.
+// error ratio and its 95% interval. Reported, never gated (the nightly gates these baselines for
+// their own regressions only). Empty rows without any.
 Table versus_modern_table(const ResultsDocument& results, const std::string& method);
 inline const std::vector<std::string> kModernBaselines = {"svgf", "nfor", "oidn", "kpcn"};
 // Per scene and method: the share of 16x16 tiles whose 8-bit mse is above the input frame's,

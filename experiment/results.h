@@ -1,9 +1,9 @@
-// The results document: the one schema of results.json (DESIGN.md, "Results"), written by the
+// The results document: the one schema of results.json (docs/design.md, "Results"), written by the
 // runner (`denoisebench run`), read by the report (`denoisebench report`) and by the nightly
 // gates (`denoisebench nightly`). Nothing else in the harness spells its keys.
 //
 //   {
-//     "format": "denoisebench-results", "schema_version": 2,
+//     "format": "denoisebench-results", "schema_version": 4,
 //     "config":  {...},           what was run (RunConfig below)
 //     "machine": {...},           hostname, cpu, hardware_threads, ranks (the MPI ranks the run
 //                                 was spread over, 1 for one process; absent in older files)
@@ -30,10 +30,11 @@
 //   and spp read, byte for byte (frame_edges its edge file): with them the folder re-scores
 //   alone. Records of a scene read from files ([[scene]] frame = ...) have no seed.
 //
-// Reading is strict: a file of another format, of an older schema_version, or with a missing
-// or mistyped key is an InputError naming the file and the key (the record's index too).
-// Version history: 1 (format "denoisebench-results-1", no schema_version); 2 (this header:
-// the same records, the schema named and versioned); 3 (failures; times.setup_seconds of
+// Reading is strict: a file of another format, of a schema_version outside
+// kOldestResultsSchemaVersion..kResultsSchemaVersion, or with a missing or mistyped key is an
+// InputError naming the file and the key (the record's index too). What each version holds, so
+// that older files are read right: 1 (format "denoisebench-results-1", no schema_version: not
+// read); 2 (the schema named and versioned); 3 (failures; times.setup_seconds of
 // worker plug-ins); 4 (files.frame and files.frame_edges of input cells, reference.image with
 // its variance layers and metadata, config.scene_files, skipped). Version 2 and 3 files are
 // read as version 4 without what they lack.

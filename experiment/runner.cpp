@@ -142,7 +142,8 @@ SceneCells file_scene_cells(const RunOptions& opt, const SceneSpec& spec, Refere
 // it was read from, which the input cell keeps in the folder. Not movable: loading refers to it.
 class InputFrame {
  public:
-  // A rendered frame: keyed by its cache key's digest and the reference's spp, as since schema 2.
+  // A rendered frame: keyed by its cache key's digest and the reference's spp, the identity older
+  // results folders' cells have too, so that their finished cells are still reused.
   InputFrame(Cache& cache, const Scene& scene, RenderSettings settings, bool use_cache, int reference_spp)
       : use_cache_(use_cache) {
     const CacheKey key = frame_cache_key(scene, settings);

@@ -1,4 +1,4 @@
-// The experiment runner behind `denoisebench run CONFIG.toml` (DESIGN.md, "Results").
+// The experiment runner behind `denoisebench run CONFIG.toml` (docs/design.md, "Results").
 //
 // For each scene of the config (experiment/config.h): get the reference (tracer/reference.h:
 // cached, checkpointed), then build one CellPlan per cell (experiment/cells.h) and run each

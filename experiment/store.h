@@ -1,4 +1,4 @@
-// The results folder's record of finished work (DESIGN.md, "Results"): results.json and
+// The results folder's record of finished work (docs/design.md, "Results"): results.json and
 // results.csv list the cells of this run's config, in the order visited; finished_cells.json
 // keeps every cell ever finished in the folder, by cell key, so that a run that stops early
 // (killed, or a config listing fewer cells) does not forget the cells it had not reached. All

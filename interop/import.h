@@ -1,5 +1,5 @@
 // Frames from other renderers: a mapping from a foreign EXR's channels to the harness's layers
-// (DESIGN.md, "AOV frame file"), the presets written in that form (configs/import/: Blender
+// (docs/design.md, "AOV frame file"), the presets written in that form (configs/import/: Blender
 // Cycles, pbrt-v4's GBufferFilm, Mitsuba 3's aov integrator), and the import itself.
 // docs/importing.md describes each format, what it leaves out and which methods run on it.
 //
@@ -68,7 +68,7 @@ struct ImportMapping {
   std::vector<LayerMapping> layers;
 };
 
-// The layers a mapping may fill (what DESIGN.md's frame contract names, reflection levels aside).
+// The layers a mapping may fill (what docs/design.md's frame contract names, reflection levels aside).
 const std::vector<std::string>& mappable_layers();
 
 // A mapping file; InputError naming the file, line and key for an unknown key or layer, a bad

@@ -8,7 +8,7 @@
 // - IrradianceCache: records in an octree, inserted with radius clamping (pixel footprint,
 //   gradient, neighbours) and interpolated with Tabellion and Lamorlette's error weight and
 //   gradient extrapolation clamped to non-negative values.
-// renderer.cpp drives it with the shared tracer; the tests drive it with analytic callbacks.
+// irradiance_cache.cpp drives it with the shared tracer; the tests drive it with analytic callbacks.
 #pragma once
 
 #include <array>
@@ -131,7 +131,7 @@ class IrradianceCache {
   // Builds a record from a gather at (p, n): radius = harmonic mean hit distance, limited by
   // E / |grad_t E| per channel, by neighbours (and the neighbours by it), then clamped to the
   // pixel-footprint bounds. Returns the record's index. Not thread-safe: callers insert from one
-  // thread (renderer.cpp inserts in a fixed order, which makes the cache deterministic).
+  // thread (irradiance_cache.cpp inserts in a fixed order, which makes the cache deterministic).
   std::size_t insert(Vec3 p, Vec3 n, const GatherResult& g, RadiusBounds bounds);
 
   // Tabellion-Lamorlette weight of record r at (p, n); 0 when r does not apply there.

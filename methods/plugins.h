@@ -1,13 +1,13 @@
 // Plug-in denoisers: any program, in any language, described by a TOML manifest, run by the
 // harness behind the one method interface and scored like a built-in (docs/plugins.md is the
-// user's guide and the protocol's definition; DESIGN.md, "Plug-ins (contract)").
+// user's guide and the protocol's definition; docs/design.md, "Plug-ins").
 //
 //   [plugin]
 //   name = "boxblur"                  the method name; must not clash with a built-in
 //   description = "one line"
 //   command = ["/usr/bin/python3", "boxblur.py"]   argv, no shell; relative paths: the manifest's folder
 //   protocol = "frame"                "frame" (a process per frame) or "worker" (one process per run)
-//   layers = ["color", "albedo"]      frame layers it reads (DESIGN.md's names)
+//   layers = ["color", "albedo"]      frame layers it reads (docs/design.md's names)
 //   timeout_seconds = 600             per frame (and for a worker's start-up)
 //   [params.radius]                   typed parameters, like a built-in's ParamSpec
 //   type = "int"  default = "2"  min = 0  max = 64  doc = "box radius in pixels"

@@ -1,4 +1,4 @@
-// Error metrics against a reference (DESIGN.md, "Metric conventions"), each with a per-pixel
+// Error metrics against a reference (docs/design.md, "Metric conventions"), each with a per-pixel
 // error map, and a registry of them by name.
 //
 //   mse      8-bit sRGB (exposure 1, clamp [0,1], sRGB transfer, x255, rounded): Table 1's scale
@@ -166,7 +166,7 @@ double unconverged_share(const Image& reference, const Image& reference_variance
 // pixel is unconverged.
 MetricResult mse_converged(const Image& image, const Image& reference, const Image* reference_variance);
 
-// The reference's own error, from its variance of the mean v (issue 25). Scored against a noisy
+// The reference's own error, from its variance of the mean v. Scored against a noisy
 // reference r = mu + e, an image x independent of it has E[(x - r)^2] = E[(x - mu)^2] + Var(r)
 // per sample: the reference adds its variance to every method's mse_hdr. Hence
 //   mse_hdr_nc = mean of (x - r)^2 - v             (unbiased for the error against the truth)

@@ -34,7 +34,7 @@ _ORDER = {"R": 0, "G": 1, "B": 2, "X": 0, "Y": 1, "Z": 2}
 
 
 class Frame:
-    """The layers of one input frame by the harness's layer names (DESIGN.md): 'color',
+    """The layers of one input frame by the harness's layer names (docs/design.md): 'color',
     'direct', 'indirect', 'albedo', 'reflection', 'emission', 'normal', 'depth', 'variance',
     ..., 'refl1.color' ... Each is an H x W x C float32 array (C = 3, or 1 for depth, edge,
     samples). `meta` holds the frame's metadata: scene, spp, seed, size."""

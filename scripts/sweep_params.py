@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Pick each baseline method's default parameters by minimising MSE on a training scene.
 
-Fair baselines (issues 5 and 27): every method's defaults come from this sweep on a scene that is NOT
+Fair baselines: every method's defaults come from this sweep on a scene that is NOT
 one of the four evaluation scenes (cornell-box, conference, bedroom, sponza). It renders the
 training frame and its reference with the denoisebench CLI (or takes --frame/--reference), then
 runs a coordinate descent over each method's parameter grid below: starting from the current
@@ -18,7 +18,7 @@ The reference is rendered with `denoisebench reference` when that command is ava
 with `denoisebench render` at --ref-spp and another seed. A noisy reference adds the same
 constant (its variance) to every candidate's expected MSE, so it does not move the minimum.
 
-Several training scenes (issue 25: the training room, the lamp room, the sun-lit court; every
+Several training scenes (the training room, the lamp room, the sun-lit court; every
 --scene, or every --frame/--reference pair, is one): the error minimised is then the geometric
 mean over the scenes of each scene's mse divided by its unfiltered input's, so that no scene
 weighs more for being noisier; with one scene that is the plain mse up to a constant.
@@ -62,7 +62,7 @@ GRIDS = {
                   "sigma_nlm": "0.05", "sigma_normal": "0.3", "sigma_depth": "0.02", "nlm_dims": "3",
                   "detail_guard": "3"},
         "grid": {
-            "detail_guard": ["0", "2", "3", "4", "6"],  # issue 25's thin features (proposed.cpp, guard_details)
+            "detail_guard": ["0", "2", "3", "4", "6"],  # thin dark features (proposed.cpp, guard_details)
             "sigma_s": ["2", "4", "8", "16"],
             "sigma_r": ["0.25", "0.4", "0.6"],
             "tree_height": ["0", "3", "4"],
@@ -114,7 +114,7 @@ GRIDS = {
             "filter_reflection": ["false", "true"],
         },
     },
-    # SVGF's spatial filter (issue 27). The first sweep started from the paper's values (5, 4, 128,
+    # SVGF's spatial filter. The first sweep started from the paper's values (5, 4, 128,
     # 1, true, true) and ended at iterations and sigma_normal's lower ends: widened there.
     "svgf": {
         "start": {"iterations": "3", "sigma_luminance": "2", "sigma_normal": "8", "sigma_depth": "1",
@@ -128,7 +128,7 @@ GRIDS = {
             "variance_prefilter": ["true", "false"],
         },
     },
-    # NFOR (issue 27): the paper's values to start from. Not run yet: one evaluation at 1024x768
+    # NFOR: the paper's values to start from. Not run yet: one evaluation at 1024x768
     # takes about a minute (docs/method-defaults.md, "nfor"), so the descent takes an hour or more.
     "nfor": {
         "start": {"radius": "9", "patch_radius": "1", "k_small": "0.75", "k_large": "2", "second_pass": "false"},
@@ -141,8 +141,8 @@ GRIDS = {
         },
     },
     # A renderer (renders the training scene itself, so the sweep needs --scene). Its time is
-    # bounded by the render time of the path-traced input (the frame's render_seconds), as
-    # issue 7 asks; candidates over it are recorded and never chosen.
+    # bounded by the render time of the path-traced input (the frame's render_seconds): a
+    # renderer slower than that is no speed-up. Candidates over it are recorded and never chosen.
     "irradiance_cache": {
         "renderer": True,
         "start": {"direct_samples": "16", "max_pixel_spacing": "15", "kappa": "1", "pixel_samples": "64"},

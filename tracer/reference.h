@@ -60,7 +60,7 @@ struct ConvergenceRow {
   double seconds = 0;        // render time so far (all sessions of a resumed render)
   double rel_error = 0;      // sqrt(sum var / sum mean^2) over pixels and channels: the relative
                              // RMS error of the mean image
-  double est_relmse = 0;     // mean of var / (mean^2 + 0.01): the expected `relmse` (DESIGN.md)
+  double est_relmse = 0;     // mean of var / (mean^2 + 0.01): the expected `relmse` (docs/design.md)
                              // of this reference against the fully converged image
 };
 

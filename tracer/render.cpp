@@ -16,8 +16,8 @@
 //
 // Variance of a pixel's mean: stratified samples are not independent, so the sample variance
 // of a pixel's samples / spp overstates the variance of its mean (by ~3x where the pixel holds
-// an edge or texture that stratification averages out: issue 25, and the old estimator's
-// figures in tests/tracer/variance_test.cpp). The eight groups are independent replicates of
+// an edge or texture that stratification averages out: tests/tracer/variance_test.cpp has the
+// figures). The eight groups are independent replicates of
 // the same estimator, so the spread of their means gives the variance of the pixel's mean without
 // bias (pixel_sums.h's group_ratio_variance; 7 degrees of freedom per pixel: a single pixel's
 // value is noisy, +-53% (one standard deviation), its expectation exact). variance_test.cpp

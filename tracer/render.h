@@ -48,7 +48,7 @@ struct RenderSettings {
   std::function<void(std::int64_t)> on_progress;
 };
 
-// Renders every AOV layer of DESIGN.md (plus edge sub-pixels and reflection levels).
+// Renders every AOV layer of docs/design.md, "AOV frame file" (plus edge sub-pixels and reflection levels).
 AovFrame render_frame(const Scene& scene, const RenderSettings& settings);
 
 // The colour layer of a render at each of `prefixes` (rising, at most settings.spp): the image of

@@ -20,10 +20,10 @@ the window:
   out = T_eps * (K_d * Ld) + K_s * R + E
 
 where Ld and R have had their fireflies cut first (split_fireflies, the harness's own rule), and
-the cut light is dropped, as `proposed` and the illumination baselines drop it by default. It
-used to be spread back over a 33 x 33 box (energy kept): on McGuire's Sponza at 16 spp (issue 25's
-generalisation run) the sun's fireflies came out as bright squares, mse 9349 against the input's
-941; dropped, 710 (the quick run's cornell-box 28.1 -> 27.6 at seed 1, sponza unchanged).
+the cut light is dropped, as `proposed` and the illumination baselines drop it by default,
+rather than spread back over a 33 x 33 box (energy kept): spread, the sun's fireflies on McGuire's
+Sponza at 16 spp (the generalisation run) came out as bright squares, mse 9349 against the
+input's 941; dropped, 710 (the quick run's cornell-box 28.1 -> 27.6 at seed 1, sponza unchanged).
 
 A constant input stays constant whatever the weights (a normalised kernel of a constant), no
 output is negative, and the output is a convex combination of the input's own values: a learned

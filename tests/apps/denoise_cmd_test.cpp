@@ -1,4 +1,4 @@
-// `denoisebench denoise` and `denoisebench list methods` from the outside (issue 5): exit codes,
+// `denoisebench denoise` and `denoisebench list methods` from the outside: exit codes,
 // the messages users see, and that a refused run leaves no output file behind.
 #include <gtest/gtest.h>
 #include <gmock/gmock.h>

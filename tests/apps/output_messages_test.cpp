@@ -49,7 +49,7 @@ TEST(OutputMessages, CannotWriteCarriesTheSystemsReason) {
   EXPECT_TRUE(fs::is_empty(dir.file("taken.exr")));
 }
 
-// Found by a hostile-user pass (issue 20): `denoise am f.exr -o f.exr` replaced the frame with its
+// Found by a hostile-user pass: `denoise am f.exr -o f.exr` replaced the frame with its
 // denoised colour (exit 0), and -o f.edges.exr its edge file. An output that is an input, by
 // name, through a symbolic link or a hard link, is bad usage (exit 2) and the input is kept.
 TEST(OutputMessages, AnOutputThatIsAnInputIsRefusedAndTheInputKept) {

@@ -74,7 +74,7 @@ TEST_F(ReportTables, RatiosAndTheConvergedMseComeFromTheResults) {
   EXPECT_THAT(slurp(dir.path() / "index.html"), HasSubstr("Ratios: proposed"));
 }
 
-// Every metric table puts each record's own number in its own cell (issue 28, point 6). The
+// Every metric table puts each record's own number in its own cell. The
 // fixture's metrics repeat across rows and columns (ssim is 0.9 everywhere), so a swap goes
 // unseen there; here every metric of every record gets a value of its own, 0.KSM (K the
 // metric's position, S the scene's, M the method's: three digits, printed exactly by the

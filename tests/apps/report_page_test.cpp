@@ -1,4 +1,4 @@
-// The report as a researcher's tool (issue 22): the page's viewer driven in headless Chromium,
+// The report as a researcher's tool: the page's viewer driven in headless Chromium,
 // the page's tables at 800 and 1400 px, the HTML parsed strictly, the plots' colours and PDFs,
 // and a missing image as bad input. One small run (2 scenes, 2 seeds, 2 methods and a variant)
 // is made once for the suite and reported; each test reads it.

@@ -158,7 +158,7 @@ TEST(RunCommand, WritesEveryRecordAndResumesWithoutRedoingCells) {
 // results.json's numbers are the scores of the images it names against the reference it names:
 // each metric recomputed from the written files by `denoisebench metrics` agrees (a record that
 // stored another cell's score, or a stale image, fails here); every method beats the 2 spp input;
-// and the reference was rendered with a seed of its own, not the inputs' (issue 28).
+// and the reference was rendered with a seed of its own, not the inputs'.
 // Two configs with the same method and spp but other parameters write the same file names into a
 // folder. Going back to the first config must not reuse its record beside the second one's image
 // (the record's scores would then describe another picture): the image names its cell's key.
@@ -223,7 +223,7 @@ TEST(RunCommand, RecordedMetricsAreTheScoresOfTheWrittenImages) {
   for (double m : method_mse) EXPECT_LT(m, input_mse);
 }
 
-// The reference's samples are independent of the input's (issue 28, point 3): the run records a
+// The reference's samples are independent of the input's: the run records a
 // reference seed other than the inputs' seed, and the reference in the folder is the one that
 // seed renders, not the one the inputs' seed renders. (Rendering it with the inputs' seed would
 // reuse the inputs' random numbers for its first samples: each input's error would then be
@@ -271,7 +271,7 @@ TEST(RunCommand, ReferenceIsRenderedWithItsOwnSeedAndTheInputWithTheInputsSeed) 
   EXPECT_TRUE(read_rgb(frame) == read_rgb(out + "/" + input["files"]["image"].get<std::string>()));
 }
 
-// The plain path-tracing curve is one progressive render (issue 24): every point's record says
+// The plain path-tracing curve is one progressive render: every point's record says
 // so ("curve": the largest point's spp and its own), and its image is, bit for bit, what
 // `render --spp N` writes with the record's seed and the config's size.
 TEST(RunCommand, ThePlainCurveIsOneRenderWhosePointsAreTheRendersOfTheirSpp) {

@@ -1,4 +1,4 @@
-// An interrupted `denoisebench run` resumes (issue 28, point 1): the run is killed with SIGKILL
+// An interrupted `denoisebench run` resumes: the run is killed with SIGKILL
 // (its whole process group) as soon as its first cell is finished, run again, and the cells it
 // had finished are not computed again (their files keep their inode and modification time),
 // while the final results.json and images equal those of a run that was never interrupted:

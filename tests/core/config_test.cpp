@@ -66,7 +66,7 @@ TEST(Config, MissingFileIsAnInputError) {
 }
 
 // A folder or a device is not a config: it read as an empty file, and the error then blamed a
-// missing key on line 1 of a folder (hostile-user pass, issue 20).
+// missing key on line 1 of a folder (found by a hostile-user pass).
 TEST(Config, AFolderOrADeviceIsNotAConfigFile) {
   test::TempDir dir;
   for (const std::string path : {dir.path().string(), std::string("/dev/null")}) {

@@ -1,4 +1,4 @@
-// The AOV frame's EXR round trip and the refusals of bad files (issue 2).
+// The AOV frame's EXR round trip and the refusals of bad files.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -100,7 +100,7 @@ TEST(ExrIo, FullFrameRoundTripIsBitExact) {
   EXPECT_TRUE(*g.edges == *f.edges);
 }
 
-// Frames are read and written a strip of at most 64 rows at a time (issue 24: 1080p memory): a
+// Frames are read and written a strip of at most 64 rows at a time (to bound the memory of a 1080p frame): a
 // frame of several strips and a last partial one round-trips to the bit, and so do tiled copies
 // of it as other renderers write them (OpenImageIO's read_scanlines divided by zero on a tiled
 // file: SIGFPE, found trying a tiled frame by hand).
@@ -277,9 +277,9 @@ TEST(ExrIo, FuzzHeaderReadOutOfStepIsRefused) {
   }
 }
 
-// Frames and images are read as OpenEXR only: a PNG named f.exr used to be decoded by OIIO's
-// PNG reader (every image decoder of OIIO was reachable from a frame path); now it is refused
-// before any decoder runs.
+// Frames and images are read as OpenEXR only, checked before any decoder runs: otherwise a PNG
+// named f.exr would be decoded by OIIO's PNG reader (every image decoder of OIIO would be
+// reachable from a frame path).
 TEST(ExrIo, FileThatIsNotOpenExrIsRefused) {
   test::TempDir dir;
   Image rgb(4, 4, 3, 0.5f);
@@ -354,7 +354,7 @@ namespace {
 
 // A small file may declare the largest size Image::check_size allows; the readers refuse it when
 // decoding would need more than the machine's memory, naming the file, instead of dying with
-// std::bad_alloc or the out-of-memory killer (issue 20).
+// std::bad_alloc or the out-of-memory killer.
 TEST(ExrIo, DecodingMoreThanTheMachinesMemoryIsRefusedNamingTheFile) {
   const double gib = double(1ull << 30);
   try {
@@ -397,7 +397,7 @@ class ScopedEnv {
   std::optional<std::string> old_;
 };
 
-// Found by the frame fuzz target (issue 20): a 2.5 KB file declaring 31748 x 513 with 33 channels
+// Found by the frame fuzz target: a 2.5 KB file declaring 31748 x 513 with 33 channels
 // made the reader allocate 2.1 GB (libFuzzer's memory limit is 2 GB) before its pixels were found
 // missing. On the machine that is refused after the allocation; a process with less memory
 // (a cgroup limit, $DENOISEBENCH_MEMORY_LIMIT) now refuses it from the header, naming the file.

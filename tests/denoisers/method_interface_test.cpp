@@ -1,4 +1,4 @@
-// The method interface itself (issue 5): the registry's refusals name what is valid, parameters
+// The method interface itself: the registry's refusals name what is valid, parameters
 // are typed and bounded, and run_method checks the frame, repairs it and checks the output.
 #include <gtest/gtest.h>
 #include <gmock/gmock.h>

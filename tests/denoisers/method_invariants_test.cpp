@@ -1,4 +1,4 @@
-// Invariants every registered filter-type method must keep (issue 5). The tests loop over
+// Invariants every registered filter-type method must keep. The tests loop over
 // MethodRegistry::global().all(), so a method added later is covered without a new line here.
 // Frames are synthetic (tests/denoisers/synthetic_frame.h): no tracer involved.
 #include <gtest/gtest.h>
@@ -62,8 +62,8 @@ TEST_P(FilterInvariants, KeepsSizeAndChannels) {
     EXPECT_EQ(r.image.width(), w);
     EXPECT_EQ(r.image.height(), h);
     EXPECT_EQ(r.image.channels(), 3);
-    // And the image is the frame's, not a black or blank one of the right shape (issue 28,
-    // point 9): its mean brightness is the input colour's within 10%. A filter averages nearby
+    // And the image is the frame's, not a black or blank one of the right shape:
+    // its mean brightness is the input colour's within 10%. A filter averages nearby
     // pixels, which keeps the mean but for the weights at the crease and the borders (measured
     // at most 2.5%, am at 5x3); a black, halved or doubled image is far outside. 1x1 included:
     // the firefly cut used to bound a pixel without neighbours by 0 and return it black.

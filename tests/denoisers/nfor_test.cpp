@@ -91,7 +91,7 @@ TEST(Nfor, AnAffineFunctionOfTheFeaturesComesBackUnchanged) {
 }
 
 // 20% relative noise on F (28% per half): the regression lowers the MSE by more than
-// 10x (the bar; measured 88x).
+// 10x (the bar set for it; measured 88x).
 TEST(Nfor, LowersTheErrorOfANoisyAffineFrameTenfold) {
   const AovFrame clean = affine_frame(64, 48, 0.0f, 0.0f);
   const AovFrame noisy = affine_frame(64, 48, 0.2f, 0.2f);

@@ -1,6 +1,6 @@
 // The OpenCL path of the adaptive-manifold core (denoisers/adaptive_manifold_cl.h) against the
 // CPU path, on PoCL here (POCL_CACHE_DIR inside the build tree, set by tests/CMakeLists.txt).
-// Tolerance: relative RMS difference <= 1e-4 (issue 6). The two paths do the same operations
+// Tolerance: relative RMS difference <= 1e-4. The two paths do the same operations
 // in float; only summation order differs (per block here, per column then block on the CPU),
 // plus the odd pixel whose split dot product sits at 0 and changes cluster. Measured on PoCL:
 // about 8e-8 for the core (150x101, 7-channel guide), 1e-7 for the whole method and for the

@@ -610,7 +610,7 @@ TEST(Proposed, EachAblatedPartLowersTheErrorWhereItMatters) {
   }
 }
 
-// The detail guard (issue 25's thin features): a one-pixel dark groove across a noisy lit wall
+// The detail guard (it keeps thin dark features): a one-pixel dark groove across a noisy lit wall
 // (its light 12x lower: occluded; the same normal and depth, so the guide barely sees it) is
 // filled with the wall's light by the filter alone; with the guard, each pixel's change is
 // held within 3 standard deviations of its mean (the variance layer, honest here as the

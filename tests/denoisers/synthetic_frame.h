@@ -8,7 +8,7 @@
 
 namespace dnb::test {
 
-// Every layer of the frame contract (DESIGN.md) at levels 0 and 1, each filled with a constant:
+// Every layer of the frame contract (docs/design.md) at levels 0 and 1, each filled with a constant:
 // direct 0.3, indirect 0.2, albedo 0.5, reflection 0.05, emission 0, colour 0.3 (= formula 1),
 // normal (0, 0, 1), depth 2, variances 0.01, edge 0, samples 64, half buffers equal to the full
 // layers (set_halves), refl1.* the same as level 0

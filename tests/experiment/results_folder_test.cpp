@@ -1,4 +1,4 @@
-// The results folder is self-contained (issue 26): a run keeps the AOV frames its cells read and
+// The results folder is self-contained: a run keeps the AOV frames its cells read and
 // the reference files themselves, so that re-scoring from the folder alone gives results.json's
 // numbers; and a config can name a frame and a reference by file instead of rendering them.
 // Each test runs a tiny experiment in-process (32x24, 2 spp, a 16 spp reference, one filter)

@@ -186,7 +186,7 @@ TEST(ResultsDocument, RefusesOlderAndMalformedFilesNamingTheFileAndKey) {
   EXPECT_THAT(error_of(j), HasSubstr("'records'"));
 }
 
-// Found by a hostile-user pass (issue 20): a results.json edited by hand was reported as if a run
+// Found by a hostile-user pass: a results.json edited by hand was reported as if a run
 // had written it. Negative counts and times, a cell counted twice, and file names outside the
 // folder (which the report would read and copy into its page) are refused, naming the key.
 TEST(ResultsDocument, RefusesNumbersNoRunWritesAndFilesOutsideTheFolder) {

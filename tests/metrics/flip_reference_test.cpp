@@ -95,7 +95,7 @@ TEST(FlipReference, LdrFlipMatchesNvidiasTool) {
 }
 
 TEST(FlipReference, SsimMatchesScikitImage) {
-  // issue 28, point 5. skimage.metrics.structural_similarity(test, ref, gaussian_weights=True,
+  // Checked against skimage.metrics.structural_similarity(test, ref, gaussian_weights=True,
   // sigma=1.5, use_sample_covariance=False, data_range=255, channel_axis=2) on the 8-bit codes:
   // the same 11-tap Gaussian (scipy truncates at 3.5 sigma: radius 5), the same constants and the
   // same crop of 5 pixels per side, all in double: they agree to 1e-16, so 1e-12 leaves room for

@@ -1,4 +1,4 @@
-// The metrics of DESIGN.md "Metric conventions": identities, small cases computed by hand, and
+// The metrics of docs/design.md, "Metric conventions": identities, small cases computed by hand, and
 // the refusals (NaN, unequal sizes) that every registered metric must share.
 #include <cmath>
 #include <limits>

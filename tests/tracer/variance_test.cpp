@@ -1,4 +1,4 @@
-// The variance layers mean what they say (issue 25): over many seeds, the variance a render
+// The variance layers mean what they say: over many seeds, the variance a render
 // predicts for a pixel's mean agrees with the measured seed-to-seed variance of that mean. The
 // tracer stratifies film positions, so its samples are not independent and the sample variance
 // of a pixel's samples / n overstates the variance of its mean (by 2.8x in RMSE on McGuire's
@@ -56,20 +56,20 @@ struct SeedStats {
 // How close the ratio must be to 1, and why: the pooled measured variance over M seeds of P
 // pixel-channels has a relative standard error of about sqrt(2 / (M - 1)) / sqrt(P_eff), which
 // the caustics' heavy tails raise, most on the 25 pixels off the edge set (the mirror sphere's
-// caustic on the floor carries their indirect light). Over the seeds 1..M, a variant (tracer 6's
-// shuffle, every vertex from the sequences) read 0.997 / 0.997 / 0.996 for all pixels at M = 800 / 4000 / 40000, while that
-// subset's colour read 0.79 / 0.95 / 0.995 and its indirect 0.79 / 0.94 / 0.999: no bias, and
-// M = 4000 keeps the subset's noise inside the issue's 10% bar (10 s). Tracer 6: 0.996
-// (all), 1.018 and 1.016 (the subset) at M = 4000. The
-// old estimator (sample variance of the pixel's samples / n, one sample per stratum) read 2.94
-// (frame colour; 2.95 on edge pixels, 0.98 off them) and 1.83 (reference) in this test at 400
-// seeds.
+// caustic on the floor carries their indirect light). Measured over the seeds 1..M with a variant
+// of this sampler (every vertex from the sequences): 0.997 / 0.997 / 0.996 for all pixels at
+// M = 800 / 4000 / 40000, the subset's colour 0.79 / 0.95 / 0.995 and its indirect 0.79 / 0.94 /
+// 0.999: no bias, and M = 4000 (10 s) keeps the subset's noise inside the 10% tolerance. This
+// tracer reads 0.996 (all), 1.018 and 1.016 (the subset) at M = 4000. What the tolerance catches:
+// the sample variance of a pixel's samples / n, which ignores the stratification, read 2.94 (frame
+// colour; 2.95 on edge pixels, 0.98 off them) and 1.83 (reference) here at 400 seeds, with a
+// sampler of one sample per stratum.
 constexpr double kTolerance = 0.10;
 constexpr int kSeeds = 4000;
 constexpr int kReferenceSeeds = 800;  // all pixels only: 1.016 at 800
 
-// The test frames: cornell-box at 16x12 (most pixels hold an edge there, where the old
-// estimator was furthest off).
+// The test frames: cornell-box at 16x12 (most pixels hold an edge there, where a plain
+// sample variance is furthest off).
 RenderSettings small_render(int spp) {
   RenderSettings s;
   s.width = 16;
