@@ -160,7 +160,8 @@ TEST(SceneFile, McGuireCornellBoxLoadsFromTheScenesFolder) {
        p = p.parent_path())
     if (std::filesystem::exists(p / "shared" / "scenes")) dir = (p / "shared" / "scenes").string();
   if (!std::filesystem::exists(dir + "/cornell_box/CornellBox-Original.obj"))
-    GTEST_SKIP() << "no McGuire scenes at " << dir;
+    GTEST_SKIP() << "no McGuire scenes (" << (dir.empty() ? std::string("no shared/scenes beside the repository") : "'" + dir + "'")
+                 << "; $DENOISEBENCH_SCENES names the folder)";
   SceneLoadOptions o;
   o.scenes_dir = dir;
   auto scene = load_scene("mcguire-cornell-box", o);
