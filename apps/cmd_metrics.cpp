@@ -74,9 +74,7 @@ void add_metrics(CLI::App& app, Action& action) {
           for (const auto& [name, v] : row.values) j[name] = std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
           if (out.reference_has_variance) {
             j["reference_unconverged_share"] = out.reference_unconverged_share;
-            j["reference_estimated_error"] = {{"mse", out.reference_error.mse},
-                                              {"mse_hdr", out.reference_error.mse_hdr},
-                                              {"relmse", out.reference_error.relmse}};
+            j["reference_estimated_error"] = metrics::reference_error_by_metric(out.reference_error);
           }
           if (!row.maps.empty()) j["error_maps"] = row.maps;
           for (const auto& [name, p] : row.pooled)
@@ -93,7 +91,7 @@ void add_metrics(CLI::App& app, Action& action) {
         }
         if (out.rows.size() > 1) fmt::print("{}\n", row.image);
         for (const auto& [name, v] : row.values) {
-          if (name == "mse_converged" && !out.reference_has_variance)
+          if (metrics::metric(name).needs_reference_variance && !out.reference_has_variance)
             fmt::print("{:<14} n/a ('{}' has no variance.R/G/B channels)\n", name, q.reference);
           else fmt::print("{:<14} {:.9g}\n", name, v);
           if (auto p = row.pooled.find(name); p != row.pooled.end())

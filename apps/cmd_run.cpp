@@ -1,7 +1,7 @@
 // denoisebench run CONFIG.toml [-o RESULTS_DIR] [--no-cache] [--seed S]: the experiment matrix
 // (experiment/runner.h). --seed replaces the config's input seed (the nightly's noise
 // measurement runs one config with several seeds). Under `mpirun -np N` the matrix spreads over
-// the ranks and rank 0 writes the results folder (experiment/runner.cpp, docs/cluster.md).
+// the ranks and rank 0 writes the results folder (experiment/execute_mpi.cpp, docs/cluster.md).
 #include <algorithm>
 #include <cstdint>
 #include <filesystem>
@@ -13,6 +13,7 @@
 #include "apps/args.h"
 #include "apps/commands.h"
 #include "core/errors.h"
+#include "denoisers/method.h"
 #include "experiment/runner.h"
 #include "methods/plugins.h"
 #include "tracer/mpi_context.h"
@@ -35,7 +36,7 @@ int run(const Opts& o, const std::vector<std::string>& plugin_folders) {
   opt.out_dir = o.out.empty() ? "results/" + c.name : o.out;
   opt.use_cache = !o.no_cache;
   opt.cache_dir = o.cache_dir;
-  const auto doc = experiment::run_experiment(c, opt);
+  const auto doc = experiment::run_experiment(c, opt, MethodRegistry::global());
   if (doc.failures.empty()) return 0;
   // The run kept every other cell; the failed ones are listed in results.json and tried
   // again by the next run into the folder.

@@ -19,6 +19,7 @@
 
 #include <unistd.h>
 
+#include "core/env.h"
 #include "bench/bench_util.h"
 #include "core/build_info.h"
 #include "tracer/render.h"
@@ -41,14 +42,14 @@ std::string cpu_model() {
 }
 
 // The device the OpenCL path uses (denoisers/adaptive_manifold_cl.h: the first device of the
-// first platform, or of platform $DNB_OPENCL_PLATFORM).
+// first platform, or of platform $DENOISEBENCH_OPENCL_PLATFORM).
 std::string opencl_device() {
 #ifdef DNB_WITH_OPENCL
   try {
     std::vector<cl::Platform> platforms;
     cl::Platform::get(&platforms);
     std::size_t index = 0;
-    if (const char* p = std::getenv("DNB_OPENCL_PLATFORM")) index = std::size_t(std::atoi(p));
+    if (const char* p = dnb::env::get("OPENCL_PLATFORM")) index = std::size_t(std::atoi(p));
     if (index >= platforms.size()) return "none";
     std::vector<cl::Device> devices;
     platforms[index].getDevices(CL_DEVICE_TYPE_ALL, &devices);

@@ -57,9 +57,8 @@ void all_case(benchmark::State& state) {
 
 const bool registered = [] {
   for (const auto& m : metrics::all_metrics()) {
-    const bool flip = m.name == "flip" || m.name == "hdrflip";
     for (bool fresh : {false, true}) {
-      if (fresh && !flip) continue;
+      if (fresh && !m.memoises_reference) continue;
       const std::string name = "metrics/" + m.name + (fresh ? "_new_reference" : "") + "/1024x768";
       benchmark::RegisterBenchmark(name.c_str(), [&m, fresh](benchmark::State& s) { metric_case(s, m, fresh); })
           ->Unit(benchmark::kMillisecond)->UseRealTime()->Repetitions(5)->ReportAggregatesOnly(true);

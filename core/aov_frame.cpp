@@ -1,6 +1,9 @@
 #include "core/aov_frame.h"
 
+#include <algorithm>
+
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "core/errors.h"
 
@@ -17,9 +20,55 @@ static std::string base_name(const std::string& layer) {
   return dot == std::string::npos ? layer : layer.substr(dot + 1);
 }
 
+const std::vector<layer::Info>& layer::table() {
+  //                                     name               ch  level0 levels halves importable
+  static const std::vector<Info> t = {{kColor, 3, true, false, true, true},
+                                      {kDirect, 3, true, true, true, true},
+                                      {kIndirect, 3, true, true, true, true},
+                                      {kAlbedo, 3, true, true, true, true},
+                                      {kReflection, 3, true, true, false, true},
+                                      {kEmission, 3, true, true, false, true},
+                                      {kNormal, 3, true, true, true, true},
+                                      {kDepth, 1, true, true, true, true},
+                                      {kVariance, 3, true, false, false, true},
+                                      {kDirectVariance, 3, true, false, false, true},
+                                      {kIndirectVariance, 3, true, false, false, true},
+                                      {kEdge, 1, true, false, false, false},
+                                      {kSamples, 1, true, false, false, false},
+                                      {kTint, 3, false, true, false, false}};
+  return t;
+}
+
+const layer::Info* layer::find(const std::string& name) {
+  const auto dot = name.find('.');
+  const std::string base = dot == std::string::npos ? name : name.substr(dot + 1);
+  const auto it = std::find_if(table().begin(), table().end(), [&](const Info& i) { return base == i.name; });
+  if (it == table().end()) return nullptr;
+  if (dot == std::string::npos) return it->level0 ? &*it : nullptr;
+  const std::string where = name.substr(0, dot);
+  if (where == "half0" || where == "half1") return it->halves ? &*it : nullptr;
+  for (int k = 1; k <= kMaxLevels; ++k)
+    if (where == fmt::format("refl{}", k)) return it->levels ? &*it : nullptr;
+  return nullptr;
+}
+
+std::string layer::names_help() {
+  std::vector<std::string> own, levels, halves;
+  for (const Info& i : table()) {
+    if (i.level0) own.push_back(i.name);
+    if (i.levels) levels.push_back(i.name);
+    if (i.halves) halves.push_back(i.name);
+  }
+  return fmt::format("{}; refl<k>.<name> for k 1..{} and <name> one of {}; half0.<name> and half1.<name> for <name> one "
+                     "of {}",
+                     fmt::join(own, ", "), kMaxLevels, fmt::join(levels, ", "), fmt::join(halves, ", "));
+}
+
 int default_channels(const std::string& name) {
   const std::string base = base_name(name);
-  return (base == layer::kDepth || base == layer::kEdge || base == layer::kSamples) ? 1 : 3;
+  for (const layer::Info& i : layer::table())
+    if (base == i.name) return i.channels;
+  return 3;
 }
 
 std::vector<std::string> channel_names(const std::string& name, int channels) {

@@ -38,16 +38,36 @@ std::string at_level(int level, const std::string& base);
 // groups (tracer/render.cpp's top: eight independently scrambled groups, sample s in group s mod 8),
 // so each half is stratified on its own and the two halves are independent estimates of the pixel
 // (NFOR's and any cross-validating filter's input).
-// Named "half<h>.<base>": half0.color.R/G/B, half1.normal.X/Y/Z, half0.depth.Z, ...
-inline constexpr const char* kHalfLayers[] = {kColor, kDirect, kIndirect, kAlbedo, kNormal, kDepth};
+// Named "half<h>.<base>": half0.color.R/G/B, half1.normal.X/Y/Z, half0.depth.Z, ... (the
+// layers with `halves` in table() below: color, direct, indirect, albedo, normal, depth).
 std::string at_half(int half, const std::string& base);
+
+// Every layer a frame can hold and where it may be: the one list that the tracer's frame
+// (tracer/render.cpp), the plug-in manifests' check (methods/plugins.cpp), the importer's
+// mappings (interop/mapping.cpp) and docs/design.md's channel table (a test compares) follow.
+// Adding a layer is one entry here.
+struct Info {
+  const char* name;  // the base name
+  int channels;      // 3 (R/G/B or X/Y/Z) or 1 (Y or Z)
+  bool level0;       // the frame's own layer "<name>"
+  bool levels;       // at every reflection level k >= 1: "refl<k>.<name>"
+  bool halves;       // in both half buffers: "half<h>.<name>"
+  bool importable;   // an import mapping may fill it from another renderer's passes
+};
+const std::vector<Info>& table();
+// The entry of a full layer name ("depth", "refl2.direct", "half1.color") when a frame can hold
+// a layer of that name, else null.
+const Info* find(const std::string& name);
+// "color, direct, ..., refl<k>.<name> (k 1..8: ...), half<h>.<name> (...)" for messages.
+std::string names_help();
 }  // namespace layer
 
 // EXR channel names of a layer with the given channel count, in channel order:
 // color -> R,G,B; normal -> normal.X/Y/Z; depth -> depth.Z; edge/samples -> edge.Y;
 // any other 3-channel layer -> name.R/G/B; any other 1-channel layer -> name.Y.
 std::vector<std::string> channel_names(const std::string& layer, int channels);
-// The channel count a layer of this name has in a frame: 1 for depth, edge and samples, else 3.
+// The channel count a layer of this name has in a frame (layer::table(): 1 for depth, edge and
+// samples); 3 for a name the table does not know.
 int default_channels(const std::string& layer);
 
 struct FrameMeta {

@@ -1,4 +1,5 @@
 #include "core/memory_budget.h"
+#include "core/env.h"
 
 #include <cstdlib>
 #include <filesystem>
@@ -67,8 +68,8 @@ double memory_budget_bytes() {
     for (std::filesystem::path p = line.substr(3); p.has_relative_path(); p = p.parent_path())
       lower_to(budget, cgroup_limit("/sys/fs/cgroup" + p.string() + "/memory.max"));
   }
-  if (const char* env = std::getenv("DENOISEBENCH_MEMORY_LIMIT"); env && *env)
-    lower_to(budget, parse_memory_size(env, "$DENOISEBENCH_MEMORY_LIMIT"));
+  if (const char* limit = env::get("MEMORY_LIMIT"); limit && *limit)
+    lower_to(budget, parse_memory_size(limit, "$DENOISEBENCH_MEMORY_LIMIT"));
   return budget;
 }
 

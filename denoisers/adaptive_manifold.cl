@@ -450,9 +450,9 @@ __kernel void rf_cols(int w, int h, __global float* p, int p0, __global const fl
 // The column filter for a GPU: one column of a plane per work-item, the same arithmetic per
 // element as rf_cols; neighbouring work-items read neighbouring floats. The rows run as columns of
 // the transposed planes (transpose_planes, ClRun::recursive). Measured on an H200 through
-// NVIDIA's OpenCL (bench/device/am_device.cpp, DNB_OPENCL_PROFILE): with 8 lanes per work-item
+// NVIDIA's OpenCL (bench/device/am_device.cpp, DENOISEBENCH_OPENCL_PROFILE): with 8 lanes per work-item
 // the recursive filters launched a few hundred work-items and took 72% of the device's time of a
-// 1024x768 call. The host picks this form on a GPU device (DNB_OPENCL_LANES overrides).
+// 1024x768 call. The host picks this form on a GPU device (DENOISEBENCH_OPENCL_LANES overrides).
 __kernel void rf_cols1(int w, int h, __global float* p, int p0, __global const float* av, float fixed_a) {
   const int x = get_global_id(0), c = p0 + get_global_id(1);
   if (x >= w) return;

@@ -1,4 +1,5 @@
 #include "denoisers/adaptive_manifold_cl.h"
+#include "core/env.h"
 
 #include "core/errors.h"
 #include "denoisers/am_capture.h"
@@ -57,10 +58,10 @@ struct ClState {
   std::string error;
   bool ok = false;
   bool gpu = false;  // the device is a GPU: the recursive filters one column per work-item (rf_cols1, transposes)
-  // DNB_OPENCL_PROFILE=1: every kernel, write and read of a run timed by the device (queue
+  // DENOISEBENCH_OPENCL_PROFILE=1: every kernel, write and read of a run timed by the device (queue
   // profiling), summed per name and printed to stderr after the run (bench/device/am_device.cpp).
   const bool profile = [] {
-    const char* p = std::getenv("DNB_OPENCL_PROFILE");
+    const char* p = env::get("OPENCL_PROFILE");
     return p && *p && std::string(p) != "0";
   }();
 
@@ -70,8 +71,8 @@ struct ClState {
       cl::Platform::get(&platforms);
       if (platforms.empty()) throw std::runtime_error("no OpenCL platform");
       std::size_t pick = 0;
-      if (const char* p = std::getenv("DNB_OPENCL_PLATFORM")) pick = std::size_t(std::atoi(p));
-      if (pick >= platforms.size()) throw std::runtime_error("DNB_OPENCL_PLATFORM out of range");
+      if (const char* p = env::get("OPENCL_PLATFORM")) pick = std::size_t(std::atoi(p));
+      if (pick >= platforms.size()) throw std::runtime_error("DENOISEBENCH_OPENCL_PLATFORM out of range");
       std::vector<cl::Device> devices;
       platforms[pick].getDevices(CL_DEVICE_TYPE_ALL, &devices);
       if (devices.empty()) throw std::runtime_error("no OpenCL device on the platform");
@@ -313,13 +314,13 @@ class ClRun : private am_detail::AmRunShape {
     const std::size_t lx = std::min<std::size_t>(kGroup, gx);
     enqueue(k, cl::NDRange((gx + lx - 1) / lx * lx, gy), cl::NDRange(lx, 1));
   }
-  // Every kernel launch goes through here (timed under the kernel's name with DNB_OPENCL_PROFILE).
+  // Every kernel launch goes through here (timed under the kernel's name with DENOISEBENCH_OPENCL_PROFILE).
   void enqueue(cl::Kernel& k, const cl::NDRange& global, const cl::NDRange& local) {
     st_.queue.enqueueNDRangeKernel(k, cl::NullRange, global, local, nullptr,
                                    st_.profile ? event(k.getInfo<CL_KERNEL_FUNCTION_NAME>()) : nullptr);
   }
 
-  // With DNB_OPENCL_PROFILE: an event to time the next command by, else null.
+  // With DENOISEBENCH_OPENCL_PROFILE: an event to time the next command by, else null.
   cl::Event* event(const std::string& name) {
     if (!st_.profile) return nullptr;
     events_.emplace_back(name, cl::Event());
@@ -345,7 +346,7 @@ class ClRun : private am_detail::AmRunShape {
     return planes;
   }
 
-  // With DNB_OPENCL_PROFILE: the host's time since the previous mark, under `what`.
+  // With DENOISEBENCH_OPENCL_PROFILE: the host's time since the previous mark, under `what`.
   void host_mark(const char* what) {
     if (!st_.profile) return;
     const auto now = std::chrono::steady_clock::now();
@@ -431,9 +432,9 @@ class ClRun : private am_detail::AmRunShape {
     enqueue(k, cl::NDRange((std::size_t(w) + T - 1) / T * T, (std::size_t(h) + T - 1) / T * T, n), cl::NDRange(T, T, 1));
   }
   // Rows or columns per work-item of the recursive filters: 8 (float8, for a CPU device's vector
-  // lanes) or 1 (a GPU's); DNB_OPENCL_LANES=1 or 8 overrides the device's type, read per run.
+  // lanes) or 1 (a GPU's); DENOISEBENCH_OPENCL_LANES=1 or 8 overrides the device's type, read per run.
   static int lanes_for(bool gpu) {
-    const char* e = std::getenv("DNB_OPENCL_LANES");
+    const char* e = env::get("OPENCL_LANES");
     if (e && std::string(e) == "1") return 1;
     if (e && std::string(e) == "8") return 8;
     return gpu ? 1 : 8;
@@ -557,9 +558,9 @@ class ClRun : private am_detail::AmRunShape {
   std::map<std::string, cl::Kernel> kernels_;
   std::vector<std::shared_ptr<void>> uploaded_;  // host data of upload()'s writes, kept until the run ends
   int lanes_ = lanes_for(st_.gpu);
-  std::deque<std::pair<std::string, cl::Event>> events_;  // DNB_OPENCL_PROFILE only (deque: stable addresses)
+  std::deque<std::pair<std::string, cl::Event>> events_;  // DENOISEBENCH_OPENCL_PROFILE only (deque: stable addresses)
   std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now(), last_mark_ = started_;
-  std::vector<std::pair<const char*, double>> host_;  // DNB_OPENCL_PROFILE: host_mark()'s steps
+  std::vector<std::pair<const char*, double>> host_;  // DENOISEBENCH_OPENCL_PROFILE: host_mark()'s steps
   std::vector<std::pair<std::size_t, cl::Buffer>> owned_;  // given back to the pool by the destructor
   int nwx_ = 1;        // the splat's work-items per row
   cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_;

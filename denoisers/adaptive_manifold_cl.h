@@ -5,7 +5,7 @@
 // difference well below 1e-4, tests/denoisers/opencl_test.cpp).
 //
 // Device: the first device of the first OpenCL platform (PoCL's CPU device here, any GPU
-// elsewhere); DNB_OPENCL_PLATFORM=<index> picks another platform. Programs are built once per
+// elsewhere); DENOISEBENCH_OPENCL_PLATFORM=<index> picks another platform. Programs are built once per
 // process for each (guide channels, source channels) pair and cached; PoCL also caches the
 // binaries in POCL_CACHE_DIR across processes.
 #pragma once

@@ -1,4 +1,5 @@
 #include "denoisers/am_capture.h"
+#include "core/env.h"
 
 #include <unistd.h>
 
@@ -55,16 +56,16 @@ struct Reader {
 
 void am_capture_if_asked(ConstImageView src, ConstImageView guide, const AmSettings& s,
                          const std::vector<AmQuery>& queries) {
-  const char* dir = std::getenv("DNB_AM_CAPTURE");
+  const char* dir = env::get("AM_CAPTURE");
   if (!dir || !*dir) return;
   static std::atomic<int> calls{0};
   const int n = ++calls;
-  if (const char* max = std::getenv("DNB_AM_CAPTURE_MAX"); max && n > std::atoi(max)) return;
+  if (const char* max = env::get("AM_CAPTURE_MAX"); max && n > std::atoi(max)) return;
   const std::string path = (std::filesystem::path(dir) / ("am-" + std::to_string(::getpid()) + "-" + std::to_string(n) + ".bin")).string();
   const std::string tmp = path + ".tmp";
   {
     Writer w{std::ofstream(tmp, std::ios::binary | std::ios::trunc)};
-    if (!w.out) throw WorkError("DNB_AM_CAPTURE: cannot write " + tmp);
+    if (!w.out) throw WorkError("DENOISEBENCH_AM_CAPTURE: cannot write " + tmp);
     w.out.write(kMagic, sizeof kMagic);
     w.put(kVersion);
     w.put(std::int32_t(src.width));
@@ -92,14 +93,14 @@ void am_capture_if_asked(ConstImageView src, ConstImageView guide, const AmSetti
     w.out.close();
     if (!w.out) {
       std::remove(tmp.c_str());
-      throw WorkError("DNB_AM_CAPTURE: writing " + tmp + " failed");
+      throw WorkError("DENOISEBENCH_AM_CAPTURE: writing " + tmp + " failed");
     }
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
     std::remove(tmp.c_str());
-    throw WorkError("DNB_AM_CAPTURE: cannot rename " + tmp + " to " + path + ": " + ec.message());
+    throw WorkError("DENOISEBENCH_AM_CAPTURE: cannot rename " + tmp + " to " + path + ": " + ec.message());
   }
 }
 
@@ -109,7 +110,7 @@ AmCapture read_am_capture(const std::string& path) {
   char magic[sizeof kMagic];
   r.in.read(magic, sizeof magic);
   if (!r.in || std::memcmp(magic, kMagic, sizeof kMagic) != 0)
-    throw InputError(path + ": not an adaptive-manifold capture (written with DNB_AM_CAPTURE)");
+    throw InputError(path + ": not an adaptive-manifold capture (written with DENOISEBENCH_AM_CAPTURE)");
   const auto version = r.get<std::int32_t>();
   if (version != kVersion)
     throw InputError(path + ": capture version " + std::to_string(version) + ", expected " + std::to_string(kVersion));

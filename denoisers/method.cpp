@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 
+#include "core/enum_names.h"
 #include "core/errors.h"
 
 namespace dnb {
@@ -22,7 +23,15 @@ const char* to_string(ParamType t) {
   return "?";
 }
 
-const char* to_string(MethodKind k) { return k == MethodKind::Filter ? "filter" : "renderer"; }
+namespace {
+constexpr EnumName<MethodKind> kMethodKindNames[] = {{MethodKind::Filter, "filter"}, {MethodKind::Renderer, "renderer"}};
+}  // namespace
+
+const char* to_string(MethodKind k) { return enum_name(k, kMethodKindNames); }
+
+MethodKind method_kind_from_string(const std::string& s, const std::string& where) {
+  return enum_from_name(s, kMethodKindNames, where + ": key 'kind'");
+}
 
 std::string ParamSpec::expected() const {
   switch (type) {

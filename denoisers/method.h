@@ -23,6 +23,7 @@
 #include <variant>
 #include <vector>
 
+#include "denoisers/method_kind.h"
 #include "core/aov_frame.h"
 #include "core/image.h"
 #include "core/timer.h"
@@ -115,10 +116,6 @@ struct MethodResult {
   MethodStats stats;
 };
 
-// Filter: turns the AOV frame into an image. Renderer: renders the scene itself (the irradiance
-// cache); it may or may not read a frame.
-enum class MethodKind { Filter, Renderer };
-const char* to_string(MethodKind k);  // "filter", "renderer"
 
 class Method {
  public:

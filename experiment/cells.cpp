@@ -27,7 +27,7 @@ std::map<std::string, std::optional<double>> score_image(
   for (const auto& info : metrics::all_metrics()) {
     metrics::MetricResult r = info.compute(image, reference.color, variance);
     m[info.name] = std::isfinite(r.value) ? std::optional<double>(r.value) : std::nullopt;
-    if (info.name == "flip" || info.name == "hdrflip" || info.name == "relmse") {
+    if (info.run_keeps_map) {
       Image rgb(r.map.width(), r.map.height(), 3);
       for (std::size_t p = 0; p < r.map.pixel_count(); ++p)
         for (int c = 0; c < 3; ++c) rgb.data()[3 * p + c] = r.map.data()[p];
@@ -107,39 +107,34 @@ void skip_cell(const CellContext& c, SkippedCell skip) {
 }
 
 ComputedCell compute_cell(const CellPlan& plan, const std::string& scene_name, const std::string& key) {
-  ComputedCell done;
-  if (plan.skip_reason) {
-    done.skipped = SkippedCell{scene_name, plan.method, plan.spp, *plan.skip_reason};
-    return done;
-  }
+  if (plan.skip_reason) return SkippedCell{scene_name, plan.method, plan.spp, *plan.skip_reason};
   try {
-    done.output = plan.compute();
+    return plan.compute();
   } catch (const MethodUnavailable& e) {
     if (!plan.contain_failures) throw;
     // Not a failure: the method cannot run on this machine (its message says how to make it).
-    done.skipped = SkippedCell{scene_name, plan.method, plan.spp, e.what()};
+    return SkippedCell{scene_name, plan.method, plan.spp, e.what()};
   } catch (const std::exception& e) {
     if (!plan.contain_failures || !(dynamic_cast<const WorkError*>(&e) || dynamic_cast<const InputError*>(&e))) throw;
     FailedCell f{scene_name, plan.method, plan.spp, key, e.what(), {}};
     if (auto* pe = dynamic_cast<const PluginError*>(&e)) f.reason = pe->reason(), f.log_tail = pe->log_tail();
     spdlog::error("cell {} / {} / {} spp failed: {}", scene_name, plan.method, plan.spp, e.what());
-    done.failed = std::move(f);
+    return f;
   }
-  return done;
 }
 
 std::optional<CellRecord> store_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& c,
                                      const std::string& key, ComputedCell computed) {
-  if (computed.skipped) {
-    skip_cell(c, std::move(*computed.skipped));
+  if (auto* skipped = std::get_if<SkippedCell>(&computed)) {
+    skip_cell(c, std::move(*skipped));
     return std::nullopt;
   }
-  if (computed.failed) {
-    c.store->fail(std::move(*computed.failed));
+  if (auto* failed = std::get_if<FailedCell>(&computed)) {
+    c.store->fail(std::move(*failed));
     c.progress->add(1);
     return std::nullopt;
   }
-  CellOutput& out = *computed.output;
+  CellOutput& out = std::get<CellOutput>(computed);
   CellRecord r = base_record(plan, scene);
   const std::string stem = scene.image_dir + "/" + plan.stem;
   // Every image the cell writes names the cell's key in its header (checked by `reusable`).
@@ -153,13 +148,8 @@ std::optional<CellRecord> store_cell(const CellPlan& plan, const SceneCells& sce
     r.blocks = {{"block", b.block}, {"count", b.count}, {"worse", b.worse}, {"worse_twice", b.worse_twice}};
     for (const auto& t : b.tiles) r.worse_tiles.push_back({double(t.x), double(t.y), double(t.w), double(t.h), t.ratio});
   }
-  r.times = out.times;
+  static_cast<CellMeasurement&>(r) = std::move(out.measured);
   r.times.reference = scene.reference_info.seconds;
-  r.input_cache_hit = out.input_cache_hit;
-  r.curve = out.curve;
-  r.phases = out.phases;
-  r.counters = out.counters;
-  r.method_info = out.method_info;
   r.cell_key = key;
   c.store->add(r);
   c.progress->add(1);
@@ -187,17 +177,6 @@ std::string spooled(const std::string& out_dir, const std::string& key, const ch
   return spool_dir(out_dir) + "/" + key + suffix;
 }
 
-template <class T>
-nlohmann::json optional_json(const std::optional<T>& v) {
-  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
-}
-
-template <class T>
-std::optional<T> json_optional(const nlohmann::json& j, const char* name) {
-  if (!j.contains(name) || j.at(name).is_null()) return std::nullopt;
-  return j.at(name).get<T>();
-}
-
 }  // namespace
 
 bool is_spooled(const std::string& out_dir, const std::string& key) {
@@ -206,20 +185,15 @@ bool is_spooled(const std::string& out_dir, const std::string& key) {
 
 void write_spooled(const std::string& out_dir, const std::string& key, const ComputedCell& computed) {
   nlohmann::json j = nlohmann::json::object();
-  if (computed.skipped) j["skipped"] = computed.skipped->to_json();
-  if (computed.failed) j["failed"] = computed.failed->to_json();
-  if (const auto& out = computed.output) {
+  if (auto* skipped = std::get_if<SkippedCell>(&computed)) j["skipped"] = skipped->to_json();
+  if (auto* failed = std::get_if<FailedCell>(&computed)) j["failed"] = failed->to_json();
+  if (auto* out = std::get_if<CellOutput>(&computed)) {
     // Images as float EXR: read back bit for bit. The JSON last: it marks the entry complete.
     write_rgb(out->image, spooled(out_dir, key, ".exr"));
     if (out->baseline) write_rgb(*out->baseline, spooled(out_dir, key, ".baseline.exr"));
-    j["output"] = {{"times", times_to_json(out->times)},
-                   {"input_cache_hit", optional_json(out->input_cache_hit)},
-                   {"curve", out->curve ? curve_to_json(*out->curve) : nlohmann::json(nullptr)},
-                   {"phases", optional_json(out->phases)},
-                   {"counters", optional_json(out->counters)},
-                   {"method_info", optional_json(out->method_info)},
-                   {"frame_file", out->frame_file},
-                   {"baseline", out->baseline.has_value()}};
+    nlohmann::json o = {{"frame_file", out->frame_file}, {"baseline", out->baseline.has_value()}};
+    out->measured.write_json(o);  // the record's own keys for what was measured
+    j["output"] = std::move(o);
   }
   write_text_atomic(spooled(out_dir, key, ".json"), j.dump());
 }
@@ -227,31 +201,22 @@ void write_spooled(const std::string& out_dir, const std::string& key, const Com
 std::optional<ComputedCell> read_spooled(const std::string& out_dir, const std::string& key) {
   const std::string path = spooled(out_dir, key, ".json");
   if (!fs::exists(path)) return std::nullopt;
-  ComputedCell c;
   try {
     const nlohmann::json j = nlohmann::json::parse(read_text_file(path));
-    if (j.contains("skipped")) c.skipped = SkippedCell::from_json(j.at("skipped"), path);
-    if (j.contains("failed")) c.failed = FailedCell::from_json(j.at("failed"), path);
-    if (j.contains("output")) {
-      const nlohmann::json& o = j.at("output");
-      CellOutput out;
-      out.image = read_rgb(spooled(out_dir, key, ".exr"));
-      if (o.at("baseline").get<bool>()) out.baseline = read_rgb(spooled(out_dir, key, ".baseline.exr"));
-      out.times = times_from_json(o.at("times"), path + ": times");
-      out.input_cache_hit = json_optional<bool>(o, "input_cache_hit");
-      if (!o.at("curve").is_null()) out.curve = curve_from_json(o.at("curve"), path + ": curve");
-      out.phases = json_optional<std::map<std::string, double>>(o, "phases");
-      out.counters = json_optional<std::map<std::string, double>>(o, "counters");
-      out.method_info = json_optional<std::map<std::string, std::string>>(o, "method_info");
-      out.frame_file = o.at("frame_file").get<std::string>();
-      c.output = std::move(out);
-    }
+    if (int(j.contains("skipped")) + int(j.contains("failed")) + int(j.contains("output")) != 1)
+      throw InputError(fmt::format("'{}': a spooled cell holds exactly one of 'output', 'failed', 'skipped'", path));
+    if (j.contains("skipped")) return SkippedCell::from_json(j.at("skipped"), path);
+    if (j.contains("failed")) return FailedCell::from_json(j.at("failed"), path);
+    const nlohmann::json& o = j.at("output");
+    CellOutput out;
+    out.image = read_rgb(spooled(out_dir, key, ".exr"));
+    if (o.at("baseline").get<bool>()) out.baseline = read_rgb(spooled(out_dir, key, ".baseline.exr"));
+    out.measured = CellMeasurement::read_json(o, path);
+    out.frame_file = o.at("frame_file").get<std::string>();
+    return out;
   } catch (const nlohmann::json::exception& e) {
     throw InputError(fmt::format("'{}': not a spooled cell of this build ({}); remove it to compute the cell again", path, e.what()));
   }
-  if (int(c.output.has_value()) + int(c.failed.has_value()) + int(c.skipped.has_value()) != 1)
-    throw InputError(fmt::format("'{}': a spooled cell holds exactly one of 'output', 'failed', 'skipped'", path));
-  return c;
 }
 
 void remove_spooled(const std::string& out_dir, const std::string& key) {

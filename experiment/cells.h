@@ -20,6 +20,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -47,11 +48,7 @@ struct SceneCells {
 // What a plan's compute() returns.
 struct CellOutput {
   Image image;
-  CellTimes times;  // times.reference is filled in by run_cell
-  std::optional<bool> input_cache_hit;
-  std::optional<CurveOrigin> curve;  // plain-curve cells
-  std::optional<std::map<std::string, double>> phases, counters;
-  std::optional<std::map<std::string, std::string>> method_info;  // MethodStats::info, when any
+  CellMeasurement measured;  // becomes the record's (times.reference is filled in by store_cell)
   // Input cells: the AOV frame file the scene's cells read (its edge file beside it, if any),
   // kept in the folder as files.frame (and files.frame_edges).
   std::string frame_file;
@@ -65,7 +62,8 @@ struct CellPlan {
   int spp = 0;
   nlohmann::json identity;      // hashed into the cell key
   std::string stem;             // file name stem of the cell's images, e.g. "proposed_256"
-  std::string base_method, kind;                          // method cells
+  std::string base_method;                                   // method cells
+  std::optional<MethodKind> kind;
   std::optional<std::map<std::string, std::string>> params;  // method cells: validated values
   std::function<CellOutput()> compute;
   // Method cells: a compute() that throws (a plug-in that crashed, a method that failed on this
@@ -82,11 +80,7 @@ struct CellPlan {
 };
 
 // What computing a plan came to: its output, or the failure or skip it is recorded as.
-struct ComputedCell {
-  std::optional<CellOutput> output;
-  std::optional<FailedCell> failed;
-  std::optional<SkippedCell> skipped;
-};
+using ComputedCell = std::variant<CellOutput, FailedCell, SkippedCell>;
 
 // Where every cell goes.
 struct CellContext {
@@ -116,7 +110,7 @@ std::optional<CellRecord> store_cell(const CellPlan& plan, const SceneCells& sce
 // (reused or new), or nullopt when the cell failed or was skipped.
 std::optional<CellRecord> run_cell(const CellPlan& plan, const SceneCells& scene, const CellContext& context);
 
-// The spool of a distributed run (experiment/runner.cpp): a rank that computes a cell writes
+// The spool of a distributed run (experiment/execute_mpi.cpp): a rank that computes a cell writes
 // what it computed into the results folder's .spool/ (its image, and a method cell's baseline,
 // as EXR; the rest as JSON, written last, so that an entry is complete when its JSON exists);
 // rank 0 stores it with store_cell and removes it. A rank that dies loses only the cell it was

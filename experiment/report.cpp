@@ -1,5 +1,6 @@
 // The report folder (experiment/report.h): tables as files, plots through reports/plots.py, and
 // the static page with one image comparison per scene.
+#include "core/env.h"
 #include "experiment/report.h"
 
 #include <algorithm>
@@ -24,7 +25,7 @@ namespace fs = std::filesystem;
 namespace dnb::experiment {
 
 std::string reports_dir() {
-  if (const char* s = std::getenv("DNB_SOURCE_DIR"); s && *s && fs::exists(fs::path(s) / "reports")) return (fs::path(s) / "reports").string();
+  if (const char* s = env::get("SOURCE_DIR"); s && *s && fs::exists(fs::path(s) / "reports")) return (fs::path(s) / "reports").string();
   return (fs::path(DNB_SOURCE_DIR) / "reports").string();
 }
 

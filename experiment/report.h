@@ -104,7 +104,7 @@ struct ReportOptions {
 void write_report(const std::string& dir, const ReportOptions& options = {});
 
 // The folder holding reports/ (plots.py, viewer.py, viewer.js, the page template):
-// $DNB_SOURCE_DIR/reports, else the source tree this program was built from.
+// $DENOISEBENCH_SOURCE_DIR/reports, else the source tree this program was built from.
 std::string reports_dir();
 
 }  // namespace dnb::experiment

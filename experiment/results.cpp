@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "core/bounds.h"
+#include "core/enum_names.h"
 #include "core/json_file.h"
 
 using nlohmann::json;
@@ -18,21 +19,14 @@ namespace jf = json_file;
 // ---------------------------------------------------------------------------------------------
 // Roles
 
-const char* to_string(Role r) {
-  switch (r) {
-    case Role::Plain: return "plain";
-    case Role::Input: return "input";
-    case Role::Method: return "method";
-    case Role::Ablation: return "ablation";
-  }
-  return "method";
-}
+namespace {
+constexpr EnumName<Role> kRoleNames[] = {
+    {Role::Plain, "plain"}, {Role::Input, "input"}, {Role::Method, "method"}, {Role::Ablation, "ablation"}};
+}  // namespace
 
-Role role_from_string(const std::string& s, const std::string& where) {
-  for (Role r : {Role::Plain, Role::Input, Role::Method, Role::Ablation})
-    if (s == to_string(r)) return r;
-  throw InputError(fmt::format("{}: key 'role': expected one of plain, input, method, ablation (got \"{}\")", where, s));
-}
+const char* to_string(Role r) { return enum_name(r, kRoleNames); }
+
+Role role_from_string(const std::string& s, const std::string& where) { return enum_from_name(s, kRoleNames, where + ": key 'role'"); }
 
 Role role_of_group(const std::string& group, const std::string& where) {
   if (group.empty()) return Role::Method;
@@ -145,6 +139,72 @@ CurveOrigin curve_from_json(const json& j, const std::string& where) {
   return c;
 }
 
+// ---- CellMeasurement: one codec per field type, the field list in results.h ----
+
+namespace {
+
+json field_json(const CellTimes& t) { return times_to_json(t); }
+json field_json(const CurveOrigin& c) { return curve_to_json(c); }
+json field_json(bool b) { return b; }
+json field_json(const std::map<std::string, double>& m) { return numbers_json(m); }
+json field_json(const std::map<std::string, std::string>& m) { return m; }
+
+void read_field(const json& v, const std::string& key, const std::string& where, CellTimes& out) {
+  out = times_from_json(v, where + ": " + key);
+}
+void read_field(const json& v, const std::string& key, const std::string& where, CurveOrigin& out) {
+  out = curve_from_json(v, where + ": " + key);
+}
+void read_field(const json& v, const std::string& key, const std::string& where, bool& out) {
+  if (!v.is_boolean()) throw InputError(fmt::format("{}: key '{}': expected true or false", where, key));
+  out = v.get<bool>();
+}
+void read_field(const json& v, const std::string& key, const std::string& where, std::map<std::string, double>& out) {
+  if (!v.is_object()) throw InputError(fmt::format("{}: key '{}': expected an object", where, key));
+  out = number_map(v, where + ": " + key);
+}
+void read_field(const json& v, const std::string& key, const std::string& where, std::map<std::string, std::string>& out) {
+  if (!v.is_object()) throw InputError(fmt::format("{}: key '{}': expected an object", where, key));
+  for (const auto& [k, s] : v.items()) {
+    if (!s.is_string()) throw InputError(fmt::format("{}: {}: key '{}': expected a string", where, key, k));
+    out[k] = s.get<std::string>();
+  }
+}
+
+template <class T>
+struct IsOptional : std::false_type {};
+template <class T>
+struct IsOptional<std::optional<T>> : std::true_type {};
+
+}  // namespace
+
+void CellMeasurement::write_json(json& object) const {
+  fields(*this, [&](const char* key, const auto& v) {
+    if constexpr (IsOptional<std::decay_t<decltype(v)>>::value) {
+      if (v) object[key] = field_json(*v);
+    } else {
+      object[key] = field_json(v);
+    }
+  });
+}
+
+CellMeasurement CellMeasurement::read_json(const json& object, const std::string& where) {
+  CellMeasurement m;
+  fields(m, [&](const char* key, auto& v) {
+    using T = std::decay_t<decltype(v)>;
+    if constexpr (IsOptional<T>::value) {
+      if (!object.contains(key) || object.at(key).is_null()) return;
+      typename T::value_type x{};
+      read_field(object.at(key), key, where, x);
+      v = std::move(x);
+    } else {
+      if (!object.contains(key)) throw InputError(fmt::format("{}: missing key '{}'", where, key));
+      read_field(object.at(key), key, where, v);
+    }
+  });
+  return m;
+}
+
 json CellRecord::to_json() const {
   json r = {{"scene", scene}, {"method", method}, {"role", to_string(role)}, {"spp", spp}, {"width", width}, {"height", height}};
   if (!scene_hash.empty()) r["scene_hash"] = scene_hash;
@@ -153,7 +213,7 @@ json CellRecord::to_json() const {
   json m = json::object();
   for (const auto& [k, v] : metrics) m[k] = v ? jf::number_or_null(*v) : json(nullptr);
   r["metrics"] = m;
-  r["times"] = times_to_json(times);
+  write_json(r);
   json ref = {{"spp", reference.spp}, {"seconds", reference.seconds}, {"image", reference.image},
               {"unconverged_share", reference.unconverged_share ? json(*reference.unconverged_share) : json(nullptr)}};
   if (reference.seed) ref["seed"] = *reference.seed;
@@ -162,14 +222,9 @@ json CellRecord::to_json() const {
   if (reference.estimated_error) ref["estimated_error"] = *reference.estimated_error;
   r["reference"] = ref;
   if (!files.empty()) r["files"] = files;
-  if (input_cache_hit) r["input_cache_hit"] = *input_cache_hit;
-  if (curve) r["curve"] = curve_to_json(*curve);
   if (!base_method.empty()) r["base_method"] = base_method;
-  if (!kind.empty()) r["kind"] = kind;
+  if (kind) r["kind"] = to_string(*kind);
   if (params) r["params"] = *params;
-  if (phases) r["phases"] = numbers_json(*phases);
-  if (counters) r["counters"] = numbers_json(*counters);
-  if (method_info) r["method_info"] = *method_info;
   if (blocks) r["blocks"] = numbers_json(*blocks);
   if (!worse_tiles.empty()) r["worse_tiles"] = worse_tiles;
   return r;
@@ -195,7 +250,7 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
   if (!metrics.is_object()) throw InputError(fmt::format("{}: key 'metrics': expected an object", where));
   for (const auto& [k, v] : metrics.items()) r.metrics[k] = optional_number(metrics, k, where + ": metrics");
 
-  r.times = times_from_json(jf::get<json>(j, "times", where), where + ": times");
+  static_cast<CellMeasurement&>(r) = CellMeasurement::read_json(j, where);
 
   const json ref = jf::get<json>(j, "reference", where);
   const std::string rw = where + ": reference";
@@ -210,22 +265,9 @@ CellRecord CellRecord::from_json(const json& j, const std::string& where) {
 
   r.files = jf::get_or<std::map<std::string, std::string>>(j, "files", {}, where);
   for (const auto& [k, f] : r.files) inside_folder(f, k, where + ": files");
-  r.input_cache_hit = optional_value<bool>(j, "input_cache_hit", where);
-  if (j.contains("curve")) r.curve = curve_from_json(j.at("curve"), where + ": curve");
   r.base_method = jf::get_or<std::string>(j, "base_method", "", where);
-  r.kind = jf::get_or<std::string>(j, "kind", "", where);
+  if (j.contains("kind")) r.kind = method_kind_from_string(jf::get<std::string>(j, "kind", where), where);
   r.params = optional_value<std::map<std::string, std::string>>(j, "params", where);
-  if (j.contains("phases")) r.phases = number_map(object_or_empty(j, "phases", where), where + ": phases");
-  if (j.contains("counters")) r.counters = number_map(object_or_empty(j, "counters", where), where + ": counters");
-  if (j.contains("method_info")) {
-    std::map<std::string, std::string> info;
-    const json info_json = object_or_empty(j, "method_info", where);  // kept: items() refers into it
-    for (const auto& [k, v] : info_json.items()) {
-      if (!v.is_string()) throw InputError(fmt::format("{}: method_info: key '{}': expected a string", where, k));
-      info[k] = v.get<std::string>();
-    }
-    r.method_info = std::move(info);
-  }
   if (j.contains("blocks")) r.blocks = number_map(object_or_empty(j, "blocks", where), where + ": blocks");
   if (j.contains("worse_tiles")) {
     const json& t = j.at("worse_tiles");

@@ -50,6 +50,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "denoisers/method_kind.h"
+
 namespace dnb::experiment {
 
 inline constexpr const char* kResultsFormat = "denoisebench-results";
@@ -105,7 +107,7 @@ struct RunConfig {
 };
 
 // A plain-curve cell's origin: the image is the first prefix_spp samples of one progressive render
-// of rendered_spp samples per pixel (the curve's largest point; experiment/runner.cpp), so the
+// of rendered_spp samples per pixel (the curve's largest point; experiment/frame_sources.h), so the
 // whole curve cost that one render. results.json "curve": {"rendered_spp", "prefix_spp"}.
 struct CurveOrigin {
   int rendered_spp = 0, prefix_spp = 0;
@@ -139,23 +141,47 @@ struct ReferenceInfo {
   std::optional<std::map<std::string, double>> estimated_error;
 };
 
-struct CellRecord {
+// What computing a cell measured: the part of a record that the cell's compute() returns (the
+// rest is the cell's identity and its scores). One struct, with one field list, fields(), that
+// drives its keys in a record's JSON and in a distributed run's spool (experiment/cells.h):
+// adding a field is its member and its line in fields().
+struct CellMeasurement {
+  CellTimes times;                    // times.reference is the scene's, filled in when stored
+  std::optional<bool> input_cache_hit;
+  std::optional<CurveOrigin> curve;   // plain-curve cells
+  std::optional<std::map<std::string, double>> phases, counters;  // method cells
+  std::optional<std::map<std::string, std::string>> method_info;  // what the method reported (MethodStats::info)
+
+  // f(key, member) for every field, in the order they are written; `self` is a (const) CellMeasurement.
+  template <class Self, class F>
+  static void fields(Self& self, F&& f) {
+    f("times", self.times);
+    f("input_cache_hit", self.input_cache_hit);
+    f("curve", self.curve);
+    f("phases", self.phases);
+    f("counters", self.counters);
+    f("method_info", self.method_info);
+  }
+  // Adds its keys to `object` (an optional field that is unset is absent).
+  void write_json(nlohmann::json& object) const;
+  // Its keys of `object`, strictly (an InputError naming `where` and the key).
+  static CellMeasurement read_json(const nlohmann::json& object, const std::string& where);
+};
+
+// A record: the cell's identity, what was measured (its CellMeasurement) and the scores.
+struct CellRecord : CellMeasurement {
   std::string scene, scene_hash, method;
   Role role = Role::Method;
   int spp = 0, width = 0, height = 0;
   std::optional<std::uint64_t> seed;
   std::string cell_key;
   std::map<std::string, std::optional<double>> metrics;  // nullopt: non-finite (null in JSON)
-  CellTimes times;
   ReferenceInfo reference;
-  std::map<std::string, std::string> files;  // image, error_flip, error_relmse: relative paths
-  std::optional<bool> input_cache_hit;
-  std::optional<CurveOrigin> curve;  // plain-curve cells
+  std::map<std::string, std::string> files;  // image, error_<metric> (the maps a run keeps): relative paths
   // Method and ablation cells.
-  std::string base_method, kind;
+  std::string base_method;
+  std::optional<MethodKind> kind;
   std::optional<std::map<std::string, std::string>> params;
-  std::optional<std::map<std::string, double>> phases, counters;
-  std::optional<std::map<std::string, std::string>> method_info;  // what the method reported (MethodStats::info)
   // Method cells: metrics::worse_blocks against the input frame ("block", "count", "worse",
   // "worse_twice": shares of tiles whose 8-bit mse is above the input's, and above twice it).
   std::optional<std::map<std::string, double>> blocks;

@@ -167,7 +167,8 @@ std::optional<double> reference_error_of(const ResultsDocument& res, const std::
 
 // The column is there for the metrics the reference's noise adds to, when a scene has the estimate.
 bool has_reference_error(const ResultsDocument& res, const std::string& metric) {
-  if (metric != "mse" && metric != "mse_hdr" && metric != "relmse") return false;
+  const metrics::MetricInfo* info = metrics::find_metric(metric);
+  if (!info || !info->reference_error) return false;
   for (const auto& s : res.scenes())
     if (reference_error_of(res, s, metric)) return true;
   return false;
@@ -206,11 +207,11 @@ Table table1(const ResultsDocument& res, const std::string& metric) {
     }
     if (const int best = significantly_best(vals, info.lower_is_better); best >= 0) row[std::size_t(best) + 1] += " *";
     row.push_back(format_interval(seed_values(res, s, "input", spp, metric)));
-    if (metric == "mse_converged") row.push_back(unconverged_cell(res, s));
+    if (info.masks_unconverged) row.push_back(unconverged_cell(res, s));
     if (reference_column) row.push_back(format_metric(reference_error_of(res, s, metric)));
     t.rows.push_back(row);
   }
-  if (metric == "mse_converged") t.header.push_back("reference pixels left out");
+  if (info.masks_unconverged) t.header.push_back("reference pixels left out");
   if (reference_column) t.header.push_back("reference's own (est.)");
   t.note = fmt::format("{}; {} is better. From results.json.{}{}{}", info.description, info.lower_is_better ? "lower" : "higher",
                        several ? fmt::format(" Several input seeds: mean ± the half width of its 95% t-interval over the seeds; "

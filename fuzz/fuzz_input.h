@@ -17,6 +17,7 @@
 #include <string_view>
 #include <typeinfo>
 
+#include "core/env.h"
 #include "core/errors.h"
 
 namespace dnb::fuzz {
@@ -63,10 +64,10 @@ inline void remove_input(const std::string& name) {
 }
 
 // Runs `f`; InputError and WorkError are correct rejections, any other exception a finding.
-// DNB_FUZZ_VERBOSE=1 prints each rejection (to see why a seed is refused).
+// DENOISEBENCH_FUZZ_VERBOSE=1 prints each rejection (to see why a seed is refused).
 template <class F>
 void run_guarded(F&& f) {
-  static const bool verbose = std::getenv("DNB_FUZZ_VERBOSE") != nullptr;
+  static const bool verbose = env::get("FUZZ_VERBOSE") != nullptr;
   try {
     f();
     if (verbose) std::fprintf(stderr, "accepted\n");

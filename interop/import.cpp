@@ -55,7 +55,7 @@ struct Resolved {
 std::optional<Resolved> resolve_source(const ExrChannels& ch, const std::string& prefix, const LayerSource& s, int n,
                                        std::string& missing) {
   Resolved r;
-  const int src_n = s.transform == "length" ? 3 : n;
+  const int src_n = s.transform == SourceTransform::Length ? 3 : n;
   if (!s.channels.empty()) {
     for (const auto& c : s.channels)
       if (!ch.has(c)) {
@@ -88,14 +88,14 @@ std::optional<Resolved> resolve_source(const ExrChannels& ch, const std::string&
       if (!add(t, false)) return std::nullopt;
     for (const auto& t : s.optional_terms) add(t, true);
   }
-  if (s.transform == "length") r.description = "|" + r.description + "|";
+  if (s.transform == SourceTransform::Length) r.description = "|" + r.description + "|";
   if (s.scale != 1.0) r.description += fmt::format(" x {}", s.scale);
   return r;
 }
 
 Image evaluate(const ExrChannels& ch, const Resolved& r, const LayerSource& s, int n, int spp) {
   const std::size_t pixels = std::size_t(ch.width) * ch.height;
-  const int src_n = s.transform == "length" ? 3 : n;
+  const int src_n = s.transform == SourceTransform::Length ? 3 : n;
   std::vector<double> acc(pixels * std::size_t(src_n), 0.0);
   for (const auto& term : r.terms) {
     for (int c = 0; c < src_n; ++c) {
@@ -113,7 +113,7 @@ Image evaluate(const ExrChannels& ch, const Resolved& r, const LayerSource& s, i
   Image out(ch.width, ch.height, n);
   float* dst = out.data();
   for (std::size_t i = 0; i < pixels; ++i) {
-    if (s.transform == "length") {
+    if (s.transform == SourceTransform::Length) {
       const double* v = &acc[i * 3];
       dst[i] = float(std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * scale);
     } else {
@@ -244,9 +244,9 @@ Imported import_channels(const ExrChannels& ch, const std::string& path, const I
       frame.set(lm.layer, evaluate(ch, *r, s, n, rep.spp));
       used.insert(r->used.begin(), r->used.end());
       std::string how = r->description;
-      if (!s.space.empty()) {
-        how += fmt::format(" ({} space)", s.space);
-        frame.meta.extra["import.normal_space"] = s.space;
+      if (s.space) {
+        how += fmt::format(" ({} space)", to_string(*s.space));
+        frame.meta.extra["import.normal_space"] = to_string(*s.space);
       }
       if (!s.note.empty()) how += " (" + s.note + ")";
       rep.kept.emplace_back(lm.layer, how);

@@ -37,15 +37,22 @@
 
 namespace dnb::interop {
 
+// What is done to a source's channels: nothing, or a 3-channel pass's Euclidean norm.
+enum class SourceTransform { None, Length };
+const char* to_string(SourceTransform t);  // "none", "length"
+// The space a normal pass is in: the harness's (world) or the camera's (rotated into world).
+enum class NormalSpace { World, Camera };
+const char* to_string(NormalSpace s);  // "world", "camera"
+
 struct LayerSource {
   std::vector<std::vector<std::string>> terms;           // each term: a product of passes
   std::vector<std::vector<std::string>> optional_terms;  // added when every pass of the term is present
   std::vector<std::string> channels;                     // explicit channel names (no prefix added)
-  std::string transform = "none";                        // "none" or "length"
+  SourceTransform transform = SourceTransform::None;
   double scale = 1.0;
   bool divide_by_spp = false;
   std::optional<double> miss_above;
-  std::string space;  // normals: "world" (the harness's) or "camera"
+  std::optional<NormalSpace> space;  // normals only; unset: as the preset says nothing
   std::string note;
   std::string where;  // "file:line: key 'layers.depth[1]'" for messages
 };

@@ -8,10 +8,19 @@
 #include <fmt/format.h>
 
 #include "core/config.h"
+#include "core/enum_names.h"
 #include "core/errors.h"
 #include "interop/import.h"
 
 namespace dnb::interop {
+
+namespace {
+constexpr EnumName<SourceTransform> kTransformNames[] = {{SourceTransform::None, "none"}, {SourceTransform::Length, "length"}};
+constexpr EnumName<NormalSpace> kSpaceNames[] = {{NormalSpace::World, "world"}, {NormalSpace::Camera, "camera"}};
+}  // namespace
+
+const char* to_string(SourceTransform t) { return enum_name(t, kTransformNames); }
+const char* to_string(NormalSpace s) { return enum_name(s, kSpaceNames); }
 
 namespace {
 
@@ -59,11 +68,11 @@ LayerSource read_source(ConfigTable t, const std::string& layer) {
   s.terms = read_terms(t, "terms");
   s.optional_terms = read_terms(t, "optional_terms");
   s.channels = t.get("channels", std::vector<std::string>{});
-  s.transform = t.get("transform", std::string("none"));
+  s.transform = enum_from_name(t.get("transform", std::string("none")), kTransformNames, t.where("transform"));
   s.scale = t.get("scale", 1.0);
   s.divide_by_spp = t.get("divide_by_spp", false);
   if (t.contains("miss_above")) s.miss_above = t.get("miss_above", 0.0);
-  s.space = t.get("space", std::string());
+  if (t.contains("space")) s.space = enum_from_name(t.get("space", std::string()), kSpaceNames, t.where("space"));
   s.note = t.get("note", std::string());
   t.finish();
   const int channels = default_channels(layer);
@@ -71,18 +80,14 @@ LayerSource read_source(ConfigTable t, const std::string& layer) {
     throw InputError(fmt::format("{}: layer '{}' has neither `terms` nor `channels`", s.where, layer));
   if (!s.terms.empty() && !s.channels.empty())
     throw InputError(fmt::format("{}: layer '{}' has both `terms` and `channels` (give one)", s.where, layer));
-  if (s.transform != "none" && s.transform != "length")
-    throw InputError(fmt::format("{}: transform '{}' is not one of none, length", t.where("transform"), s.transform));
-  if (s.transform == "length" && channels != 1)
+  if (s.transform == SourceTransform::Length && channels != 1)
     throw InputError(fmt::format("{}: transform 'length' makes one channel, and layer '{}' has {}", t.where("transform"),
                                  layer, channels));
-  const std::size_t want = s.transform == "length" ? 3 : std::size_t(channels);
+  const std::size_t want = s.transform == SourceTransform::Length ? 3 : std::size_t(channels);
   if (!s.channels.empty() && s.channels.size() != want)
     throw InputError(fmt::format("{}: layer '{}' needs {} channel names, got {}", t.where("channels"), layer, want,
                                  s.channels.size()));
-  if (!s.space.empty() && s.space != "world" && s.space != "camera")
-    throw InputError(fmt::format("{}: space '{}' is not one of world, camera", t.where("space"), s.space));
-  if (!s.space.empty() && layer != layer::kNormal)
+  if (s.space && layer != layer::kNormal)
     throw InputError(fmt::format("{}: `space` applies to the normal layer only", t.where("space")));
   if (!(s.scale > 0) || !std::isfinite(s.scale))
     throw InputError(fmt::format("{}: scale must be a positive finite number (got {})", t.where("scale"), s.scale));
@@ -92,10 +97,12 @@ LayerSource read_source(ConfigTable t, const std::string& layer) {
 }  // namespace
 
 const std::vector<std::string>& mappable_layers() {
-  static const std::vector<std::string> names = {
-      layer::kColor,    layer::kDirect,   layer::kIndirect,         layer::kAlbedo,
-      layer::kReflection, layer::kEmission, layer::kNormal,         layer::kDepth,
-      layer::kVariance, layer::kDirectVariance, layer::kIndirectVariance};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const layer::Info& i : layer::table())
+      if (i.importable) n.push_back(i.name);
+    return n;
+  }();
   return names;
 }
 

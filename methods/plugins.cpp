@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
-#include <regex>
 #include <set>
 #include <sys/statvfs.h>
 #include <unistd.h>
@@ -16,7 +15,9 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "core/env.h"
 #include "core/config.h"
+#include "core/enum_names.h"
 #include "core/exr_io.h"
 #include "core/file_names.h"
 #include "core/hash.h"
@@ -30,29 +31,13 @@ namespace dnb {
 
 namespace {
 
-// The repository's folders (the source tree; $DNB_SOURCE_DIR overrides at run time, as for the
+// The repository's folders (the source tree; $DENOISEBENCH_SOURCE_DIR overrides at run time, as for the
 // built-in scenes).
 fs::path source_dir(const char* sub, const char* compiled) {
-  if (const char* s = std::getenv("DNB_SOURCE_DIR"); s && *s) return fs::path(s) / sub;
+  if (const char* s = env::get("SOURCE_DIR"); s && *s) return fs::path(s) / sub;
   return fs::path(compiled);
 }
 fs::path python_dir() { return source_dir("python", DNB_SOURCE_PYTHON_DIR); }
-
-bool known_layer(const std::string& name) {
-  static const std::set<std::string> base = {layer::kColor,    layer::kDirect,           layer::kIndirect,
-                                             layer::kAlbedo,   layer::kReflection,       layer::kEmission,
-                                             layer::kNormal,   layer::kDepth,            layer::kVariance,
-                                             layer::kDirectVariance, layer::kIndirectVariance, layer::kEdge,
-                                             layer::kSamples};
-  if (base.count(name)) return true;
-  static const std::regex level(R"(refl([1-9][0-9]?)\.([a-z_]+))");
-  static const std::regex half(R"(half[01]\.([a-z_]+))");
-  std::smatch m;
-  if (std::regex_match(name, m, half))
-    return std::find(std::begin(layer::kHalfLayers), std::end(layer::kHalfLayers), m[1].str()) !=
-           std::end(layer::kHalfLayers);
-  return std::regex_match(name, m, level) && (base.count(m[2].str()) || m[2].str() == layer::kTint);
-}
 
 // "a:b::c" -> a, b, c (empty entries dropped), for PATH-like lists.
 std::vector<std::string> split_colons(const std::string& list) {
@@ -152,7 +137,7 @@ std::vector<std::string> tail_of(const Subprocess& p) { return {p.log_tail().beg
 // input with guides is tens of MB; containers often give /dev/shm only 64 MB), else the system's
 // temporary folder. $DENOISEBENCH_PLUGIN_TMP overrides.
 fs::path parent_dir() {
-  if (const char* t = std::getenv("DENOISEBENCH_PLUGIN_TMP"); t && *t) return t;
+  if (const char* t = env::get("PLUGIN_TMP"); t && *t) return t;
   struct statvfs v {};
   if (::statvfs("/dev/shm", &v) == 0 && double(v.f_bavail) * double(v.f_frsize) >= 1024.0 * 1024 * 1024 &&
       ::access("/dev/shm", W_OK) == 0)
@@ -440,16 +425,13 @@ PluginManifest manifest_from(const ConfigFile& file, const std::string& path, co
       m.command[i] = p.lexically_normal().string();
   }
   const std::string protocol = pl->get("protocol", "frame");
-  if (protocol == "frame") m.protocol = PluginProtocol::Frame;
-  else if (protocol == "worker") m.protocol = PluginProtocol::Worker;
-  else throw InputError(fmt::format("{}: protocol '{}': expected \"frame\" or \"worker\"", pl->where("protocol"), protocol));
+  static constexpr EnumName<PluginProtocol> kProtocols[] = {{PluginProtocol::Frame, "frame"}, {PluginProtocol::Worker, "worker"}};
+  m.protocol = enum_from_name(protocol, kProtocols, pl->where("protocol"));
   m.layers = pl->get("layers", std::vector<std::string>{});
   if (m.layers.empty()) throw InputError(fmt::format("{}: expected a non-empty list of frame layers", pl->where("layers")));
   for (const auto& l : m.layers)
-    if (!known_layer(l))
-      throw InputError(fmt::format("{}: unknown layer '{}' (layers: color, direct, indirect, albedo, reflection, emission, "
-                                   "normal, depth, variance, direct_variance, indirect_variance, edge, samples, reflK.<layer>)",
-                                   pl->where("layers"), l));
+    if (!layer::find(l))
+      throw InputError(fmt::format("{}: unknown layer '{}' (a frame's layers: {})", pl->where("layers"), l, layer::names_help()));
   m.timeout_seconds = pl->get("timeout_seconds", m.timeout_seconds);
   if (!(m.timeout_seconds > 0 && m.timeout_seconds <= 86400))
     throw InputError(fmt::format("{}: expected seconds in (0, 86400]", pl->where("timeout_seconds")));
@@ -494,7 +476,7 @@ std::string plugin_content_hash(const PluginManifest& m) {
 
 std::vector<std::string> plugin_search_dirs(const std::vector<std::string>& extra) {
   std::vector<std::string> dirs = extra;
-  if (const char* env = std::getenv("DENOISEBENCH_PLUGINS"))
+  if (const char* env = env::get("PLUGINS"))
     for (const std::string& d : split_colons(env)) dirs.push_back(d);
   dirs.push_back(source_dir("plugins", DNB_SOURCE_PLUGINS_DIR).string());
   return dirs;

@@ -247,29 +247,37 @@ const std::vector<MetricInfo>& all_metrics() {
   using Plain = MetricResult (*)(const Image&, const Image&);
   auto plain = [](Plain f) { return [f](const Image& a, const Image& b, const Image*) { return f(a, b); }; };
   static const std::vector<MetricInfo> list = {
-      {"mse", "mean squared error of the 8-bit sRGB images (0..255): Table 1's scale", true, plain(mse)},
-      {"mse_hdr", "mean squared error of the linear radiance", true, plain(mse_hdr_map), true},
-      {"relmse", "relative MSE, (x - y)^2 / (y^2 + 0.01), linear radiance", true, plain(relmse), true},
-      {"psnr", "peak signal-to-noise ratio of the 8-bit images, dB", false, plain(psnr)},
-      {"ssim", "structural similarity (Wang et al. 2004) of the 8-bit images", false, plain(ssim)},
-      {"flip", "mean LDR-FLIP (Andersson et al. 2020), 67 pixels per degree", true,
-       [](const Image& a, const Image& b, const Image*) { return flip(a, b); }},
-      {"hdrflip",
-       "mean HDR-FLIP (Andersson et al. 2021) of the linear radiance: LDR-FLIP's largest error over ACES-tone-mapped "
-       "exposures, the range from the reference; 67 pixels per degree",
-       true, [](const Image& a, const Image& b, const Image*) { return hdrflip(a, b); }, true},
-      {"mse_hdr_nc",
-       "mse_hdr less the reference's own expected share, the mean of its variance of the mean (noise-corrected; "
-       "can fall below 0 for a method closer to the truth than the reference's noise); n/a without the variance",
-       true, mse_hdr_nc, true},
-      {"relmse_nc",
-       "relmse less the reference's own expected share, variance / (y^2 + 0.01) (noise-corrected, first order); "
-       "n/a without the variance",
-       true, relmse_nc, true},
-      {"mse_converged",
-       "8-bit mse over the pixels whose reference has converged (relative standard error at most 1/2: "
-       "more than about 4 samples carry the pixel); n/a without the reference's variance",
-       true, mse_converged},
+      {.name = "mse", .description = "mean squared error of the 8-bit sRGB images (0..255): Table 1's scale",
+       .fn = plain(mse), .reference_error = &ReferenceError::mse},
+      {.name = "mse_hdr", .description = "mean squared error of the linear radiance", .fn = plain(mse_hdr_map),
+       .needs_linear = true, .reference_error = &ReferenceError::mse_hdr},
+      {.name = "relmse", .description = "relative MSE, (x - y)^2 / (y^2 + 0.01), linear radiance", .fn = plain(relmse),
+       .needs_linear = true, .run_keeps_map = true, .reference_error = &ReferenceError::relmse},
+      {.name = "psnr", .description = "peak signal-to-noise ratio of the 8-bit images, dB", .lower_is_better = false,
+       .fn = plain(psnr)},
+      {.name = "ssim", .description = "structural similarity (Wang et al. 2004) of the 8-bit images",
+       .lower_is_better = false, .fn = plain(ssim), .unit_map = true, .map_label = "1 - ssim"},
+      {.name = "flip", .description = "mean LDR-FLIP (Andersson et al. 2020), 67 pixels per degree",
+       .fn = [](const Image& a, const Image& b, const Image*) { return flip(a, b); }, .run_keeps_map = true,
+       .pooled = true, .unit_map = true, .memoises_reference = true},
+      {.name = "hdrflip",
+       .description = "mean HDR-FLIP (Andersson et al. 2021) of the linear radiance: LDR-FLIP's largest error over "
+                      "ACES-tone-mapped exposures, the range from the reference; 67 pixels per degree",
+       .fn = [](const Image& a, const Image& b, const Image*) { return hdrflip(a, b); }, .needs_linear = true,
+       .run_keeps_map = true, .pooled = true, .unit_map = true, .memoises_reference = true},
+      {.name = "mse_hdr_nc",
+       .description = "mse_hdr less the reference's own expected share, the mean of its variance of the mean "
+                      "(noise-corrected; can fall below 0 for a method closer to the truth than the reference's "
+                      "noise); n/a without the variance",
+       .fn = mse_hdr_nc, .needs_linear = true, .needs_reference_variance = true},
+      {.name = "relmse_nc",
+       .description = "relmse less the reference's own expected share, variance / (y^2 + 0.01) (noise-corrected, "
+                      "first order); n/a without the variance",
+       .fn = relmse_nc, .needs_linear = true, .needs_reference_variance = true},
+      {.name = "mse_converged",
+       .description = "8-bit mse over the pixels whose reference has converged (relative standard error at most 1/2: "
+                      "more than about 4 samples carry the pixel); n/a without the reference's variance",
+       .fn = mse_converged, .needs_reference_variance = true, .masks_unconverged = true},
   };
   return list;
 }
@@ -280,9 +288,21 @@ std::vector<std::string> metric_names() {
   return n;
 }
 
-const MetricInfo& metric(const std::string& name) {
+const MetricInfo* find_metric(const std::string& name) {
   for (const auto& m : all_metrics())
-    if (m.name == name) return m;
+    if (m.name == name) return &m;
+  return nullptr;
+}
+
+std::map<std::string, double> reference_error_by_metric(const ReferenceError& e) {
+  std::map<std::string, double> out;
+  for (const auto& m : all_metrics())
+    if (m.reference_error) out[m.name] = e.*m.reference_error;
+  return out;
+}
+
+const MetricInfo& metric(const std::string& name) {
+  if (const MetricInfo* m = find_metric(name)) return *m;
   std::string valid;
   for (const auto& n : metric_names()) valid += (valid.empty() ? "" : ", ") + n;
   throw InputError(fmt::format("unknown metric '{}': valid metrics are {}", name, valid));

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -31,20 +32,44 @@ struct MetricResult {
   Image map;  // 1 channel, the image's size: the per-pixel error (SSIM: 1 - local SSIM)
 };
 
+// The reference's own expected error (reference_error below) for the metrics it is known for.
+struct ReferenceError {
+  double mse = 0, mse_hdr = 0, relmse = 0;
+};
+
+// A metric and everything the harness does differently for it: the one place that knows which
+// metrics keep maps, are pooled, need the reference's variance. Adding a metric is one entry
+// of all_metrics().
 struct MetricInfo {
   std::string name;
   std::string description;       // one line, for `denoisebench list metrics`
   bool lower_is_better = true;   // false for psnr and ssim
   // `reference_variance`: the reference's per-pixel variance of the mean (3 channels), or null
-  // where it is not known; only mse_converged uses it (its value is NaN without it).
+  // where it is not known; the metrics that need it are NaN (n/a) without it.
   std::function<MetricResult(const Image& image, const Image& reference, const Image* reference_variance)> fn;
   // True for the metrics of linear radiance (mse_hdr, relmse, hdrflip): an 8-bit file (PNG, JPEG) holds
   // display values clipped to [0, 1], so those metrics would measure the clipping, not the image.
   bool needs_linear = false;
+  bool needs_reference_variance = false;  // n/a without the reference's variance
+  // Scores only the reference's converged pixels (unconverged_mask): tables show the share left out.
+  bool masks_unconverged = false;
+  // A run keeps this metric's map beside every cell's image (files "error_<name>") for the report.
+  bool run_keeps_map = false;
+  // Its map is pooled as FLIP's tool reports it (pool_flip: weighted median, quartiles, ...).
+  bool pooled = false;
+  // Its map lives in [0, 1] and is shown so (FLIP, 1 - SSIM); other maps up to their 99th percentile.
+  bool unit_map = false;
+  std::string map_label;  // the map's colour-bar label where it is not the name (ssim: "1 - ssim")
+  // The reference's own expected share of this metric (reference_error), or null where unknown.
+  double ReferenceError::*reference_error = nullptr;
+  // Keeps the last reference's filtered images between calls (FLIP's memo): a benchmark times a
+  // new reference as well as a repeated one.
+  bool memoises_reference = false;
 
   MetricResult compute(const Image& image, const Image& reference, const Image* reference_variance = nullptr) const {
     return fn(image, reference, reference_variance);
   }
+  const std::string& map_name() const { return map_label.empty() ? name : map_label; }
 };
 
 // The registered metrics in report order (mse first: Table 1).
@@ -52,6 +77,10 @@ const std::vector<MetricInfo>& all_metrics();
 std::vector<std::string> metric_names();
 // InputError listing the valid names when unknown.
 const MetricInfo& metric(const std::string& name);
+// Null when unknown (a results file of another build may name metrics this one lacks).
+const MetricInfo* find_metric(const std::string& name);
+// The reference's own expected error by metric name, for the metrics that have one.
+std::map<std::string, double> reference_error_by_metric(const ReferenceError& e);
 
 // InputError unless both are 3-channel images of the same size with only finite samples.
 // `image_name` and `reference_name` name them in the message (file names where known).
@@ -176,9 +205,6 @@ MetricResult mse_converged(const Image& image, const Image& reference, const Ima
 // estimate mean of (d display / d r)^2 v, which ignores rounding and, where the clamp holds
 // (r >= 1), counts nothing. The variance must be the variance of the mean (tracer version 4 on:
 // docs/references.md); InputError as for mse_converged.
-struct ReferenceError {
-  double mse = 0, mse_hdr = 0, relmse = 0;
-};
 ReferenceError reference_error(const Image& reference, const Image& reference_variance);
 MetricResult mse_hdr_nc(const Image& image, const Image& reference, const Image* reference_variance);
 MetricResult relmse_nc(const Image& image, const Image& reference, const Image* reference_variance);

@@ -178,7 +178,7 @@ ScoreOutcome score(const ScoreRequest& q) {
       const MetricInfo& m = metric(name);
       MetricResult r = m.compute(im.rgb, ref.rgb, variance);
       row.values.emplace_back(name, r.value);
-      if (name == "flip" || name == "hdrflip") row.pooled[name] = pool_flip(r.map);
+      if (m.pooled) row.pooled[name] = pool_flip(r.map);
       if (q.error_maps_dir.empty() || r.map.empty()) continue;
       const std::string base = (fs::path(q.error_maps_dir) / (stem + "." + name)).string();
       Image grey(r.map.width(), r.map.height(), 3);
@@ -188,12 +188,12 @@ ScoreOutcome score(const ScoreRequest& q) {
       // FLIP's maps (and 1 - SSIM) live in [0, 1]; the others are shown up to their 99th
       // percentile, so that one firefly does not turn the rest of the map black.
       double hi = 1.0;
-      if (name != "flip" && name != "hdrflip" && name != "ssim") {
+      if (!m.unit_map) {
         std::vector<float> v(r.map.data(), r.map.data() + r.map.size());
         std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() * 99 / 100), v.end());
         hi = std::max(double(v[v.size() * 99 / 100]), 1e-12);
       }
-      write_png(false_colour_with_bar(r.map, 0.0, hi, name == "ssim" ? "1 - ssim" : name), base + ".png");
+      write_png(false_colour_with_bar(r.map, 0.0, hi, m.map_name()), base + ".png");
       row.maps.push_back(base + ".exr");
       row.maps.push_back(base + ".png");
     }

@@ -34,11 +34,15 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import method_style  # noqa: E402
 
-ERROR_KINDS = [  # files key, kind, label
-    ("error_flip", "flip", "FLIP"),
-    ("error_hdrflip", "hdrflip", "HDR-FLIP"),
-    ("error_relmse", "relmse", "relMSE"),
-]
+# A record's error maps are its files "error_<metric>" (the metrics with run_keeps_map in
+# metrics/metrics.cpp); shown under these labels, or the metric's name.
+ERROR_LABELS = {"flip": "FLIP", "hdrflip": "HDR-FLIP", "relmse": "relMSE"}
+
+
+def error_kinds(record):
+    """[(files key, metric, label)] of the record's error maps, in files-key order."""
+    return [(k, k[len("error_"):], ERROR_LABELS.get(k[len("error_"):], k[len("error_"):]))
+            for k in sorted(record.get("files", {})) if k.startswith("error_")]
 
 
 class BadInput(Exception):
@@ -183,7 +187,7 @@ def build_scene(dir_, res, scene_i, scene, spp, seed, pick_method):
                 kind="radiance", role="reference", metrics={})
     for i, r in recs:
         m = r["method"]
-        for files_key, kind, klabel in ERROR_KINDS:
+        for files_key, kind, klabel in error_kinds(r):
             rel = r.get("files", {}).get(files_key)
             if not rel:
                 continue

@@ -3,7 +3,7 @@
 
     scripts/compare_results.py OLD_DIR NEW_DIR [--images]
 
-Records are matched by (scene, method, spp); each must have the same role, metrics (exactly),
+Records are matched by (scene, method, spp, seed) (a config of several seeds has a record per seed); each must have the same role, metrics (exactly),
 parameters, reference settings and file names. Left out, because they differ between any two
 runs or builds: the header's format/schema_version/machine/build/git_revision/written, and each
 record's cell_key (it hashes the build), times, phases, counters, cache hits and the reference's
@@ -31,7 +31,7 @@ def comparable(record):
 def load(folder):
     with open(folder + "/results.json") as f:
         doc = json.load(f)
-    return doc, {(r["scene"], r["method"], r["spp"]): r for r in doc["records"]}
+    return doc, {(r["scene"], r["method"], r["spp"], r.get("seed")): r for r in doc["records"]}
 
 
 def main(argv):
@@ -62,8 +62,8 @@ def main(argv):
                                     f"{args[0]}/{rel}", f"{args[1]}/{other}"], capture_output=True, text=True)
                 if p.returncode != 0:
                     diffs.append(f"{key} {name}: pixels differ ({rel})")
-    order_old = [(r["scene"], r["method"], r["spp"]) for r in old_doc["records"]]
-    order_new = [(r["scene"], r["method"], r["spp"]) for r in new_doc["records"]]
+    order_old = [(r["scene"], r["method"], r["spp"], r.get("seed")) for r in old_doc["records"]]
+    order_new = [(r["scene"], r["method"], r["spp"], r.get("seed")) for r in new_doc["records"]]
     if order_old != order_new:
         diffs.append("records are in another order")
     for d in diffs:

@@ -23,8 +23,8 @@ namespace fs = std::filesystem;
 // an ENVIRONMENT list).
 namespace {
 const bool environment_set = [] {
-  ::setenv("DNB_SOURCE_DIR", DNB_TEST_SOURCE_DIR, 0);
-  ::setenv("DNB_BINARY", DNB_TEST_BINARY_DIR "/denoisebench", 0);
+  ::setenv("DENOISEBENCH_SOURCE_DIR", DNB_TEST_SOURCE_DIR, 0);
+  ::setenv("DENOISEBENCH_BINARY", DNB_TEST_BINARY_DIR "/denoisebench", 0);
   ::setenv("POCL_CACHE_DIR", DNB_TEST_BINARY_DIR "/pocl-cache", 0);
   ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 0);
   ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 0);
@@ -75,20 +75,20 @@ static std::string env_or(const char* name, const char* fallback) {
 }
 
 CommandResult run_denoisebench(const std::string& args) {
-  return run_command(env_or("DNB_BINARY", "./denoisebench") + " " + args);
+  return run_command(env_or("DENOISEBENCH_BINARY", "./denoisebench") + " " + args);
 }
 
 CommandResult run_denoisebench_stdout(const std::string& args) {
-  return run_command_stdout(env_or("DNB_BINARY", "./denoisebench") + " " + args);
+  return run_command_stdout(env_or("DENOISEBENCH_BINARY", "./denoisebench") + " " + args);
 }
 
-fs::path binary() { return fs::absolute(env_or("DNB_BINARY", "./denoisebench")); }
+fs::path binary() { return fs::absolute(env_or("DENOISEBENCH_BINARY", "./denoisebench")); }
 
 CommandResult run_in(const TempDir& dir, const std::string& args) {
   return run_command("DENOISEBENCH_CACHE='" + dir.file("cache") + "' '" + binary().string() + "' " + args);
 }
 
-std::string source_dir() { return env_or("DNB_SOURCE_DIR", "."); }
+std::string source_dir() { return env_or("DENOISEBENCH_SOURCE_DIR", "."); }
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

@@ -28,7 +28,7 @@ struct CommandResult {
   std::string errors;  // the *_stdout runners: stderr, kept apart for failure messages
 };
 
-// Runs the built denoisebench ($DNB_BINARY) with the given arguments through the shell.
+// Runs the built denoisebench ($DENOISEBENCH_BINARY) with the given arguments through the shell.
 CommandResult run_denoisebench(const std::string& args);
 // Runs any shell command, capturing stdout and stderr together.
 CommandResult run_command(const std::string& command);
@@ -36,11 +36,11 @@ CommandResult run_command(const std::string& command);
 // (--json), which a log line on stderr must not break.
 CommandResult run_denoisebench_stdout(const std::string& args);
 CommandResult run_command_stdout(const std::string& command);
-// The program as an absolute path: $DNB_BINARY, else ./denoisebench (ctest runs in the build folder).
+// The program as an absolute path: $DENOISEBENCH_BINARY, else ./denoisebench (ctest runs in the build folder).
 std::filesystem::path binary();
 // Runs the program with its own render cache in `dir` (DENOISEBENCH_CACHE=dir/cache).
 CommandResult run_in(const TempDir& dir, const std::string& args);
-// The source tree ($DNB_SOURCE_DIR).
+// The source tree ($DENOISEBENCH_SOURCE_DIR).
 std::string source_dir();
 
 // The message of the exception of type E (InputError, WorkError) that `f` throws, or "(no error)"

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include "core/env.h"
 #include "core/atomic_file.h"
 #include "core/errors.h"
 #include "core/exr_io.h"
@@ -88,7 +89,7 @@ std::string CacheKey::digest() const { return sha256_hex(canonical()); }
 // Cache
 
 std::string Cache::default_dir() {
-  if (const char* d = std::getenv("DENOISEBENCH_CACHE"); d && *d) return d;
+  if (const char* d = env::get("CACHE"); d && *d) return d;
   if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return (fs::path(x) / "denoisebench").string();
   if (const char* h = std::getenv("HOME"); h && *h) return (fs::path(h) / ".cache" / "denoisebench").string();
   return (fs::path(".cache") / "denoisebench").string();

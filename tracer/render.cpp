@@ -64,7 +64,7 @@ namespace {
 
 // ---- The frame's layers ----
 
-// One half buffer's layers (core/aov_frame.h's layer::kHalfLayers).
+// One half buffer's layers (those with `halves` in core/aov_frame.h's layer::table()).
 struct HalfImages {
   Image *color, *direct, *indirect, *albedo, *normal, *depth;
 };
@@ -81,18 +81,12 @@ struct FrameLayers {
 // per pixel).
 AovFrame allocate_frame(int W, int H, int K, int threads) {
   AovFrame frame(W, H);
-  std::vector<std::pair<std::string, int>> names = {{layer::kColor, 3},          {layer::kVariance, 3},
-                                                    {layer::kDirectVariance, 3}, {layer::kIndirectVariance, 3},
-                                                    {layer::kSamples, 1},        {layer::kEdge, 1}};
-  for (int k = 0; k <= K; ++k) {
-    for (const char* b : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission,
-                          layer::kNormal})
-      names.emplace_back(layer::at_level(k, b), 3);
-    names.emplace_back(layer::at_level(k, layer::kDepth), 1);
-    if (k > 0) names.emplace_back(layer::at_level(k, layer::kTint), 3);
+  std::vector<std::pair<std::string, int>> names;
+  for (const layer::Info& l : layer::table()) {
+    if (l.level0) names.emplace_back(l.name, l.channels);
+    for (int k = 1; l.levels && k <= K; ++k) names.emplace_back(layer::at_level(k, l.name), l.channels);
+    for (int h = 0; l.halves && h < 2; ++h) names.emplace_back(layer::at_half(h, l.name), l.channels);
   }
-  for (int h = 0; h < 2; ++h)
-    for (const char* b : layer::kHalfLayers) names.emplace_back(layer::at_half(h, b), default_channels(b));
   std::vector<Image> images(names.size());
   run_in_arena(threads, [&] {
     tbb::parallel_for(std::size_t(0), names.size(), [&](std::size_t i) { images[i] = Image(W, H, names[i].second); });

@@ -4,6 +4,7 @@
 // every table's keys are read where their defaults are written and finish() rejects any other
 // key (core/config.h). Shapes are tessellated by tracer/shapes.h, OBJ files imported by
 // tracer/obj_import.h.
+#include "core/env.h"
 #include "tracer/scene_loader.h"
 
 #include <algorithm>
@@ -33,10 +34,10 @@ namespace {
 using Arr3 = std::array<double, 3>;
 Vec3 vec3(const Arr3& a) { return {float(a[0]), float(a[1]), float(a[2])}; }
 
-// Where the built-in scene files live: $DNB_SOURCE_DIR/configs/scenes when set (tests), else
+// Where the built-in scene files live: $DENOISEBENCH_SOURCE_DIR/configs/scenes when set (tests), else
 // the source tree this program was built from.
 fs::path builtin_dir() {
-  if (const char* s = std::getenv("DNB_SOURCE_DIR"); s && *s) {
+  if (const char* s = env::get("SOURCE_DIR"); s && *s) {
     fs::path p = fs::path(s) / "configs" / "scenes";
     if (fs::is_directory(p)) return p;
   }
@@ -47,7 +48,7 @@ fs::path builtin_dir() {
 // beside the repository. Empty when none exists.
 fs::path mcguire_dir(const SceneLoadOptions& o) {
   if (!o.scenes_dir.empty()) return o.scenes_dir;
-  if (const char* s = std::getenv("DENOISEBENCH_SCENES"); s && *s) return s;
+  if (const char* s = env::get("SCENES"); s && *s) return s;
   // ../shared/scenes beside the repository; a git worktree one or two folders further down
   // (worktrees/NAME) also finds it, by looking up to two more levels up.
   fs::path dir = builtin_dir().parent_path().parent_path().parent_path();

@@ -4,7 +4,7 @@ says on what and how long).
 
 The weights are the training script's output, never downloaded: `weights/kpcn.pt` beside this
 file (hashed into every kpcn cell's key, like all of the plug-in's folder), or the file named by
-$DNB_KPCN_WEIGHTS (for trying other weights with `denoise`; not part of the cells' keys, so put
+$DENOISEBENCH_KPCN_WEIGHTS (or its older alias $DNB_KPCN_WEIGHTS; for trying other weights with `denoise`; not part of the cells' keys, so put
 weights an experiment uses into weights/). Without weights, or without PyTorch, the worker
 answers {"ready": false, "unavailable": ...} saying how to get them: the kpcn cells of an
 experiment are then skipped with that reason, not failed. The weights are loaded once, at
@@ -39,7 +39,7 @@ from denoisebench_plugin import run  # noqa: E402
 
 
 def setup():
-    path = os.environ.get("DNB_KPCN_WEIGHTS") or DEFAULT_WEIGHTS
+    path = os.environ.get("DENOISEBENCH_KPCN_WEIGHTS") or os.environ.get("DNB_KPCN_WEIGHTS") or DEFAULT_WEIGHTS
     if not os.path.isfile(path):
         _unavailable(f"no trained weights at '{path}': train them with {TRAIN}")
     with open(path, "rb") as f:

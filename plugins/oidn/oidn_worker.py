@@ -39,14 +39,14 @@ def _into_venv():
     if os.path.realpath(sys.prefix) == os.path.realpath(VENV):
         return
     python = os.path.join(VENV, "bin", "python3")
-    if os.environ.get("DNB_OIDN_REEXEC") == "1":
+    if os.environ.get("DENOISEBENCH_OIDN_REEXEC") == "1":
         _unavailable(f"'{python}' did not start inside '{VENV}' (sys.prefix is '{sys.prefix}'); "
                      "re-create it with scripts/setup (rm -rf .venv first)")
     if not os.access(python, os.X_OK):
         _unavailable(f"the project's virtual environment '{VENV}' is missing (no '{python}'): "
                      "run scripts/setup, which installs python/requirements-pypi.txt (pyoidn, OIDN's "
                      "library) into it")
-    os.environ["DNB_OIDN_REEXEC"] = "1"
+    os.environ["DENOISEBENCH_OIDN_REEXEC"] = "1"
     sys.stdout.flush()
     sys.stderr.flush()
     os.execv(python, [python, os.path.abspath(__file__)] + sys.argv[1:])

@@ -219,7 +219,7 @@ TEST(Plugins, KpcnTrainsDeterministicallyResumesAndDenoisesWithItsWeights) {
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
   EXPECT_THAT(bad.output, HasSubstr("--kernel must be odd"));
 
-  const std::string weights = "DNB_KPCN_WEIGHTS='" + dir.file("a") + "/kpcn.pt' ";
+  const std::string weights = "DENOISEBENCH_KPCN_WEIGHTS='" + dir.file("a") + "/kpcn.pt' ";
   const std::string in = dir.file("in.exr");
   ASSERT_EQ(test::run_denoisebench("render cornell-box --spp 4 --size 40x32 --seed 3 -o " + in).exit_code, 0);
   for (const auto& [out, threads] : {std::pair{"o1.exr", 1}, std::pair{"o2.exr", 1}, std::pair{"o3.exr", 2}}) {

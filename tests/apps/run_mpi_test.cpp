@@ -1,4 +1,4 @@
-// `mpirun -np 2 denoisebench run` against one process (experiment/runner.cpp): the
+// `mpirun -np 2 denoisebench run` against one process (experiment/execute_mpi.cpp): the
 // same records but for timing and the machine block, every image the same float for float, on a
 // matrix with every kind of cell (the plain curve, inputs of two seeds, filters, a renderer, a
 // scene read from files with a skipped renderer cell); and a job killed mid-run resumes from the

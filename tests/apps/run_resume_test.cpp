@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/env.h"
 #include "core/exr_io.h"
 #include "test_util.h"
 
@@ -47,7 +48,7 @@ repeats = 1
 constexpr std::size_t kCells = 4;
 
 std::string binary() {
-  const char* bin = std::getenv("DNB_BINARY");
+  const char* bin = env::get("BINARY");
   return fs::absolute(bin && *bin ? bin : "./denoisebench").string();
 }
 

@@ -1,4 +1,4 @@
-// DNB_AM_CAPTURE (denoisers/am_capture.h): a recorded call of the adaptive-manifold core read back
+// DENOISEBENCH_AM_CAPTURE (denoisers/am_capture.h): a recorded call of the adaptive-manifold core read back
 // gives the same inputs, and the core run on them the same output bit for bit; a file that is
 // not a whole capture is refused with its name.
 #include <gtest/gtest.h>
@@ -59,6 +59,7 @@ TEST(AmCapture, RecordedCallReplaysBitForBit) {
 
   TempDir dir;
   std::vector<float> q_direct;
+  // The older DNB_ spelling, still read where DENOISEBENCH_AM_CAPTURE is unset (core/env.h).
   ::setenv("DNB_AM_CAPTURE", dir.path.c_str(), 1);
   const Image direct = am_filter(src.cview(), guide_view, s, queries, &q_direct);
   ::unsetenv("DNB_AM_CAPTURE");

@@ -37,9 +37,9 @@ TEST(AmDevice, TimesARecordedCallOnBothPaths) {
       }
   const fs::path cap = dir.path() / "cap";
   fs::create_directories(cap);
-  ::setenv("DNB_AM_CAPTURE", cap.c_str(), 1);
+  ::setenv("DENOISEBENCH_AM_CAPTURE", cap.c_str(), 1);
   am_filter(src.cview(), guide.cview(), AmSettings{});
-  ::unsetenv("DNB_AM_CAPTURE");
+  ::unsetenv("DENOISEBENCH_AM_CAPTURE");
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(cap)) files.push_back(e.path());
   ASSERT_EQ(files.size(), 1u);

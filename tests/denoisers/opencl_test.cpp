@@ -79,7 +79,7 @@ TEST(OpenCl, MatchesCpuPath) {
   for (const char* lanes : {"8", "1"})
   for (bool adjust : {false, true})
     for (double sigma_s : {8.0, 16.0}) {
-      ::setenv("DNB_OPENCL_LANES", lanes, 1);
+      ::setenv("DENOISEBENCH_OPENCL_LANES", lanes, 1);
       AmSettings s;
       s.sigma_s = sigma_s;
       s.adjust_outliers = adjust;
@@ -88,7 +88,7 @@ TEST(OpenCl, MatchesCpuPath) {
       std::vector<float> qc, qg;
       const Image cpu = am_filter(src.cview(), guide.cview(), s, queries, &qc);
       const Image gpu = am_filter_opencl(src.cview(), guide.cview(), s, queries, &qg);
-      ::unsetenv("DNB_OPENCL_LANES");
+      ::unsetenv("DENOISEBENCH_OPENCL_LANES");
       const double d = rel_rms(gpu.data(), cpu.data(), cpu.size());
       RecordProperty("rel_rms_sigma_s_" + std::to_string(int(sigma_s)) + (adjust ? "_adjust" : "") + "_lanes" + lanes, sci(d));
       EXPECT_LE(d, 1e-4) << "sigma_s " << sigma_s << " adjust " << adjust << " lanes " << lanes;

@@ -87,7 +87,7 @@ AovFrame planes_frame(int width, int height, float noise_sigma, std::uint64_t se
 
 void set_halves(AovFrame& f, const Image* sd, std::uint64_t seed) {
   for (int h = 0; h < 2; ++h)
-    for (const char* b : layer::kHalfLayers)
+    for (const char* b : {layer::kColor, layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kNormal, layer::kDepth})
       if (std::string(b) != layer::kColor) f.set(layer::at_half(h, b), f.layer(b));
   Image h0 = f.layer(layer::kColor), h1 = h0;
   if (sd) {

@@ -17,6 +17,7 @@
 #include "core/json_file.h"
 #include "experiment/config.h"
 #include "experiment/report.h"
+#include "denoisers/method.h"
 #include "experiment/runner.h"
 #include "metrics/metrics.h"
 #include "test_util.h"
@@ -42,7 +43,8 @@ repeats = 1
 
 ResultsDocument run(const test::TempDir& dir, const std::string& config_name, const std::string& text, const std::string& out) {
   test::write(dir.file(config_name), text);
-  return run_experiment(load_config(dir.file(config_name)), {.out_dir = dir.file(out), .cache_dir = dir.file("cache")});
+  return run_experiment(load_config(dir.file(config_name)), {.out_dir = dir.file(out), .cache_dir = dir.file("cache")},
+                        MethodRegistry::global());
 }
 
 const CellRecord& record(const ResultsDocument& d, const std::string& method) {

@@ -48,7 +48,7 @@ CellRecord method_record() {
   r.files = {{"image", "images/c/x_16.exr"}, {"error_flip", "images/c/x_16.err_flip.exr"}};
   r.input_cache_hit = false;
   r.base_method = "proposed";
-  r.kind = "filter";
+  r.kind = MethodKind::Filter;
   r.params = std::map<std::string, std::string>{{"nlm_space", "false"}};
   r.phases = std::map<std::string, double>{{"nlm", 0.1}};
   r.counters = std::map<std::string, double>{{"repaired_samples", 0}};

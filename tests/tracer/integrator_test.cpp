@@ -558,7 +558,8 @@ TEST(Frame, HasEveryChannelOfTheDesign) {
                           layer::kReflection, layer::kEmission, layer::kTint})
       names.push_back(layer::at_level(k, b));
   for (int h = 0; h < 2; ++h)
-    for (const char* b : layer::kHalfLayers) names.push_back(layer::at_half(h, b));
+    for (const char* b : {layer::kColor, layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kNormal, layer::kDepth})
+      names.push_back(layer::at_half(h, b));
   EXPECT_TRUE(f.missing_channels(names).empty());
   EXPECT_EQ(f.meta.tracer_version, kTracerVersion);
   EXPECT_EQ(f.meta.spp, 4);

@@ -15,6 +15,7 @@
 
 #include <fmt/format.h>
 
+#include "core/env.h"
 #include "core/atomic_file.h"
 #include "core/exr_io.h"
 #include "test_util.h"
@@ -26,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 
 std::string binary() {
-  const char* b = std::getenv("DNB_BINARY");
+  const char* b = env::get("BINARY");
   return b ? b : "./denoisebench";
 }
 

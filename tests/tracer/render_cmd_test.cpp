@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "core/env.h"
 #include "core/exr_io.h"
 #include "test_util.h"
 #include "tracer/render.h"
@@ -12,11 +13,11 @@
 namespace dnb {
 namespace {
 
-// The program run_denoisebench runs: $DNB_BINARY, else ./denoisebench (tests run in build/).
+// The program run_denoisebench runs: $DENOISEBENCH_BINARY, else ./denoisebench (tests run in build/).
 // CMake builds it before tracer_tests (tests/CMakeLists.txt), so a missing one is a failure of
 // the build or of the environment, never a reason to skip.
 std::string binary() {
-  const char* b = std::getenv("DNB_BINARY");
+  const char* b = env::get("BINARY");
   return b ? b : "./denoisebench";
 }
 #define ASSERT_BINARY_BUILT() \
