@@ -16,7 +16,7 @@
 #include "denoisers/method.h"
 #include "experiment/runner.h"
 #include "methods/plugins.h"
-#include "tracer/mpi_context.h"
+#include "distributed/mpi_context.h"
 
 namespace dnb::app {
 

@@ -21,8 +21,8 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
-#include "denoisers/adaptive_manifold.h"
-#include "denoisers/adaptive_manifold_cl.h"
+#include "denoisers/am/adaptive_manifold.h"
+#include "denoisers/am/opencl.h"
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/method.h"
 
@@ -96,7 +96,7 @@ void BM_am_opencv(benchmark::State& state) {
   }
 }
 
-// The same core on the OpenCL device (PoCL's CPU device here; denoisers/adaptive_manifold_cl.h).
+// The same core on the OpenCL device (PoCL's CPU device here; denoisers/am/opencl.h).
 void BM_am_ours_opencl(benchmark::State& state) {
   std::string why;
   if (!am_opencl_available(&why)) {

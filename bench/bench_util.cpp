@@ -8,8 +8,8 @@
 #include <opencv2/core.hpp>
 #include <tbb/global_control.h>
 
-#include "tracer/cache.h"
-#include "tracer/cache_keys.h"
+#include "tracer/render_cache.h"
+#include "tracer/render_cache_keys.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
 #include "tracer/scene_loader.h"

@@ -41,7 +41,7 @@ std::string cpu_model() {
   return "unknown";
 }
 
-// The device the OpenCL path uses (denoisers/adaptive_manifold_cl.h: the first device of the
+// The device the OpenCL path uses (denoisers/am/opencl.h: the first device of the
 // first platform, or of platform $DENOISEBENCH_OPENCL_PLATFORM).
 std::string opencl_device() {
 #ifdef DNB_WITH_OPENCL

@@ -13,7 +13,7 @@
 #include <fstream>
 #include <random>
 
-#include "tracer/cache.h"
+#include "tracer/render_cache.h"
 #include "tracer/reference.h"
 
 namespace dnb {

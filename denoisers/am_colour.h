@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "denoisers/adaptive_manifold.h"
+#include "denoisers/am/adaptive_manifold.h"
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/method.h"
 

@@ -4,7 +4,7 @@
 
 #include <opencv2/ximgproc/edge_filter.hpp>
 
-#include "denoisers/adaptive_manifold.h"
+#include "denoisers/am/adaptive_manifold.h"
 
 namespace dnb {
 

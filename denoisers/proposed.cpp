@@ -1,6 +1,6 @@
 // proposed: the paper's filter (its section 3, docs/paper.md; Gruzdev, Frolov, Ignatenko). Each
 // illumination layer, direct D and indirect I separately, is filtered by the adaptive-manifold
-// filter (denoisers/adaptive_manifold.h) whose guide is the layer's non-local-means vector
+// filter (denoisers/am/adaptive_manifold.h) whose guide is the layer's non-local-means vector
 // (denoisers/nlm_space.h), the shading normal and the depth, each group scaled by its own
 // sigma; the image is composed as F = (D' + I') * T + R' + E (formula 1).
 //   - Reflections (paper 3.2): reflection level k (refl<k>.*) is filtered the same way with its
@@ -32,8 +32,8 @@
 #include <spdlog/spdlog.h>
 
 #include "core/errors.h"
-#include "denoisers/adaptive_manifold.h"
-#include "denoisers/adaptive_manifold_cl.h"
+#include "denoisers/am/adaptive_manifold.h"
+#include "denoisers/am/opencl.h"
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"

@@ -30,7 +30,7 @@
 
 #include "core/errors.h"
 #include "experiment/execute.h"
-#include "tracer/mpi_context.h"
+#include "distributed/mpi_context.h"
 
 using nlohmann::json;
 

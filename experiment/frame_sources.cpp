@@ -7,7 +7,7 @@
 
 #include "core/errors.h"
 #include "core/exr_io.h"
-#include "tracer/cache_keys.h"
+#include "tracer/render_cache_keys.h"
 
 namespace dnb::experiment {
 

@@ -1,6 +1,6 @@
 // Where a run's cells get their pixels: the input frame of a scene at one spp, loaded on first
 // use (InputFrame), and the plain path-tracing curve, one progressive render whose prefixes are
-// its points (PlainCurve). Both go through the render cache (tracer/cache.h).
+// its points (PlainCurve). Both go through the render cache (tracer/render_cache.h).
 #pragma once
 
 #include <cstdint>
@@ -18,8 +18,8 @@
 #include "core/image.h"
 #include "experiment/config.h"
 #include "experiment/input_files.h"
-#include "tracer/cache.h"
-#include "tracer/cache_keys.h"
+#include "tracer/render_cache.h"
+#include "tracer/render_cache_keys.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
 

@@ -15,7 +15,7 @@
 #include "experiment/provenance.h"
 #include "metrics/metrics.h"
 #include "methods/inputs.h"
-#include "tracer/mpi_context.h"
+#include "distributed/mpi_context.h"
 #include "tracer/scene_loader.h"
 
 namespace dnb::experiment {

@@ -16,7 +16,7 @@
 #include "experiment/config.h"
 #include "experiment/frame_sources.h"
 #include "experiment/runner.h"
-#include "tracer/cache.h"
+#include "tracer/render_cache.h"
 #include "tracer/reference.h"
 #include "tracer/scene.h"
 

@@ -14,8 +14,8 @@
 #include "experiment/planner.h"
 #include "experiment/provenance.h"
 #include "experiment/store.h"
-#include "tracer/cache.h"
-#include "tracer/mpi_context.h"
+#include "tracer/render_cache.h"
+#include "distributed/mpi_context.h"
 
 namespace fs = std::filesystem;
 

@@ -9,7 +9,7 @@
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/progress.h"
-#include "tracer/mpi_context.h"
+#include "distributed/mpi_context.h"
 
 namespace dnb {
 

@@ -21,7 +21,7 @@
 #include "core/hash.h"
 #include "core/progress.h"
 #include "core/timer.h"
-#include "tracer/mpi_context.h"
+#include "distributed/mpi_context.h"
 
 namespace dnb {
 namespace fs = std::filesystem;

@@ -15,7 +15,7 @@
 //    is reported and ignored (the render starts over).
 //  - Cache: the finished reference (reference.exr: R,G,B and variance.R/G/B, the variance of
 //    the mean, plus metadata; convergence.csv) is stored in the content-keyed cache
-//    (tracer/cache.h) under reference_cache_key() (tracer/cache_keys.h); a later request is a
+//    (tracer/render_cache.h) under reference_cache_key() (tracer/render_cache_keys.h); a later request is a
 //    verified cache hit.
 //  - Convergence log: after every pass, spp and the estimated relative error of the mean,
 //    from the per-pixel variance (ConvergenceRow).
@@ -29,7 +29,7 @@
 
 #include "core/aov_frame.h"
 #include "core/image.h"
-#include "tracer/cache.h"
+#include "tracer/render_cache.h"
 #include "tracer/render.h"
 
 namespace dnb {

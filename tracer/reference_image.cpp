@@ -1,5 +1,5 @@
 // reference_image: the cache lookup, the render through the block driver with the tracer's
-// render_color_sums, and storing the result (tracer/reference.h; its key: tracer/cache_keys.h).
+// render_color_sums, and storing the result (tracer/reference.h; its key: tracer/render_cache_keys.h).
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -12,8 +12,8 @@
 #include "core/exr_io.h"
 #include "core/timer.h"
 #include "core/build_info.h"
-#include "tracer/cache_keys.h"
-#include "tracer/mpi_context.h"
+#include "tracer/render_cache_keys.h"
+#include "distributed/mpi_context.h"
 #include "tracer/reference.h"
 #include "tracer/scene_loader.h"
 

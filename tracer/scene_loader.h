@@ -1,6 +1,6 @@
 // Loading scenes: the built-in scene names and the search paths of scene and mesh files, the
 // scene file schema (TOML, documented in configs/scenes/README.md), and the content hash that
-// keys every cached render of a scene (tracer/cache.h).
+// keys every cached render of a scene (tracer/render_cache.h).
 //
 //   auto scene = load_scene("cornell-box");                 // configs/scenes/cornell-box.toml
 //   auto mine = load_scene("my/room.toml", {.scenes_dir = "/data/mcguire"});

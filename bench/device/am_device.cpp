@@ -2,7 +2,7 @@
 // small program that needs neither the harness's libraries nor its frames, so that it can be
 // carried to a machine with a GPU and its OpenCL driver (to measure the OpenCL path on a GPU
 // against the paper's 0.16 s; docs/opencl-gpu.md). The inputs are the exact calls of a real run,
-// recorded with DENOISEBENCH_AM_CAPTURE (denoisers/am_capture.h); scripts/am_device_bundle makes the bundle
+// recorded with DENOISEBENCH_AM_CAPTURE (denoisers/am/capture.h); scripts/am_device_bundle makes the bundle
 // (this program, its two shared libraries and the captures) and says how to run it.
 //
 //   denoisebench_am_device [--repeat N] [--json OUT] [--perturb EPS] CAPTURE.bin...
@@ -28,9 +28,9 @@
 #include <tbb/info.h>
 
 #include "core/errors.h"
-#include "denoisers/adaptive_manifold.h"
-#include "denoisers/adaptive_manifold_cl.h"
-#include "denoisers/am_capture.h"
+#include "denoisers/am/adaptive_manifold.h"
+#include "denoisers/am/opencl.h"
+#include "denoisers/am/capture.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-// DENOISEBENCH_AM_CAPTURE (denoisers/am_capture.h): a recorded call of the adaptive-manifold core read back
+// DENOISEBENCH_AM_CAPTURE (denoisers/am/capture.h): a recorded call of the adaptive-manifold core read back
 // gives the same inputs, and the core run on them the same output bit for bit; a file that is
 // not a whole capture is refused with its name.
 #include <gtest/gtest.h>
@@ -11,8 +11,8 @@
 #include <random>
 
 #include "core/errors.h"
-#include "denoisers/adaptive_manifold.h"
-#include "denoisers/am_capture.h"
+#include "denoisers/am/adaptive_manifold.h"
+#include "denoisers/am/capture.h"
 
 namespace dnb {
 namespace {

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "denoisers/adaptive_manifold.h"
+#include "denoisers/am/adaptive_manifold.h"
 #include "test_util.h"
 
 namespace dnb {

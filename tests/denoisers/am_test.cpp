@@ -1,4 +1,4 @@
-// The adaptive-manifold core (denoisers/adaptive_manifold.h) and the methods `am`, `am_opencv`.
+// The adaptive-manifold core (denoisers/am/adaptive_manifold.h) and the methods `am`, `am_opencv`.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <opencv2/ximgproc/edge_filter.hpp>
 
 #include "core/errors.h"
-#include "denoisers/adaptive_manifold.h"
+#include "denoisers/am/adaptive_manifold.h"
 #include "denoisers/am_opencv.h"
 #include "denoisers/hdr_mapping.h"
 #include "denoisers/method.h"

@@ -1,4 +1,4 @@
-// The OpenCL path of the adaptive-manifold core (denoisers/adaptive_manifold_cl.h) against the
+// The OpenCL path of the adaptive-manifold core (denoisers/am/opencl.h) against the
 // CPU path, on PoCL here (POCL_CACHE_DIR inside the build tree, set by tests/CMakeLists.txt).
 // Tolerance: relative RMS difference <= 1e-4. The two paths do the same operations
 // in float; only summation order differs (per block here, per column then block on the CPU),
@@ -12,8 +12,8 @@
 #include <cstdlib>
 #include <random>
 
-#include "denoisers/adaptive_manifold.h"
-#include "denoisers/adaptive_manifold_cl.h"
+#include "denoisers/am/adaptive_manifold.h"
+#include "denoisers/am/opencl.h"
 #include "denoisers/method.h"
 
 namespace dnb {

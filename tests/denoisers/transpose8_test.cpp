@@ -1,11 +1,11 @@
-// The layout moves of the adaptive-manifold core (denoisers/transpose8.h): every element where
+// The layout moves of the adaptive-manifold core (denoisers/am/transpose8.h): every element where
 // the element loops put it, the padding channels zero, and nothing written outside the rows,
 // for widths and channel counts that do and do not fill whole 8 x 8 blocks.
 #include <gtest/gtest.h>
 
 #include <vector>
 
-#include "denoisers/transpose8.h"
+#include "denoisers/am/transpose8.h"
 
 namespace dnb::am_detail {
 namespace {

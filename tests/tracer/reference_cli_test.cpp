@@ -19,7 +19,7 @@
 #include "core/atomic_file.h"
 #include "core/exr_io.h"
 #include "test_util.h"
-#include "tracer/mpi_context.h"
+#include "distributed/mpi_context.h"
 #include "tracer/reference.h"
 
 namespace dnb {

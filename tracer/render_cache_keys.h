@@ -1,4 +1,4 @@
-// The cache keys of the tracer's render products (tracer/cache.h): each names every part that
+// The cache keys of the tracer's render products (tracer/render_cache.h): each names every part that
 // determines the product's bits, so that a cached product is only used where a render would
 // give the same one. Changing a key's parts, their names or their order invalidates every
 // cached product of its kind.
@@ -6,7 +6,7 @@
 
 #include <vector>
 
-#include "tracer/cache.h"
+#include "tracer/render_cache.h"
 
 namespace dnb {
 
@@ -19,7 +19,7 @@ struct ReferenceSettings;   // tracer/reference.h
 // depth, block size, tracer version.
 CacheKey reference_cache_key(const Scene& scene, const ReferenceSettings& settings);
 
-// The experiment runner's input frames (render_frame; use with cached_frame, tracer/cache.h):
+// The experiment runner's input frames (render_frame; use with cached_frame, tracer/render_cache.h):
 // scene content, size, spp, seed, max depth, reflection levels, edge sub-pixels, tracer version.
 CacheKey frame_cache_key(const Scene& scene, const RenderSettings& settings);
 

@@ -1,4 +1,4 @@
-#include "denoisers/am_capture.h"
+#include "denoisers/am/capture.h"
 #include "core/env.h"
 
 #include <unistd.h>

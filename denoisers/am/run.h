@@ -2,7 +2,7 @@
 // its determinism): a private header of the core, shared by its two halves.
 //   - adaptive_manifold.cpp: the run's set-up (planar copies, the first manifold, the queries'
 //     bookkeeping), the point queries and the final normalisation;
-//   - am_tree.cpp: the manifold tree, level by level, in groups of up to kGroup manifolds, each
+//   - am/tree.cpp: the manifold tree, level by level, in groups of up to kGroup manifolds, each
 //     group in named passes: splat (full resolution), blur (reduced grid), slice and split
 //     (full resolution), children (reduced grid).
 //
@@ -21,10 +21,10 @@
 #include <tbb/enumerable_thread_specific.h>
 
 #include "core/image.h"
-#include "denoisers/adaptive_manifold.h"
-#include "denoisers/am_grid.h"
+#include "denoisers/am/adaptive_manifold.h"
+#include "denoisers/am/grid.h"
 #include "denoisers/buffer_pool.h"
-#include "denoisers/domain_transform.h"
+#include "denoisers/am/domain_transform.h"
 
 namespace dnb::am_detail {
 
@@ -78,7 +78,7 @@ class AmRun : private AmRunShape {
   Image normalised_output() const;
   void answer_queries(const Node& n, int y, const float* eta, const float* blur, Scratch& sc);
 
-  // --- the tree (am_tree.cpp)
+  // --- the tree (am/tree.cpp)
   // Builds and slices the whole tree, level by level (the same manifolds as their recursive
   // algorithm 1; only the order in which slices are summed differs).
   void tree();

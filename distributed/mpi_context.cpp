@@ -1,4 +1,4 @@
-#include "tracer/mpi_context.h"
+#include "distributed/mpi_context.h"
 
 #include <algorithm>
 #include <cstdlib>

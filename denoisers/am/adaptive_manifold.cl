@@ -1,5 +1,5 @@
-// OpenCL kernels of the adaptive-manifold core (denoisers/adaptive_manifold_cl.cpp drives them;
-// the algorithm and its choices are documented in denoisers/adaptive_manifold.h). Images are
+// OpenCL kernels of the adaptive-manifold core (denoisers/am/opencl.cpp drives them;
+// the algorithm and its choices are documented in denoisers/am/adaptive_manifold.h). Images are
 // planar: channel c of pixel (x, y) of a w x h image at [(c * h + y) * w + x]. Built with
 // -DDIMS=<guide channels> -DCHANS=<source channels> so private arrays have exact sizes.
 // The arithmetic follows the CPU path operation by operation; only summation order differs.
@@ -11,13 +11,13 @@
 // each work-item does 8 rows or columns at once, which costs a GPU nothing; the bilinear taps of
 // 8 columns come from one vector blend and constant swizzles where they follow the pattern of a
 // reduction by 2 or 4 (tap_pattern), gathers elsewhere. The host launches work-groups of 32 x 1
-// (adaptive_manifold_cl.cpp). As the CPU path (am_tree.cpp), the tree runs level by level and a
+// (am/opencl.cpp). As the CPU path (am/tree.cpp), the tree runs level by level and a
 // level's manifolds in groups (up to MAXG): the full-resolution passes (splat_group,
 // slice_split_group) read the guide, the source and the sums once per group, not once per
 // manifold, which bound them by memory traffic; queries at one pixel share its upsampled values
 // (query_group). Measured (bench, against the native path in the same run): proposed at
 // 1024x768 8.7x the native time at first, 3.1x with the float8 kernels, about 1.9x grouped
-// (with the host's buffer pool and one query pass per pixel, adaptive_manifold_cl.cpp).
+// (with the host's buffer pool and one query pass per pixel, am/opencl.cpp).
 
 // The float8 helpers of the hot kernels, inlined by force: PoCL's compiler left upsample8 a call
 // (its float8 arguments passed through memory), a tenth of the splat's and the slice's time.
@@ -53,7 +53,7 @@ inline float8 gather8(__global const float* r, int8 i) {
   return (float8)(r[i.s0], r[i.s1], r[i.s2], r[i.s3], r[i.s4], r[i.s5], r[i.s6], r[i.s7]);
 }
 
-// Whether 8 consecutive columns' bilinear taps (ix0, ix1: am_grid.h's tables) follow the interior
+// Whether 8 consecutive columns' bilinear taps (ix0, ix1: am/grid.h's tables) follow the interior
 // pattern of a reduction by 2 or by 4 (2 or 4), with 8 reduced columns from the first tap inside
 // the row; 0 otherwise (borders, other factors, odd sizes: gathers).
 inline int tap_pattern(int8 ix0, int8 ix1, int sw) {
@@ -87,7 +87,7 @@ INLINE float8 upsample8(__global const float* r0, __global const float* r1, floa
 // What the float8 kernels (splat, split) know about their 8 columns x0 .. x0 + 7 of a W-wide row:
 // the columns clamped to the row (the tail's lanes repeat the last one), which lanes are in it
 // (1 or 0), whether all are, and for a manifold on the reduced grid the bilinear taps and weights
-// (am_grid.h's tables) with their swizzle pattern (tap_pattern; 0: gathers).
+// (am/grid.h's tables) with their swizzle pattern (tap_pattern; 0: gathers).
 typedef struct {
   int8 xs, ix0, ix1;
   float8 valid, fx;
@@ -168,7 +168,7 @@ INLINE void block_store(float8 v, int x0, int W, int df, int rows, int sx0, floa
 // one work-item per 8 full-resolution columns of reduced row sy (a CPU device such as PoCL
 // vectorises across work-items only in loop-free kernels, and this one loops over the block's
 // rows). The guide, the source and the outlier distance are read once per pixel for the whole
-// group, as the CPU path's am_tree.cpp does: one manifold at a time, the splat read the guide
+// group, as the CPU path's am/tree.cpp does: one manifold at a time, the splat read the guide
 // once per manifold and was bound by that memory traffic (half the OpenCL path's time). For
 // every pixel and manifold k: w = exp(-|g - eta_k|^2 / sigma_r^2) into plane k of wbuf, the
 // nearest distance so far, and (w src, w) summed over the block's rows into manifold k's column

@@ -1,13 +1,13 @@
 // The adaptive-manifold core's public functions and one run's set-up, queries and output (see
-// adaptive_manifold.h for the algorithm and its choices, am_run.h for how a run is laid out,
-// am_tree.cpp for the tree's passes).
+// adaptive_manifold.h for the algorithm and its choices, am/run.h for how a run is laid out,
+// am/tree.cpp for the tree's passes).
 //
 // Why hand-written and not OpenCV's ximgproc::AdaptiveManifoldFilter: OpenCV's version cannot
 // answer slice queries with another guide value (paper 3.1 needs that for edge sub-pixels), its
 // power iteration restarts from the random vector every step, and it is about 3x slower here
 // (bench/am_bench.cpp): it splits every image into planes with a separate full-resolution pass
-// per operation, where this core fuses them (am_run.h).
-#include "denoisers/adaptive_manifold.h"
+// per operation, where this core fuses them (am/run.h).
+#include "denoisers/am/adaptive_manifold.h"
 
 #include <algorithm>
 #include <cmath>
@@ -20,9 +20,9 @@
 #include <tbb/parallel_for.h>
 
 #include "core/errors.h"
-#include "denoisers/am_capture.h"
-#include "denoisers/am_run.h"
-#include "denoisers/transpose8.h"
+#include "denoisers/am/capture.h"
+#include "denoisers/am/run.h"
+#include "denoisers/am/transpose8.h"
 
 namespace dnb {
 

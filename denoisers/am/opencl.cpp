@@ -1,8 +1,8 @@
-#include "denoisers/adaptive_manifold_cl.h"
+#include "denoisers/am/opencl.h"
 #include "core/env.h"
 
 #include "core/errors.h"
-#include "denoisers/am_capture.h"
+#include "denoisers/am/capture.h"
 
 #ifdef DNB_WITH_OPENCL
 #define CL_HPP_ENABLE_EXCEPTIONS
@@ -21,8 +21,8 @@
 
 #include <tbb/parallel_for.h>
 
-#include "denoisers/adaptive_manifold_cl_source.h"
-#include "denoisers/am_grid.h"
+#include "denoisers/am/opencl_source.h"
+#include "denoisers/am/grid.h"
 #endif
 
 namespace dnb {
@@ -43,7 +43,7 @@ Image am_filter_opencl(ConstImageView, ConstImageView, const AmSettings&, const 
 namespace {
 
 // The most manifolds of one tree level that the group kernels (splat_group, slice_split_group)
-// handle in one pass over the full-resolution images. The CPU path groups 8 (am_run.h); here a
+// handle in one pass over the full-resolution images. The CPU path groups 8 (am/run.h); here a
 // group's sums live in each work-item's private memory (about 10 KB at 8 guide dimensions for
 // 4), which a CPU device keeps in its cache and a GPU would spill beyond a few.
 constexpr int kMaxGroup = 4;
@@ -128,7 +128,7 @@ struct ClState {
     } catch (const cl::BuildError& e) {
       std::string log;
       for (auto& [dev, l] : e.getBuildLog()) log += l;
-      throw WorkError("OpenCL build of denoisers/adaptive_manifold.cl failed: " + log);
+      throw WorkError("OpenCL build of denoisers/am/adaptive_manifold.cl failed: " + log);
     }
     programs.emplace(std::pair{dims, chans}, p);
     return p;
@@ -218,7 +218,7 @@ class ClRun : private am_detail::AmRunShape {
     cl::Buffer eta_full = take(sizeof(float) * N * D_);
     q.enqueueCopyBuffer(guide_, eta_full, 0, 0, sizeof(float) * N * D_);
     low_pass(eta_full, 0, W_, H_, D_, s_.sigma_s);
-    // The tree level by level (as the CPU path's am_tree.cpp), each level's manifolds in groups
+    // The tree level by level (as the CPU path's am/tree.cpp), each level's manifolds in groups
     // of up to kMaxGroup: a level's manifolds are D planes each of one buffer, in id order.
     Level level{eta_full, 1, 1, true};
     for (int depth = 1; level.count > 0; ++depth) {

@@ -1,5 +1,5 @@
 // The adaptive-manifold tree (adaptive_manifold.h: their algorithm 1 with the recursive tree of
-// section 4.2), built level by level; am_run.h says why the full-resolution passes are fused.
+// section 4.2), built level by level; am/run.h says why the full-resolution passes are fused.
 // A group of manifolds runs four named passes:
 //   1. splat (full resolution, one task per reduced row): each pixel's distance to each manifold,
 //      its weight, the weighted source summed into the reduced grid, and above the leaves the
@@ -18,8 +18,8 @@
 #include <opencv2/core/hal/hal.hpp>
 #include <tbb/parallel_for.h>
 
-#include "denoisers/am_run.h"
-#include "denoisers/transpose8.h"
+#include "denoisers/am/run.h"
+#include "denoisers/am/transpose8.h"
 
 namespace dnb::am_detail {
 

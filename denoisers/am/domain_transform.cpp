@@ -1,5 +1,5 @@
 // The domain-transform recursive filter's constant-feedback half (see domain_transform.h).
-#include "denoisers/domain_transform.h"
+#include "denoisers/am/domain_transform.h"
 
 #include <cmath>
 

@@ -1,7 +1,7 @@
 // The adaptive-manifold filter's reduced grid (adaptive_manifold.h): manifolds are stored at a
 // resolution reduced by df, each reduced pixel the box average of a df x df block; pixels read
 // them back by bilinear upsampling, pixel centres aligned. Shared by the CPU core
-// (adaptive_manifold.cpp, am_tree.cpp) and the OpenCL path (adaptive_manifold_cl.cpp), so both
+// (adaptive_manifold.cpp, am/tree.cpp) and the OpenCL path (am/opencl.cpp), so both
 // sample the grid the same way.
 #pragma once
 

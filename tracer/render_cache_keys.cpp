@@ -1,6 +1,6 @@
-// The cache keys of references and input frames (tracer/cache_keys.h). Both start with the
+// The cache keys of references and input frames (tracer/render_cache_keys.h). Both start with the
 // parts of a render that every product shares, in one order, and end with the tracer version.
-#include "tracer/cache_keys.h"
+#include "tracer/render_cache_keys.h"
 
 #include "tracer/reference.h"
 #include "tracer/render.h"

@@ -9,7 +9,7 @@
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "test_util.h"
-#include "tracer/cache.h"
+#include "tracer/render_cache.h"
 
 namespace dnb {
 namespace {

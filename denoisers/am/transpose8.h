@@ -1,7 +1,7 @@
 // Moves between planar rows (one channel a row) and pixel-interleaved rows (dp floats a pixel,
 // dp a multiple of 8), eight channels by eight pixels at a time through an in-register 8 x 8
 // transpose. The adaptive-manifold core changes layout on the reduced grid several times per
-// manifold (the blur's horizontal pass, the children's splats and their manifolds: am_tree.cpp,
+// manifold (the blur's horizontal pass, the children's splats and their manifolds: am/tree.cpp,
 // domain_transform.h); element by element, those moves took about a seventh of its instructions
 // on proposed's 1024x768 frames (callgrind, 2026-12-04). Pure data movement: the values are the
 // element loops' bit for bit.

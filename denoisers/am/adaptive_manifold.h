@@ -104,7 +104,7 @@ std::vector<float> split_direction(const std::vector<double>& cov, int D, std::u
 
 // What a run on either path derives from its input and settings before it starts: sizes, the
 // tree height, the reduced grid's factor and size, 1 / sigma_r^2 and the split vectors' seed.
-// The base of the CPU run (am_run.h) and the OpenCL one (adaptive_manifold_cl.cpp).
+// The base of the CPU run (am/run.h) and the OpenCL one (am/opencl.cpp).
 struct AmRunShape {
   AmRunShape(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries);
   AmSettings s_;

@@ -1,10 +1,10 @@
-// The cache keys of render products (tracer/cache_keys.h) and the scene content hash they start
+// The cache keys of render products (tracer/render_cache_keys.h) and the scene content hash they start
 // with are pinned here to their exact text: a change to either invalidates every cached
 // reference and input frame, so it must be deliberate (and change these expectations).
 #include <gtest/gtest.h>
 
 #include "test_util.h"
-#include "tracer/cache_keys.h"
+#include "tracer/render_cache_keys.h"
 #include "tracer/reference.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"

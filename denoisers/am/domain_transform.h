@@ -20,7 +20,7 @@
 #include <tbb/parallel_for.h>
 
 #include "denoisers/buffer_pool.h"
-#include "denoisers/transpose8.h"
+#include "denoisers/am/transpose8.h"
 
 namespace dnb::domain_transform {
 

@@ -1,4 +1,4 @@
-#include "tracer/cache.h"
+#include "tracer/render_cache.h"
 
 #include <fcntl.h>
 #include <unistd.h>

@@ -1,4 +1,4 @@
-// The adaptive-manifold core on OpenCL (kernels in denoisers/adaptive_manifold.cl): splat, blur,
+// The adaptive-manifold core on OpenCL (kernels in denoisers/am/adaptive_manifold.cl): splat, blur,
 // slice, split and the slice queries run as kernels; the host walks the manifold tree and runs
 // the D x D power iteration (am_detail::split_direction, shared with the CPU path, so both
 // split the same way). Output matches am_filter() up to float summation order (relative RMS
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "denoisers/adaptive_manifold.h"
+#include "denoisers/am/adaptive_manifold.h"
 
 namespace dnb {
 

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "denoisers/adaptive_manifold.h"
+#include "denoisers/am/adaptive_manifold.h"
 
 namespace dnb {
 
