@@ -36,6 +36,8 @@
 #include "denoisers/method.h"
 #include "irradiance_cache/cache.h"
 #include "irradiance_cache/irradiance_cache.h"
+
+#include "tracer/bsdf.h"
 #include "tracer/integrator.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
@@ -257,8 +259,13 @@ class IrradianceCacheRenderer final : public Method {
         fy = (float(s / grid) + v) / float(grid);
       }
       tile.pts.clear();
-      Vec3 c = follow(run.scene, run.scene.camera.generate_ray(x + fx, y + fy, run.W, run.H), Vec3(1.0f), 0.0f, 0,
-                      tile.pts);
+      const rt::Camera& cam = run.scene.camera;
+      Ray camera_ray = cam.generate_ray(x + fx, y + fy, run.W, run.H);
+      if (cam.has_lens()) {
+        const float lu = rng.next(), lv = rng.next();
+        camera_ray = cam.generate_ray(x + fx, y + fy, run.W, run.H, lu, lv);
+      }
+      Vec3 c = follow(run.scene, camera_ray, Vec3(1.0f), 0.0f, 0, tile.pts);
       for (std::size_t i = 0; i < tile.pts.size(); ++i) shade(run, tile, tile.pts[i], rng, pixel, s, i, c);
       if (rt::is_finite(c)) sum += c;
     }
@@ -320,6 +327,36 @@ class IrradianceCacheRenderer final : public Method {
         float fr = rt::fresnel_schlick(rt::dot(wo, hit.ns), m.ior);
         spec = m.tint * fr;
         base = 1 - fr;
+        break;
+      }
+      // The hard materials as their smooth counterparts: this renderer follows specular chains
+      // deterministically, so a rough lobe is rendered as a mirror (or a clear refraction).
+      case rt::MaterialType::kConductor: {
+        rt::HardBsdf b;
+        b.eta_c = m.eta_c, b.k_c = m.k_c, b.schlick = m.schlick, b.tint = m.tint;
+        spec = b.fresnel_conductor_at(rt::dot(wo, hit.ns));
+        break;
+      }
+      case rt::MaterialType::kPlastic: {
+        const float fr = rt::fresnel_dielectric(rt::dot(wo, hit.ns), m.ior);
+        spec = m.tint * fr;
+        base = 1 - fr;
+        break;
+      }
+      case rt::MaterialType::kDielectric: {
+        const float eta = (m.thin || hit.front) ? m.ior : 1.0f / m.ior;
+        float cos_t = 0;
+        const float cos_o = rt::dot(wo, hit.ns);
+        float fr = rt::fresnel_dielectric(cos_o, eta, &cos_t);
+        if (m.thin) fr = fr < 1 ? 2 * fr / (1 + fr) : 1.0f;
+        spec = m.tint * fr;
+        rt::Vec3 tw = weight * m.transmittance * ((1 - fr) / (m.thin ? 1.0f : eta * eta));
+        if (!m.thin && !hit.front && !rt::is_black(m.absorption))
+          tw *= rt::Vec3(std::exp(-m.absorption.x * hit.t), std::exp(-m.absorption.y * hit.t), std::exp(-m.absorption.z * hit.t));
+        if (rt::max_component(tw) > 1e-4f) {
+          const rt::Vec3 wt = m.thin ? -wo : rt::normalize(-wo * (1 / eta) + hit.ns * (cos_o / eta - cos_t));
+          if (rt::dot(wt, hit.ng) < 0) out += follow(scene, Ray{hit.spawn_origin(wt), wt, 1e30f}, tw, len, depth, pts);
+        }
         break;
       }
     }

@@ -1,5 +1,6 @@
 #include "tracer/integrator.h"
 
+
 namespace dnb::rt {
 namespace {
 
@@ -28,6 +29,10 @@ Lobe choose_lobe(const SurfaceHit& hit, Vec3 wo, Sampler& s) {
       l.specular = true;
       l.spec_weight = m.tint;
       break;
+    case MaterialType::kConductor:
+    case MaterialType::kDielectric:
+    case MaterialType::kPlastic:
+      break;  // not through here: decompose_hard() and trace()'s hard branch
     case MaterialType::kCoated: {
       float fr = fresnel_schlick(dot(wo, hit.ns), m.ior);
       float pc = std::clamp(fr, 0.2f, 0.8f);
@@ -44,7 +49,59 @@ Lobe choose_lobe(const SurfaceHit& hit, Vec3 wo, Sampler& s) {
   return l;
 }
 
+// A hard material's BSDF at a hit, in the frame of hit.ns (which faces the incoming ray): a
+// dielectric's eta is ior when the ray enters through the front and 1 / ior when it leaves.
+HardBsdf hard_bsdf_at(const SurfaceHit& hit) {
+  const Material& m = *hit.material;
+  HardBsdf b;
+  b.type = m.type == MaterialType::kConductor ? HardType::kConductor
+           : m.type == MaterialType::kDielectric ? HardType::kDielectric
+                                                 : HardType::kPlastic;
+  b.ggx = Ggx{m.alpha_x, m.alpha_y};
+  b.eta_c = m.eta_c;
+  b.k_c = m.k_c;
+  b.schlick = m.schlick;
+  b.tint = m.tint;
+  b.transmittance = m.transmittance;
+  b.eta = (m.type == MaterialType::kDielectric && !m.thin && !hit.front) ? 1.0f / m.ior : m.ior;
+  b.thin = m.thin;
+  b.albedo = hit.albedo;
+  b.base_inner_reflectance = m.base_inner_reflectance;
+  b.base_inv_eta2 = 1.0f / (m.ior * m.ior);
+  return b;
+}
+
+// Beer absorption along a segment that ends on the inside of absorbing glass.
+bool absorbs(const SurfaceHit& hit) {
+  const Material& m = *hit.material;
+  return m.type == MaterialType::kDielectric && !hit.front && !m.thin && !is_black(m.absorption);
+}
+Vec3 absorption_along(const SurfaceHit& hit) {
+  const Vec3 a = hit.material->absorption;
+  return {std::exp(-a.x * hit.t), std::exp(-a.y * hit.t), std::exp(-a.z * hit.t)};
+}
+
 }  // namespace
+
+PathTracer::HardDirect PathTracer::hard_nee(const SurfaceHit& hit, const HardBsdf& b, const Frame& f, Vec3 wo_l,
+                                            PathContext& ctx) const {
+  HardDirect out;
+  if (b.all_delta()) return out;
+  Sampler& s = ctx.sampler;
+  float u0 = s.at(dims::kLightChoice), u1 = s.at(dims::kLightU), u2 = s.at(dims::kLightV);
+  LightSample ls;
+  if (!scene_.sample_light(hit.p, hit.ns, u0, u1, u2, ls) || !(ls.pdf > 0)) return out;
+  const Vec3 wi_l = f.to_local(ls.wi);
+  // The geometric and the shading normal must agree on the side the light is on.
+  if (wi_l.z == 0 || (wi_l.z > 0) != (dot(ls.wi, hit.ng) > 0)) return out;
+  const BsdfValue v = b.eval(wo_l, wi_l);
+  if (is_black(v.diffuse_white) && is_black(v.glossy)) return out;
+  if (!visible(hit, ls, ctx)) return out;
+  const float k = std::fabs(wi_l.z) * power_heuristic(ls.pdf, b.pdf(wo_l, wi_l)) / ls.pdf;
+  out.diffuse_white = ls.radiance * v.diffuse_white * k;
+  out.glossy = ls.radiance * v.glossy * k;
+  return out;
+}
 
 bool PathTracer::visible(const SurfaceHit& hit, const LightSample& ls, PathContext& ctx) const {
   ++ctx.rays;
@@ -153,6 +210,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
       break;
     }
     if (sink == &out.first_emission) out.first_distance = hit.t;
+    if (absorbs(hit)) beta *= absorption_along(hit);
     ++depth;
     s.start_vertex(depth);
     Vec3 Le = hit.emitted();
@@ -169,6 +227,25 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
       beta *= 1.0f / q;
     }
     Vec3 wo = -ray.dir;
+    if (hit.material->is_hard()) {
+      const HardBsdf b = hard_bsdf_at(hit);
+      const Frame f(hit.ns);
+      const Vec3 wo_l = f.to_local(wo);
+      const HardDirect d = hard_nee(hit, b, f, wo_l, ctx);
+      out.rest += beta * (d.diffuse_white * hit.albedo + d.glossy);
+      BsdfSample bs;
+      const float ul = s.at(dims::kLobe), u1 = s.at(dims::kBsdfU), u2 = s.at(dims::kBsdfV);
+      if (!b.sample(wo_l, ul, u1, u2, bs)) break;
+      const Vec3 wi = f.to_world(bs.wi);
+      if ((dot(wi, hit.ng) > 0) != (bs.wi.z > 0)) break;
+      beta *= bs.weight_diffuse_white * hit.albedo + bs.weight_glossy;
+      if (is_black(beta)) break;
+      prev_pdf = bs.delta ? 0.0f : bs.pdf;
+      prev_p = hit.p;
+      prev_n = hit.ns;
+      ray = Ray{hit.spawn_origin(wi), wi, 1e30f};
+      continue;
+    }
     Lobe lobe = choose_lobe(hit, wo, s);
     if (lobe.specular) {
       Vec3 wr = reflect(wo, hit.ns);
@@ -216,9 +293,14 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
   L.normal = hit.ns;
   L.depth = hit.t;
   L.emission = hit.emitted();
+  if (absorbs(hit)) L.attenuation = absorption_along(hit);
   const Material& m = *hit.material;
   if (m.type != MaterialType::kMirror) L.albedo = hit.albedo;
   if (depth >= opt_.max_depth) return;
+  if (m.is_hard()) {
+    decompose_hard(ray, hit, level, depth, ctx, out);
+    return;
+  }
   Vec3 wo = -ray.dir;
   Lobe lobe = choose_lobe(hit, wo, ctx.sampler);
   if (lobe.specular) {
@@ -228,6 +310,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
     Ray r{hit.spawn_origin(wr), wr, 1e30f};
     if (level < opt_.reflection_levels) {
       decompose(r, level + 1, depth, ctx, out);
+      L.tint *= out.level[level + 1].attenuation;  // exactly 1 outside absorbing glass
       L.reflection = L.tint * out.level[level + 1].color();
     } else {
       L.reflection = L.tint * trace(r, depth, 0.0f, Vec3(0.0f), L.tint, ctx).total();
@@ -249,6 +332,47 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
   }
   L.direct = direct * lobe.base_weight;
   L.indirect = indirect * lobe.base_weight;
+}
+
+void PathTracer::decompose_hard(const Ray& ray, const SurfaceHit& hit, int level, int depth, PathContext& ctx,
+                                SampleResult& out) const {
+  const HardBsdf b = hard_bsdf_at(hit);
+  const Frame f(hit.ns);
+  const Vec3 wo_l = f.to_local(-ray.dir);
+  const HardDirect d = hard_nee(hit, b, f, wo_l, ctx);
+  Vec3 direct = d.diffuse_white, indirect(0.0f), glossy = d.glossy, reflection(0.0f), tint(0.0f);
+  BsdfSample bs;
+  Sampler& s = ctx.sampler;
+  const float ul = s.at(dims::kLobe), u1 = s.at(dims::kBsdfU), u2 = s.at(dims::kBsdfV);
+  if (b.sample(wo_l, ul, u1, u2, bs)) {
+    const Vec3 wi = f.to_world(bs.wi);
+    if ((dot(wi, hit.ng) > 0) == (bs.wi.z > 0)) {
+      const Ray r{hit.spawn_origin(wi), wi, 1e30f};
+      if (bs.delta) {
+        // A perfect reflection or refraction: the next level is what it shows (behind glass, the
+        // first surface seen through it).
+        tint = bs.weight_glossy;
+        if (level < opt_.reflection_levels) {
+          decompose(r, level + 1, depth, ctx, out);
+          tint *= out.level[level + 1].attenuation;
+          reflection = tint * out.level[level + 1].color();
+        } else {
+          reflection = tint * trace(r, depth, 0.0f, Vec3(0.0f), tint, ctx).total();
+        }
+      } else {
+        const Vec3 weight = bs.weight_diffuse_white * hit.albedo + bs.weight_glossy;
+        const PathRadiance pr = trace(r, depth, bs.pdf, hit.ns, weight, ctx);
+        direct += bs.weight_diffuse_white * pr.first_emission;
+        indirect = bs.weight_diffuse_white * pr.rest;
+        glossy += bs.weight_glossy * pr.total();
+      }
+    }
+  }
+  LevelSample& L = out.level[level];
+  L.direct = direct;
+  L.indirect = indirect;
+  L.tint = tint;
+  L.reflection = reflection + glossy;
 }
 
 void PathTracer::sample_layers(const Ray& camera_ray, PathContext& ctx, SampleResult& out) const {

@@ -63,6 +63,7 @@
 #include <cstdint>
 
 #include "core/aov_frame.h"
+#include "tracer/bsdf.h"
 #include "tracer/math.h"
 #include "tracer/scene.h"
 
@@ -77,6 +78,7 @@ struct LevelSample {
   Vec3 normal;
   float depth = 0;
   Vec3 tint;            // weight of the specular bounce into level + 1 (0 when not taken)
+  Vec3 attenuation{1.0f};  // absorption along this level's ray (inside coloured glass), folded into the parent's tint
   bool present = false; // level 0: always; level k: the sample went through k specular bounces
   Vec3 color() const { return (direct + indirect) * albedo + reflection + emission; }
 };
@@ -149,6 +151,16 @@ class PathTracer {
   // point of shading normal prev_n; path_weight is the path's weight so far (Russian roulette).
   PathRadiance trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, Vec3 path_weight, PathContext& ctx) const;
   void decompose(const Ray& ray, int level, int depth, PathContext& ctx, SampleResult& out) const;
+  // The level's layers at a hard material (tracer/bsdf.h): the light sample and the BSDF sample,
+  // their diffuse parts into D and I, their glossy parts into R; a delta lobe continues the
+  // decomposition at level + 1 as a mirror does.
+  void decompose_hard(const Ray& ray, const SurfaceHit& hit, int level, int depth, PathContext& ctx, SampleResult& out) const;
+  struct HardDirect {
+    Vec3 diffuse_white, glossy;
+  };
+  // The MIS-weighted light sample at a hard material's vertex (0 when every lobe is a delta).
+  HardDirect hard_nee(const SurfaceHit& hit, const HardBsdf& b, const Frame& f, Vec3 wo_local,
+                      PathContext& ctx) const;
 
   const Scene& scene_;
   Options opt_;

@@ -65,6 +65,7 @@ struct Frame {
     b = {bb, sign + n.y * n.y * a, -n.y};
   }
   Vec3 to_world(Vec3 v) const { return t * v.x + b * v.y + n * v.z; }
+  Vec3 to_local(Vec3 v) const { return {dot(v, t), dot(v, b), dot(v, n)}; }
 };
 
 // Cosine-weighted hemisphere direction around +z (Malley's method), pdf = cos / pi.
@@ -80,6 +81,26 @@ inline Vec3 sample_cone(float u1, float u2, float cos_max) {
   float sin_t = std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t));
   float phi = 2.0f * kPi * u2;
   return {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t};
+}
+
+// Shirley and Chiu's concentric map of the unit square onto the unit disc (area-preserving,
+// low distortion, so that stratified lens samples stay stratified).
+inline void concentric_disk(float u1, float u2, float& x, float& y) {
+  const float a = 2.0f * u1 - 1.0f, b = 2.0f * u2 - 1.0f;
+  if (a == 0 && b == 0) {
+    x = y = 0;
+    return;
+  }
+  float r, phi;
+  if (std::fabs(a) > std::fabs(b)) {
+    r = a;
+    phi = (kPi / 4) * (b / a);
+  } else {
+    r = b;
+    phi = (kPi / 2) - (kPi / 4) * (a / b);
+  }
+  x = r * std::cos(phi);
+  y = r * std::sin(phi);
 }
 
 // Uniform direction on the unit sphere; pdf = 1 / (4 pi).
@@ -181,6 +202,10 @@ enum : int {
   kVertexDims = 8,
   kSequenceVertices = 2,
   kSequenceDims = kFilmDims + kVertexDims * kSequenceVertices,
+  // The lens's two numbers: hashed dimensions of their own, far past any vertex's, so that adding
+  // them left every pinhole render's numbers as they were (they are not part of the scrambled
+  // sequence: unstratified, which costs a lens some noise, not correctness).
+  kLensU = 0x7fff0000, kLensV = kLensU + 1,
 };
 }  // namespace dims
 
@@ -248,6 +273,8 @@ class Sampler {
   // Sequence mode: the number of slot `slot` (dims::) of the current vertex; independent mode:
   // next().
   float at(int slot) { return sequence_ ? dimension_value(base_ + std::uint32_t(slot)) : next(); }
+  // A dimension by number (dims::kLensU, ...): sequence mode reads it, independent mode draws next().
+  float dimension_at(std::uint32_t d) { return sequence_ ? dimension_value(d) : next(); }
   // Sequence mode: the path reached vertex v >= 1; at() now reads that vertex's slots.
   void start_vertex(int v) { base_ = std::uint32_t(dims::kFilmDims + dims::kVertexDims * (v - 1)); }
   std::uint32_t dimension() const { return dim_; }

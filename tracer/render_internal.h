@@ -114,7 +114,12 @@ struct SampleSource {
                         float fx, fy;
                         sample_position(rng, fx, fy);
                         PathContext ctx{rng};
-                        tracer.sample_layers(scene.camera.generate_ray(x + fx, y + fy, width, height), ctx, r);
+                        const Ray ray = scene.camera.has_lens()
+                                            ? scene.camera.generate_ray(x + fx, y + fy, width, height,
+                                                                        rng.dimension_at(dims::kLensU),
+                                                                        rng.dimension_at(dims::kLensV))
+                                            : scene.camera.generate_ray(x + fx, y + fy, width, height);
+                        tracer.sample_layers(ray, ctx, r);
                         rays += ctx.rays;
                         f(int(s), r, fx, fy);
                       });

@@ -194,7 +194,7 @@ void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const
   }
   hit.material = &materials[m.material[prim]];
   const Material& mat = *hit.material;
-  if (mat.type == MaterialType::kMirror) {
+  if (mat.type == MaterialType::kMirror || mat.type == MaterialType::kConductor || mat.type == MaterialType::kDielectric) {
     hit.albedo = Vec3(0.0f);
   } else {
     hit.albedo = mat.albedo;

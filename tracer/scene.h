@@ -41,6 +41,11 @@ enum class MaterialType : std::uint8_t {
              // reflects a Fresnel (Schlick) fraction Fr(cos) as a perfect mirror (times `tint`),
              // the base receives 1 - Fr(cos). (Energy is not exactly conserved at grazing
              // angles; the usual simplification of a "plastic" material.)
+  // The hard materials (tracer/bsdf.h; their lobes are sampled, evaluated and light-sampled):
+  kConductor,   // GGX metal: complex index eta_c + i k_c (or a Schlick tint), roughness alpha_x/y
+  kDielectric,  // glass: smooth or GGX rough, index `ior`, reflection `tint`, transmission `transmittance`,
+                // absorption `absorption` per unit length inside (Beer), or a thin sheet
+  kPlastic,     // a smooth or GGX coat of index `ior` and reflectance `tint` over a diffuse base `albedo`
 };
 
 struct Material {
@@ -52,6 +57,16 @@ struct Material {
   float ior = 1.5f;         // coat index of refraction (kCoated)
   Vec3 emission{0.0f};      // emitted radiance (front face unless two_sided)
   bool two_sided = false;   // emission on both faces
+  // Hard materials (kConductor, kDielectric, kPlastic); `roughness` is GGX's alpha (0: smooth),
+  // anisotropic when alpha_x != alpha_y (x along the shading frame's tangent, built from the normal).
+  float alpha_x = 0, alpha_y = 0;
+  Vec3 eta_c{0.2f}, k_c{3.9f};  // conductor's complex index
+  bool schlick = false;          // conductor: F = Schlick with F0 = tint instead of eta_c, k_c
+  Vec3 transmittance{1.0f};      // dielectric: colour of the transmitted lobe
+  Vec3 absorption{0.0f};         // dielectric: Beer absorption coefficient inside (per world unit)
+  bool thin = false;             // dielectric: a thin sheet (window pane), smooth only
+  float base_inner_reflectance = 0;  // plastic: fresnel_diffuse_reflectance(1 / ior), set by the loader
+  bool is_hard() const { return type >= MaterialType::kConductor; }
   bool is_specular() const { return type != MaterialType::kDiffuse; }
   bool is_emitter() const { return !is_black(emission); }
 };
@@ -110,6 +125,23 @@ struct Camera {
     float sy = (1.0f - 2.0f * fy / height) * tan_half_;
     return Ray{eye, normalize(forward_ + right_ * sx + up_ * sy), 1e30f};
   }
+  // Thin lens (depth of field): with aperture_radius > 0 the ray leaves a point of the lens disc
+  // (eye + radius (lu, lv) in the camera's right/up plane, (lu, lv) from (u1, u2) by the concentric
+  // map) towards the point of the pinhole ray at distance focus_distance along the view axis, so
+  // that the plane at focus_distance is sharp. With aperture_radius = 0 it is the pinhole ray.
+  Ray generate_ray(float fx, float fy, int width, int height, float u1, float u2) const {
+    Ray r = generate_ray(fx, fy, width, height);
+    if (!(aperture_radius > 0)) return r;
+    float lu, lv;
+    concentric_disk(u1, u2, lu, lv);
+    const Vec3 focus = eye + r.dir * (focus_distance / dot(r.dir, forward_));
+    r.origin = eye + right_ * (lu * aperture_radius) + up_ * (lv * aperture_radius);
+    r.dir = normalize(focus - r.origin);
+    return r;
+  }
+  float aperture_radius = 0;   // lens radius in scene units (0: pinhole)
+  float focus_distance = 1;    // distance of the sharp plane along the view axis
+  bool has_lens() const { return aperture_radius > 0; }
   void prepare();
 
  private:

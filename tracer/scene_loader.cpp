@@ -19,6 +19,7 @@
 #include "core/bounds.h"
 #include "core/config.h"
 #include "core/errors.h"
+#include "tracer/bsdf.h"
 #include "tracer/obj_import.h"
 #include "tracer/scene.h"
 #include "tracer/shapes.h"
@@ -115,6 +116,13 @@ class Loader {
     scene_.camera.look_at = vec3(c->require_vec3("look_at", bounds::kCoordinate));
     scene_.camera.up = vec3(c->get("up", Arr3{0, 1, 0}, bounds::kCoordinate));
     scene_.camera.vfov_degrees = float(c->get("vfov", 45.0, kAngle));
+    static constexpr RealBound kAperture{0, 1e6, "the lens radius is a length in [0, 1e6] (0: a pinhole)"};
+    static constexpr RealBound kFocus{0, 1e6, "the focus distance is a positive length, below 1e6", true};
+    scene_.camera.aperture_radius = float(c->get("aperture_radius", 0.0, kAperture));
+    if (scene_.camera.aperture_radius > 0)
+      scene_.camera.focus_distance = float(c->require_double("focus_distance", kFocus));
+    else
+      scene_.camera.focus_distance = float(c->get("focus_distance", 1.0, kFocus));
     if (!(scene_.camera.vfov_degrees > 0 && scene_.camera.vfov_degrees < 179))
       throw InputError(fmt::format("{}: expected a field of view in (0, 179) degrees", c->where("vfov")));
     if (length(scene_.camera.look_at - scene_.camera.eye) <= 0)
@@ -189,7 +197,13 @@ class Loader {
     if (type == "diffuse") m.type = MaterialType::kDiffuse;
     else if (type == "mirror") m.type = MaterialType::kMirror;
     else if (type == "coated") m.type = MaterialType::kCoated;
-    else throw InputError(fmt::format("{}: expected \"diffuse\", \"mirror\" or \"coated\"", t.where("type")));
+    else if (type == "conductor") m.type = MaterialType::kConductor;
+    else if (type == "dielectric") m.type = MaterialType::kDielectric;
+    else if (type == "plastic") m.type = MaterialType::kPlastic;
+    else
+      throw InputError(fmt::format(
+          "{}: expected \"diffuse\", \"mirror\", \"coated\", \"conductor\", \"dielectric\" or \"plastic\"",
+          t.where("type")));
     m.albedo = vec3(t.get("albedo", Arr3{0.8, 0.8, 0.8}, bounds::kReflectance));
     std::string tex = t.get("texture", std::string());
     if (!tex.empty()) {
@@ -202,6 +216,51 @@ class Loader {
     m.ior = float(t.get("ior", 1.5, RealBound{1, 10, "an index of refraction above 1", true}));
     m.emission = vec3(t.get("emission", Arr3{0, 0, 0}, bounds::kRadiance));
     m.two_sided = t.get("two_sided", false);
+    if (m.is_hard()) read_hard_material(t, m);
+  }
+
+  // The hard materials' keys (tracer/bsdf.h), read only for their types, so that a key of
+  // another type's (roughness on a diffuse material) is refused as unknown by finish().
+  void read_hard_material(ConfigTable& t, Material& m) {
+    static constexpr RealBound kRoughness{0, 1, "roughness is GGX's alpha, 0 (smooth) to 1 (very rough)"};
+    const float r = float(t.get("roughness", 0.0, kRoughness));
+    m.alpha_x = float(t.get("roughness_x", double(r), kRoughness));
+    m.alpha_y = float(t.get("roughness_y", double(r), kRoughness));
+    if ((m.alpha_x < 1e-3f) != (m.alpha_y < 1e-3f))
+      throw InputError(fmt::format("{}: roughness_x and roughness_y must both be below 0.001 (smooth) or both above",
+                                   t.where("roughness_x")));
+    if (m.type == MaterialType::kConductor) {
+      static constexpr RealBound kEta{0, 100, "a conductor's refractive index is positive, below 100", true};
+      static constexpr RealBound kK{0, 100, "a conductor's extinction coefficient is in [0, 100]"};
+      const std::string metal = t.get("metal", std::string());
+      const bool has_eta = t.contains("eta") || t.contains("k");
+      m.schlick = t.get("schlick", false);
+      if (int(!metal.empty()) + int(has_eta) + int(m.schlick) > 1)
+        throw InputError(fmt::format("{}: give one of metal, eta and k, or schlick = true (a Schlick tint)",
+                                     t.where(metal.empty() ? "eta" : "metal")));
+      if (!metal.empty()) {
+        if (!conductor_preset(metal.c_str(), m.eta_c, m.k_c))
+          throw InputError(fmt::format("{}: unknown metal '{}': expected \"Au\", \"Ag\", \"Cu\" or \"Al\"",
+                                       t.where("metal"), metal));
+      } else if (has_eta) {
+        m.eta_c = vec3(t.require_vec3("eta", kEta));
+        m.k_c = vec3(t.require_vec3("k", kK));
+      } else if (!m.schlick) {
+        conductor_preset("Al", m.eta_c, m.k_c);  // default: aluminium
+      }
+    }
+    if (m.type == MaterialType::kDielectric) {
+      m.transmittance = vec3(t.get("transmittance", Arr3{1, 1, 1}, bounds::kReflectance));
+      static constexpr RealBound kAbsorption{0, 1e6, "absorption is a non-negative coefficient per scene unit"};
+      m.absorption = vec3(t.get("absorption", Arr3{0, 0, 0}, kAbsorption));
+      m.thin = t.get("thin", false);
+      if (m.thin && m.alpha_x >= 1e-3f)
+        throw InputError(fmt::format("{}: a thin sheet is smooth only (roughness 0); model rough glass as a solid",
+                                     t.where("thin")));
+      if (m.thin && !is_black(m.absorption))
+        throw InputError(fmt::format("{}: a thin sheet has no inside to absorb in; use transmittance", t.where("absorption")));
+    }
+    if (m.type == MaterialType::kPlastic) m.base_inner_reflectance = fresnel_diffuse_reflectance(1.0f / m.ior);
   }
 
   void read_materials(ConfigTable& root) {
