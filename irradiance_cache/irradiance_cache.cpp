@@ -36,7 +36,6 @@
 #include "denoisers/method.h"
 #include "irradiance_cache/cache.h"
 #include "irradiance_cache/irradiance_cache.h"
-
 #include "tracer/bsdf.h"
 #include "tracer/integrator.h"
 #include "tracer/render.h"
@@ -331,12 +330,9 @@ class IrradianceCacheRenderer final : public Method {
       }
       // The hard materials as their smooth counterparts: this renderer follows specular chains
       // deterministically, so a rough lobe is rendered as a mirror (or a clear refraction).
-      case rt::MaterialType::kConductor: {
-        rt::HardBsdf b;
-        b.eta_c = m.eta_c, b.k_c = m.k_c, b.schlick = m.schlick, b.tint = m.tint;
-        spec = b.fresnel_conductor_at(rt::dot(wo, hit.ns));
+      case rt::MaterialType::kConductor:
+        spec = rt::conductor_fresnel(rt::dot(wo, hit.ns), m.eta_c, m.k_c, m.schlick, m.tint);
         break;
-      }
       case rt::MaterialType::kPlastic: {
         const float fr = rt::fresnel_dielectric(rt::dot(wo, hit.ns), m.ior);
         spec = m.tint * fr;
@@ -348,13 +344,12 @@ class IrradianceCacheRenderer final : public Method {
         float cos_t = 0;
         const float cos_o = rt::dot(wo, hit.ns);
         float fr = rt::fresnel_dielectric(cos_o, eta, &cos_t);
-        if (m.thin) fr = fr < 1 ? 2 * fr / (1 + fr) : 1.0f;
+        if (m.thin) fr = rt::thin_sheet_reflectance(fr);
         spec = m.tint * fr;
         rt::Vec3 tw = weight * m.transmittance * ((1 - fr) / (m.thin ? 1.0f : eta * eta));
-        if (!m.thin && !hit.front && !rt::is_black(m.absorption))
-          tw *= rt::Vec3(std::exp(-m.absorption.x * hit.t), std::exp(-m.absorption.y * hit.t), std::exp(-m.absorption.z * hit.t));
+        if (!m.thin && !hit.front) tw *= rt::beer_transmittance(m.absorption, hit.t);
         if (rt::max_component(tw) > 1e-4f) {
-          const rt::Vec3 wt = m.thin ? -wo : rt::normalize(-wo * (1 / eta) + hit.ns * (cos_o / eta - cos_t));
+          const rt::Vec3 wt = m.thin ? -wo : rt::refract_dir(wo, hit.ns, eta, cos_t);
           if (rt::dot(wt, hit.ng) < 0) out += follow(scene, Ray{hit.spawn_origin(wt), wt, 1e30f}, tw, len, depth, pts);
         }
         break;

@@ -80,13 +80,13 @@ Vec3 Ggx::sample_visible(Vec3 wo, float u1, float u2) const {
   return normalize(Vec3(ax * nh.x, ay * nh.y, std::max(1e-7f, nh.z)));
 }
 
-Vec3 HardBsdf::fresnel_conductor_at(float cos_i) const {
+Vec3 conductor_fresnel(float cos_i, Vec3 eta, Vec3 k, bool schlick, Vec3 tint) {
   if (schlick) {
     const float m = 1.0f - std::clamp(cos_i, 0.0f, 1.0f);
     const float m5 = m * m * m * m * m;
     return tint + (Vec3(1.0f) - tint) * m5;
   }
-  return fresnel_conductor(cos_i, eta_c, k_c) * tint;
+  return fresnel_conductor(cos_i, eta, k) * tint;
 }
 
 float HardBsdf::plastic_spec_prob(float cos_o) const {
@@ -97,13 +97,6 @@ float HardBsdf::plastic_spec_prob(float cos_o) const {
 }
 
 namespace {
-
-// The transmitted direction of wo (above) through a microfacet m with eta = n_below / n_above,
-// given cos_t from fresnel_dielectric.
-Vec3 refract_dir(Vec3 wo, Vec3 m, float eta, float cos_t) {
-  const float c = dot(wo, m);
-  return normalize(-wo * (1.0f / eta) + m * (c / eta - cos_t));
-}
 
 // The half vector of a refraction pair (wo above, wi below), facing +z.
 Vec3 refraction_half(Vec3 wo, Vec3 wi, float eta) {
@@ -206,7 +199,7 @@ bool HardBsdf::sample(Vec3 wo, float u_lobe, float u1, float u2, BsdfSample& out
       if (ggx.smooth()) {
         float cos_t = 0;
         float f = fresnel_dielectric(co, eta, &cos_t);
-        if (thin) f = f < 1.0f ? 2.0f * f / (1.0f + f) : 1.0f;  // R + T^2 R / (1 - R^2), summed bounces
+        if (thin) f = thin_sheet_reflectance(f);
         out.delta = true;
         if (u_lobe < f) {
           out.wi = Vec3(-wo.x, -wo.y, wo.z);

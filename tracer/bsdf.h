@@ -32,6 +32,21 @@ namespace dnb::rt {
 float fresnel_dielectric(float cos_i, float eta, float* cos_t = nullptr);
 // Reflectance of a conductor of complex index eta + i k (per channel) at cos_i in [0, 1].
 Vec3 fresnel_conductor(float cos_i, Vec3 eta, Vec3 k);
+// A conductor's reflectance with its tint: Schlick's curve from F0 = tint, or the complex-index
+// Fresnel of (eta, k) times the tint.
+Vec3 conductor_fresnel(float cos_i, Vec3 eta, Vec3 k, bool schlick, Vec3 tint);
+// What a thin sheet (two parallel interfaces, nothing absorbed between) reflects in all when one
+// interface reflects f: R + T^2 R / (1 - R^2) = 2R / (1 + R), its inter-reflections summed.
+inline float thin_sheet_reflectance(float f) { return f < 1.0f ? 2.0f * f / (1.0f + f) : 1.0f; }
+// The direction refracted from wo (on the side m faces) through a surface of normal m with
+// eta = n_transmitted / n_incident, given cos_t from fresnel_dielectric.
+inline Vec3 refract_dir(Vec3 wo, Vec3 m, float eta, float cos_t) {
+  return normalize(-wo * (1.0f / eta) + m * (dot(wo, m) / eta - cos_t));
+}
+// Beer-Lambert transmittance over a distance t in a medium of absorption coefficient sigma.
+inline Vec3 beer_transmittance(Vec3 sigma, float t) {
+  return {std::exp(-sigma.x * t), std::exp(-sigma.y * t), std::exp(-sigma.z * t)};
+}
 // The hemispherical average of fresnel_dielectric weighted by the cosine, 2 int F(cos) cos dcos:
 // the fraction of diffuse light that an interface of ratio eta reflects (for light leaving a
 // plastic's base, eta = 1 / ior). Computed by quadrature; a material computes it once.
@@ -86,7 +101,7 @@ struct HardBsdf {
   float base_inner_reflectance = 0;  // plastic: fresnel_diffuse_reflectance(1 / ior)
   float base_inv_eta2 = 1;           // plastic: 1 / ior^2
 
-  Vec3 fresnel_conductor_at(float cos_i) const;
+  Vec3 fresnel_conductor_at(float cos_i) const { return conductor_fresnel(cos_i, eta_c, k_c, schlick, tint); }
   BsdfValue eval(Vec3 wo, Vec3 wi) const;
   float pdf(Vec3 wo, Vec3 wi) const;
   // u_lobe picks the lobe, (u1, u2) the direction. False when the sample is lost (below the

@@ -1,6 +1,5 @@
 #include "tracer/integrator.h"
 
-
 namespace dnb::rt {
 namespace {
 
@@ -76,9 +75,16 @@ bool absorbs(const SurfaceHit& hit) {
   const Material& m = *hit.material;
   return m.type == MaterialType::kDielectric && !hit.front && !m.thin && !is_black(m.absorption);
 }
-Vec3 absorption_along(const SurfaceHit& hit) {
-  const Vec3 a = hit.material->absorption;
-  return {std::exp(-a.x * hit.t), std::exp(-a.y * hit.t), std::exp(-a.z * hit.t)};
+Vec3 absorption_along(const SurfaceHit& hit) { return beer_transmittance(hit.material->absorption, hit.t); }
+
+// The BSDF sample of a hard vertex in world space: false when the sample is lost or the shading
+// normal sends it to the other side of the geometric surface than the one it was sampled on.
+bool sample_hard(const SurfaceHit& hit, const HardBsdf& b, const Frame& f, Vec3 wo_l, Sampler& s, BsdfSample& bs,
+                 Vec3& wi) {
+  const float ul = s.at(dims::kLobe), u1 = s.at(dims::kBsdfU), u2 = s.at(dims::kBsdfV);
+  if (!b.sample(wo_l, ul, u1, u2, bs)) return false;
+  wi = f.to_world(bs.wi);
+  return (dot(wi, hit.ng) > 0) == (bs.wi.z > 0);
 }
 
 }  // namespace
@@ -234,10 +240,8 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
       const HardDirect d = hard_nee(hit, b, f, wo_l, ctx);
       out.rest += beta * (d.diffuse_white * hit.albedo + d.glossy);
       BsdfSample bs;
-      const float ul = s.at(dims::kLobe), u1 = s.at(dims::kBsdfU), u2 = s.at(dims::kBsdfV);
-      if (!b.sample(wo_l, ul, u1, u2, bs)) break;
-      const Vec3 wi = f.to_world(bs.wi);
-      if ((dot(wi, hit.ng) > 0) != (bs.wi.z > 0)) break;
+      Vec3 wi;
+      if (!sample_hard(hit, b, f, wo_l, s, bs, wi)) break;
       beta *= bs.weight_diffuse_white * hit.albedo + bs.weight_glossy;
       if (is_black(beta)) break;
       prev_pdf = bs.delta ? 0.0f : bs.pdf;
@@ -342,30 +346,26 @@ void PathTracer::decompose_hard(const Ray& ray, const SurfaceHit& hit, int level
   const HardDirect d = hard_nee(hit, b, f, wo_l, ctx);
   Vec3 direct = d.diffuse_white, indirect(0.0f), glossy = d.glossy, reflection(0.0f), tint(0.0f);
   BsdfSample bs;
-  Sampler& s = ctx.sampler;
-  const float ul = s.at(dims::kLobe), u1 = s.at(dims::kBsdfU), u2 = s.at(dims::kBsdfV);
-  if (b.sample(wo_l, ul, u1, u2, bs)) {
-    const Vec3 wi = f.to_world(bs.wi);
-    if ((dot(wi, hit.ng) > 0) == (bs.wi.z > 0)) {
-      const Ray r{hit.spawn_origin(wi), wi, 1e30f};
-      if (bs.delta) {
-        // A perfect reflection or refraction: the next level is what it shows (behind glass, the
-        // first surface seen through it).
-        tint = bs.weight_glossy;
-        if (level < opt_.reflection_levels) {
-          decompose(r, level + 1, depth, ctx, out);
-          tint *= out.level[level + 1].attenuation;
-          reflection = tint * out.level[level + 1].color();
-        } else {
-          reflection = tint * trace(r, depth, 0.0f, Vec3(0.0f), tint, ctx).total();
-        }
+  Vec3 wi;
+  if (sample_hard(hit, b, f, wo_l, ctx.sampler, bs, wi)) {
+    const Ray r{hit.spawn_origin(wi), wi, 1e30f};
+    if (bs.delta) {
+      // A perfect reflection or refraction: the next level is what it shows (behind glass, the
+      // first surface seen through it).
+      tint = bs.weight_glossy;
+      if (level < opt_.reflection_levels) {
+        decompose(r, level + 1, depth, ctx, out);
+        tint *= out.level[level + 1].attenuation;
+        reflection = tint * out.level[level + 1].color();
       } else {
-        const Vec3 weight = bs.weight_diffuse_white * hit.albedo + bs.weight_glossy;
-        const PathRadiance pr = trace(r, depth, bs.pdf, hit.ns, weight, ctx);
-        direct += bs.weight_diffuse_white * pr.first_emission;
-        indirect = bs.weight_diffuse_white * pr.rest;
-        glossy += bs.weight_glossy * pr.total();
+        reflection = tint * trace(r, depth, 0.0f, Vec3(0.0f), tint, ctx).total();
       }
+    } else {
+      const Vec3 weight = bs.weight_diffuse_white * hit.albedo + bs.weight_glossy;
+      const PathRadiance pr = trace(r, depth, bs.pdf, hit.ns, weight, ctx);
+      direct += bs.weight_diffuse_white * pr.first_emission;
+      indirect = bs.weight_diffuse_white * pr.rest;
+      glossy += bs.weight_glossy * pr.total();
     }
   }
   LevelSample& L = out.level[level];

@@ -19,6 +19,21 @@ Vec3 dir_from(float cos_theta, float phi) {
   return {s * std::cos(phi), s * std::sin(phi), cos_theta};
 }
 
+struct Albedo {
+  double mean = 0, se = 0;
+};
+// The mean of n values and its standard error.
+struct Accumulator {
+  double s = 0, s2 = 0;
+  void add(double w) {
+    s += w;
+    s2 += w * w;
+  }
+  Albedo result(int n) const {
+    const double m = s / n;
+    return {m, std::sqrt(std::max(0.0, s2 / n - m * m) / n)};
+  }
+};
 struct Case {
   std::string name;
   HardBsdf bsdf;
@@ -111,17 +126,15 @@ TEST(Ggx, DistributionIsNormalisedAndItsVisibleNormalsProjectToTheDirection) {
   for (Ggx g : {Ggx{0.2f, 0.2f}, Ggx{0.5f, 0.5f}, Ggx{0.15f, 0.6f}, Ggx{1.0f, 1.0f}}) {
     const Vec3 wo = dir_from(0.6f, 1.1f);
     const int n = 400000;
-    double s1 = 0, q1 = 0, s2 = 0, q2 = 0;
+    Accumulator projected, visible;
     for (int i = 0; i < n; ++i) {
       const Vec3 m = sample_sphere(u(rng), u(rng));
-      const double a = g.D(m) * std::max(0.0f, m.z) * 4 * kPi;
-      const double b = g.G1(wo) * std::max(0.0f, dot(wo, m)) * g.D(m) * 4 * kPi;
-      s1 += a, q1 += a * a, s2 += b, q2 += b * b;
+      projected.add(g.D(m) * std::max(0.0f, m.z) * 4 * kPi);
+      visible.add(g.G1(wo) * std::max(0.0f, dot(wo, m)) * g.D(m) * 4 * kPi);
     }
-    const double m1 = s1 / n, e1 = std::sqrt((q1 / n - m1 * m1) / n);
-    const double m2 = s2 / n, e2 = std::sqrt((q2 / n - m2 * m2) / n);
-    EXPECT_NEAR(m1, 1.0, 5 * e1) << g.ax << " " << g.ay;
-    EXPECT_NEAR(m2, wo.z, 5 * e2) << g.ax << " " << g.ay;
+    const Albedo a = projected.result(n), b = visible.result(n);
+    EXPECT_NEAR(a.mean, 1.0, 5 * a.se) << g.ax << " " << g.ay;
+    EXPECT_NEAR(b.mean, wo.z, 5 * b.se) << g.ax << " " << g.ay;
   }
 }
 
@@ -164,13 +177,10 @@ TEST(Bsdf, IsReciprocal) {
 
 // The directional albedo sum_lobes int f |cos| dwi for wo, two ways: (sampled) the mean of
 // sample() weights; (quadrature) eval() |cos| / (1 / 4pi) over uniform directions on the sphere.
-struct Albedo {
-  double mean = 0, se = 0;
-};
 Albedo sampled_albedo(const HardBsdf& b, Vec3 wo, int n, int channel, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0, 1);
-  double s = 0, s2 = 0;
+  Accumulator acc;
   for (int i = 0; i < n; ++i) {
     BsdfSample bs;
     double w = 0;
@@ -184,31 +194,23 @@ Albedo sampled_albedo(const HardBsdf& b, Vec3 wo, int n, int channel, unsigned s
         EXPECT_NEAR(w, f * std::fabs(bs.wi.z) / bs.pdf, 2e-3 * w + 1e-6);
       }
     }
-    s += w;
-    s2 += w * w;
+    acc.add(w);
   }
-  Albedo a;
-  a.mean = s / n;
-  a.se = std::sqrt(std::max(0.0, s2 / n - a.mean * a.mean) / n);
-  return a;
+  return acc.result(n);
 }
 Albedo quadrature_albedo(const HardBsdf& b, Vec3 wo, int n, int channel, unsigned seed, double* pdf_integral) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0, 1);
-  double s = 0, s2 = 0, p = 0;
+  Accumulator acc;
+  double p = 0;
   for (int i = 0; i < n; ++i) {
     const Vec3 wi = sample_sphere(u(rng), u(rng));
     const BsdfValue v = b.eval(wo, wi);
-    const double w = (v.diffuse_white[channel] * b.albedo[channel] + v.glossy[channel]) * std::fabs(wi.z) * 4 * kPi;
-    s += w;
-    s2 += w * w;
+    acc.add((v.diffuse_white[channel] * b.albedo[channel] + v.glossy[channel]) * std::fabs(wi.z) * 4 * kPi);
     p += b.pdf(wo, wi) * 4 * kPi;
   }
   if (pdf_integral) *pdf_integral = p / n;
-  Albedo a;
-  a.mean = s / n;
-  a.se = std::sqrt(std::max(0.0, s2 / n - a.mean * a.mean) / n);
-  return a;
+  return acc.result(n);
 }
 
 TEST(Bsdf, SamplerAgreesWithTheEvaluator) {

@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "core/errors.h"
+#include "frame_checks.h"
 #include "test_util.h"
 #include "thread_count.h"
 #include "tracer/integrator.h"
@@ -21,19 +22,7 @@ namespace {
 
 using rt::Vec3;
 
-// Mean of channel c of a layer over all pixels, and the standard error of that mean from the
-// per-pixel variance of the mean (pixels are independent).
-void image_mean(const Image& value, const Image& var_of_mean, int c, double& mean, double& se) {
-  double s = 0, v = 0;
-  const double n = double(value.pixel_count());
-  for (int y = 0; y < value.height(); ++y)
-    for (int x = 0; x < value.width(); ++x) {
-      s += value.at(x, y, c);
-      v += var_of_mean.at(x, y, c);
-    }
-  mean = s / n;
-  se = std::sqrt(v) / n;
-}
+using test::image_mean;
 
 TEST(WhiteFurnace, ClosedSphereRadianceIsAnalytic) {
   // Inside a closed surface of uniform albedo a and uniform emission Le, every path of k
@@ -402,31 +391,12 @@ TEST(Decomposition, PixelMeansHoldOnEveryPixel) {
   s.height = 48;
   s.spp = 16;
   AovFrame f = render_frame(*scene, s);
-  const Image& F = f.layer(layer::kColor);
-  const Image& D = f.layer(layer::kDirect);
-  const Image& I = f.layer(layer::kIndirect);
-  const Image& T = f.layer(layer::kAlbedo);
-  const Image& R = f.layer(layer::kReflection);
-  const Image& E = f.layer(layer::kEmission);
+  test::expect_split_holds(f);
   const Image& G = f.layer(layer::kEdge);
   int edges = 0;
   for (int y = 0; y < s.height; ++y)
-    for (int x = 0; x < s.width; ++x) {
+    for (int x = 0; x < s.width; ++x)
       if (G.at(x, y, 0) > 0) ++edges;
-      for (int c = 0; c < 3; ++c) {
-        double composed = (double(D.at(x, y, c)) + I.at(x, y, c)) * T.at(x, y, c) + R.at(x, y, c) + E.at(x, y, c);
-        double fv = F.at(x, y, c);
-        // Only float rounding separates the two, with u = 2^-24 (float's unit roundoff) and
-        // every term non-negative (no cancellation): F holds a sample's colour (d + i) * t + r + e
-        // in float (4 roundings) and its double mean stored as float (1); the composed side holds
-        // d * t per sample in float (1) and D, T, R, E stored as floats (1 each, 2 for D * T).
-        // First order that is 5u + 3u = 8u relative; 10u leaves room for second-order terms
-        // (measured worst: 2.6u). The absolute 1e-9 is demodulated()'s other branch (albedo
-        // mean under 1e-12, where D * T is off by at most 1e-12 * D) on pixels near black.
-        const double u = 0x1p-24;
-        EXPECT_LE(std::fabs(composed - fv), 10 * u * std::fabs(fv) + 1e-9) << x << "," << y << " c" << c;
-      }
-    }
   EXPECT_GT(edges, 0);
   EXPECT_LT(edges, s.width * s.height / 2);
   ASSERT_TRUE(f.edges.has_value());
