@@ -149,7 +149,7 @@ class IrradianceCacheRenderer final : public Method {
           if (rt::dot(dir, sp.hit.ng) <= 0) return {Vec3(0.0f), 1e30f};  // below the true surface
           rt::Sampler rng(seed ^ 0x6a09e667f3bcc909ULL, key, std::uint64_t(cell));
           rt::PathContext ctx{rng};
-          rt::PathRadiance pr = run.tracer.incoming(Ray{sp.hit.spawn_origin(dir), dir, 1e30f}, ctx, 1);
+          rt::PathRadiance pr = run.tracer.incoming(sp.hit.spawn_ray(dir), ctx, 1);
           local_rays += ctx.rays;
           // First-hit emission is direct light, estimated by next-event estimation instead.
           Vec3 L = rt::is_finite(pr.rest) ? pr.rest : Vec3(0.0f);
@@ -189,7 +189,13 @@ class IrradianceCacheRenderer final : public Method {
         rt::enable_flush_to_zero();
         const int x = std::min(W - 1, (c % nx) * s + s / 2), y = std::min(H - 1, (c / nx) * s + s / 2);
         std::vector<ShadePoint> pts;
-        follow(run.scene, run.scene.camera.generate_ray(x + 0.5f, y + 0.5f, W, H), Vec3(1.0f), 0.0f, 0, pts);
+        // With motion blur, the overture's records at the middle of the shutter interval.
+        const rt::Camera& cam = run.scene.camera;
+        const bool timed = cam.has_shutter() || cam.moving || cam.shutter_open > 0;
+        follow(run.scene,
+               timed ? cam.generate_ray_at(x + 0.5f, y + 0.5f, W, H, 0.5f, 0.5f, cam.time_at(0.5f))
+                     : cam.generate_ray(x + 0.5f, y + 0.5f, W, H),
+               Vec3(1.0f), 0.0f, 0, pts);
         for (std::size_t i = 0; i < pts.size(); ++i) {
           Vec3 e;
           if (run.global.interpolate(pts[i].hit.p, pts[i].hit.ns, e)) continue;
@@ -260,9 +266,17 @@ class IrradianceCacheRenderer final : public Method {
       tile.pts.clear();
       const rt::Camera& cam = run.scene.camera;
       Ray camera_ray = cam.generate_ray(x + fx, y + fy, run.W, run.H);
+      float lu = 0, lv = 0;
       if (cam.has_lens()) {
-        const float lu = rng.next(), lv = rng.next();
+        lu = rng.next(), lv = rng.next();
         camera_ray = cam.generate_ray(x + fx, y + fy, run.W, run.H, lu, lv);
+      }
+      // Motion blur: the sample's time, drawn as the tracer draws it; the records its path
+      // creates or reads are where the geometry is then (a record is reused at other times: the
+      // cache's own interpolation error, as across space).
+      if (cam.has_shutter() || cam.moving || cam.shutter_open > 0) {
+        const float time = cam.has_shutter() ? cam.time_at(rng.next()) : cam.shutter_open;
+        camera_ray = cam.generate_ray_at(x + fx, y + fy, run.W, run.H, lu, lv, time);
       }
       Vec3 c = follow(run.scene, camera_ray, Vec3(1.0f), 0.0f, 0, tile.pts);
       for (std::size_t i = 0; i < tile.pts.size(); ++i) shade(run, tile, tile.pts[i], rng, pixel, s, i, c);
@@ -350,7 +364,7 @@ class IrradianceCacheRenderer final : public Method {
         if (!m.thin && !hit.front) tw *= rt::beer_transmittance(m.absorption, hit.t);
         if (rt::max_component(tw) > 1e-4f) {
           const rt::Vec3 wt = m.thin ? -wo : rt::refract_dir(wo, hit.ns, eta, cos_t);
-          if (rt::dot(wt, hit.ng) < 0) out += follow(scene, Ray{hit.spawn_origin(wt), wt, 1e30f}, tw, len, depth, pts);
+          if (rt::dot(wt, hit.ng) < 0) out += follow(scene, hit.spawn_ray(wt), tw, len, depth, pts);
         }
         break;
       }
@@ -361,7 +375,7 @@ class IrradianceCacheRenderer final : public Method {
     const Vec3 sw = weight * spec;
     if (rt::max_component(sw) > 1e-4f) {
       Vec3 wr = rt::reflect(wo, hit.ns);
-      if (rt::dot(wr, hit.ng) > 0) out += follow(scene, Ray{hit.spawn_origin(wr), wr, 1e30f}, sw, len, depth, pts);
+      if (rt::dot(wr, hit.ng) > 0) out += follow(scene, hit.spawn_ray(wr), sw, len, depth, pts);
     }
     return out;
   }

@@ -114,10 +114,10 @@ bool PathTracer::visible(const SurfaceHit& hit, const LightSample& ls, PathConte
   if (ls.sphere_mesh >= 0) {
     // A sphere light's direction: lit when the first thing along it is that light's front.
     SurfaceHit h;
-    Ray r{hit.spawn_origin(ls.wi), ls.wi, 1e30f};
+    Ray r = hit.spawn_ray(ls.wi);
     return scene_.intersect(r, h) && int(h.geom) == ls.sphere_mesh && !is_black(h.emitted());
   }
-  Ray shadow{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f};
+  Ray shadow = hit.spawn_ray(ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f);
   return !scene_.occluded(shadow);
 }
 
@@ -181,7 +181,7 @@ Vec3 PathTracer::direct_white_sum(const SurfaceHit& hit, PathContext& ctx, const
       continue;
     }
     ray_of[std::size_t(i)] = int(rays.size());
-    rays.push_back(Ray{hit.spawn_origin(ls.wi), ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f});
+    rays.push_back(hit.spawn_ray(ls.wi, ls.dist < 1e29f ? ls.dist * (1 - 1e-4f) - hit.offset : 1e30f));
     contrib[std::size_t(i)] = c;
   }
   hidden.resize(rays.size());
@@ -247,7 +247,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
       prev_pdf = bs.delta ? 0.0f : bs.pdf;
       prev_p = hit.p;
       prev_n = hit.ns;
-      ray = Ray{hit.spawn_origin(wi), wi, 1e30f};
+      ray = hit.spawn_ray(wi);
       continue;
     }
     Lobe lobe = choose_lobe(hit, wo, s);
@@ -257,7 +257,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
       beta *= lobe.spec_weight;
       prev_pdf = 0;
       prev_p = hit.p;
-      ray = Ray{hit.spawn_origin(wr), wr, 1e30f};
+      ray = hit.spawn_ray(wr);
       continue;
     }
     Vec3 base = hit.albedo * lobe.base_weight;
@@ -272,7 +272,7 @@ PathRadiance PathTracer::trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, 
     prev_pdf = lobe.base_prob * cos_i * kInvPi;
     prev_p = hit.p;
     prev_n = hit.ns;
-    ray = Ray{hit.spawn_origin(wi), wi, 1e30f};
+    ray = hit.spawn_ray(wi);
   }
   return out;
 }
@@ -311,7 +311,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
     L.tint = lobe.spec_weight;
     Vec3 wr = reflect(wo, hit.ns);
     if (dot(wr, hit.ng) <= 0) return;  // shading normal sends the mirror ray below the surface
-    Ray r{hit.spawn_origin(wr), wr, 1e30f};
+    Ray r = hit.spawn_ray(wr);
     if (level < opt_.reflection_levels) {
       decompose(r, level + 1, depth, ctx, out);
       L.tint *= out.level[level + 1].attenuation;  // exactly 1 outside absorbing glass
@@ -329,7 +329,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
   Vec3 wi = f.to_world(sample_cosine_hemisphere(u1, u2));
   float cos_i = dot(wi, hit.ns);
   if (cos_i > 1e-7f && dot(wi, hit.ng) > 0) {
-    Ray r{hit.spawn_origin(wi), wi, 1e30f};
+    Ray r = hit.spawn_ray(wi);
     PathRadiance pr = trace(r, depth, lobe.base_prob * cos_i * kInvPi, hit.ns, hit.albedo * lobe.base_weight, ctx);
     direct += pr.first_emission;
     indirect = pr.rest;
@@ -348,7 +348,7 @@ void PathTracer::decompose_hard(const Ray& ray, const SurfaceHit& hit, int level
   BsdfSample bs;
   Vec3 wi;
   if (sample_hard(hit, b, f, wo_l, ctx.sampler, bs, wi)) {
-    const Ray r{hit.spawn_origin(wi), wi, 1e30f};
+    const Ray r = hit.spawn_ray(wi);
     if (bs.delta) {
       // A perfect reflection or refraction: the next level is what it shows (behind glass, the
       // first surface seen through it).

@@ -50,7 +50,7 @@
 //   if (scene->intersect(ray, hit) && !hit.material->is_specular()) {
 //     rt::Vec3 direct = tracer.direct_white(hit, ctx);        // E_direct / pi, white surface
 //     // Hemisphere gather: cosine-distributed directions about hit.ns, each
-//     rt::Ray g{hit.spawn_origin(dir), dir, 1e30f};
+//     rt::Ray g = hit.spawn_ray(dir);   // at the hit's time (motion blur)
 //     rt::Vec3 L = tracer.incoming(g, ctx, /*depth=*/2).rest;   // indirect only (no emission at
 //     // the gathered hit: that light is direct and counted by direct_white)
 //     // outgoing radiance = hit.albedo * (direct + mean of L)   (cosine-weighted mean = E / pi)

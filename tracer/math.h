@@ -206,6 +206,8 @@ enum : int {
   // them left every pinhole render's numbers as they were (they are not part of the scrambled
   // sequence: unstratified, which costs a lens some noise, not correctness).
   kLensU = 0x7fff0000, kLensV = kLensU + 1,
+  // The sample's time in the shutter interval (motion blur): hashed too, for the same reason.
+  kTime = kLensU + 2,
 };
 }  // namespace dims
 

@@ -179,26 +179,32 @@ struct MaterialMap {
 MaterialMap import_materials(Scene& scene, const fs::path& path, const std::vector<tinyobj::material_t>& mats) {
   MaterialMap map;
   map.of_obj.resize(mats.size());
-  std::map<std::string, int> tex_cache;  // map_Kd name -> scene texture: each file read once
+  std::map<std::string, int> tex_cache;  // map_Kd / map_d name -> scene texture: each file read once
+  // The scene texture of an MTL texture statement (`what`: map_Kd or map_d).
+  auto texture = [&](const tinyobj::material_t& om, const std::string& name, const char* what) {
+    if (auto it = tex_cache.find(name); it != tex_cache.end()) return it->second;
+    fs::path tp = find_file_ignoring_case(path.parent_path(), name);
+    if (tp.empty())
+      throw InputError(fmt::format("'{}': material '{}': texture file '{}' ({}) not found in '{}'", path.string(),
+                                   om.name, name, what, path.parent_path().string()));
+    scene.files.push_back(tp.string());
+    const int index = int(scene.textures.size());
+    scene.textures.push_back(load_image_texture(tp.string()));
+    return tex_cache[name] = index;
+  };
   for (std::size_t i = 0; i < mats.size(); ++i) {
     const auto& om = mats[i];
     Material m = mtl_material(om, path.stem().string());
     if (!om.diffuse_texname.empty()) {
-      auto it = tex_cache.find(om.diffuse_texname);
-      if (it != tex_cache.end()) {
-        m.texture = it->second;
-      } else {
-        fs::path tp = find_file_ignoring_case(path.parent_path(), om.diffuse_texname);
-        if (tp.empty())
-          throw InputError(fmt::format("'{}': material '{}': texture file '{}' (map_Kd) not found in '{}'",
-                                       path.string(), om.name, om.diffuse_texname, path.parent_path().string()));
-        scene.files.push_back(tp.string());
-        m.texture = int(scene.textures.size());
-        scene.textures.push_back(load_image_texture(tp.string()));
-        tex_cache[om.diffuse_texname] = m.texture;
-      }
+      m.texture = texture(om, om.diffuse_texname, "map_Kd");
       // map_Kd replaces Kd in most exporters' intent when Kd is black.
       if (max_component(m.albedo) <= 0) m.albedo = Vec3(1.0f);
+    }
+    // map_d: the cut-out mask (foliage); its grey value or alpha is the coverage.
+    if (!om.alpha_texname.empty()) {
+      m.opacity = texture(om, om.alpha_texname, "map_d");
+      if (const std::string why = scene.textures[std::size_t(m.opacity)]->opacity_problem(); !why.empty())
+        throw InputError(fmt::format("'{}': material '{}': map_d: {}", path.string(), om.name, why));
     }
     map.of_obj[i] = unsigned(scene.materials.size());
     scene.materials.push_back(m);

@@ -114,11 +114,15 @@ struct SampleSource {
                         float fx, fy;
                         sample_position(rng, fx, fy);
                         PathContext ctx{rng};
-                        const Ray ray = scene.camera.has_lens()
-                                            ? scene.camera.generate_ray(x + fx, y + fy, width, height,
-                                                                        rng.dimension_at(dims::kLensU),
-                                                                        rng.dimension_at(dims::kLensV))
-                                            : scene.camera.generate_ray(x + fx, y + fy, width, height);
+                        const Camera& cam = scene.camera;
+                        // Every layer of the sample sees the scene at its time (motion blur).
+                        const float time =
+                            cam.has_shutter() ? cam.time_at(rng.dimension_at(dims::kTime)) : cam.shutter_open;
+                        const Ray ray =
+                            cam.has_lens()
+                                ? cam.generate_ray_at(x + fx, y + fy, width, height, rng.dimension_at(dims::kLensU),
+                                                      rng.dimension_at(dims::kLensV), time)
+                                : cam.generate_ray_at(x + fx, y + fy, width, height, 0, 0, time);
                         tracer.sample_layers(ray, ctx, r);
                         rays += ctx.rays;
                         f(int(s), r, fx, fy);

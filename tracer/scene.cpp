@@ -9,8 +9,51 @@ using namespace rt;
 
 namespace rt {
 
+void Mesh::uv_at(unsigned prim, float b1, float b2, float& u, float& v) const {
+  if (uvs.empty()) {
+    u = b1;
+    v = b2;
+    return;
+  }
+  const float* uv = &uvs[6 * prim];
+  const float b0 = 1.0f - b1 - b2;
+  u = uv[0] * b0 + uv[2] * b1 + uv[4] * b2;
+  v = uv[1] * b0 + uv[3] * b1 + uv[5] * b2;
+}
+
+Vec3 Mesh::normal_at(unsigned prim, float b1, float b2, float time) const {
+  // The normals of the two time steps around `time`, interpolated as Embree interpolates the
+  // positions (linearly in time between steps), then across the triangle (not normalised).
+  const float steps = float(time_steps() - 1);
+  const float x = std::clamp(time, 0.0f, 1.0f) * steps;
+  const int k = std::min(int(x), int(time_steps()) - 2);
+  const float f = x - float(k);
+  const std::vector<Vec3>& a = k == 0 ? normals : later_normals[k - 1];
+  const std::vector<Vec3>& b = later_normals[k];
+  const float b0 = 1.0f - b1 - b2;
+  auto corner = [&](int c) { return a[3 * prim + c] * (1 - f) + b[3 * prim + c] * f; };
+  return corner(0) * b0 + corner(1) * b1 + corner(2) * b2;
+}
+
 Vec3 SurfaceHit::spawn_origin(Vec3 dir) const {
   return p + ng * (dot(dir, ng) >= 0 ? offset : -offset);
+}
+
+Ray Camera::generate_ray_at(float fx, float fy, int width, int height, float u1, float u2, float time) const {
+  if (!moving) {
+    Ray r = generate_ray(fx, fy, width, height, u1, u2);
+    r.time = time;
+    return r;
+  }
+  // The camera's pose at `time`: eye and look_at interpolated, the frame made from them.
+  Camera c = *this;
+  c.moving = false;
+  c.eye = eye + (eye_end - eye) * time;
+  c.look_at = look_at + (look_at_end - look_at) * time;
+  c.prepare();
+  Ray r = c.generate_ray(fx, fy, width, height, u1, u2);
+  r.time = time;
+  return r;
 }
 
 void Camera::prepare() {
@@ -50,8 +93,35 @@ std::size_t Scene::triangle_count() const {
   return n;
 }
 
+// The alpha cut-out test of Embree's filter functions (Scene::commit attaches it to the meshes
+// whose materials have an opacity texture): a candidate hit where the opacity at its texture
+// coordinates is under 0.5 is rejected, and Embree goes on to the next surface along the ray.
+// Called for single rays and for packets alike (the shadow rays' packets of 16).
+void Scene::cutout_filter(const RTCFilterFunctionNArguments* args) {
+  const auto& c = *static_cast<const Cutout*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    const Material& mat = c.scene->materials[c.mesh->material[prim]];
+    if (mat.opacity < 0) continue;
+    const float b1 = RTCHitN_u(args->hit, args->N, i), b2 = RTCHitN_v(args->hit, args->N, i);
+    float u, v;
+    c.mesh->uv_at(prim, b1, b2, u, v);
+    if (c.scene->textures[mat.opacity]->opacity(u, v) < 0.5f) args->valid[i] = 0;
+  }
+}
+
 void Scene::commit() {
   camera.prepare();
+  // Cut-outs: the meshes with a triangle of a material that has an opacity texture.
+  cutout_.clear();
+  cutout_.resize(meshes.size());
+  for (std::size_t gi = 0; gi < meshes.size(); ++gi)
+    for (std::uint32_t mi : meshes[gi].material)
+      if (materials[mi].opacity >= 0) {
+        cutout_[gi] = std::make_unique<Cutout>(Cutout{this, &meshes[gi]});
+        break;
+      }
   rtc_ = rtcNewScene(device_);
   rtcSetSceneBuildQuality(rtc_, RTC_BUILD_QUALITY_HIGH);
   bmin_ = Vec3(1e30f);
@@ -60,14 +130,23 @@ void Scene::commit() {
     const Mesh& m = meshes[gi];
     RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
     const std::size_t nv = m.positions.size();
-    auto* vb = static_cast<float*>(
-        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
-    for (std::size_t i = 0; i < nv; ++i) {
-      vb[3 * i] = m.positions[i].x;
-      vb[3 * i + 1] = m.positions[i].y;
-      vb[3 * i + 2] = m.positions[i].z;
-      bmin_ = vmin(bmin_, m.positions[i]);
-      bmax_ = vmax(bmax_, m.positions[i]);
+    if (m.moving()) rtcSetGeometryTimeStepCount(g, unsigned(m.time_steps()));
+    for (std::size_t step = 0; step < m.time_steps(); ++step) {
+      const std::vector<Vec3>& pos = step == 0 ? m.positions : m.later_positions[step - 1];
+      auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, unsigned(step),
+                                                             RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
+      for (std::size_t i = 0; i < nv; ++i) {
+        vb[3 * i] = pos[i].x;
+        vb[3 * i + 1] = pos[i].y;
+        vb[3 * i + 2] = pos[i].z;
+        bmin_ = vmin(bmin_, pos[i]);
+        bmax_ = vmax(bmax_, pos[i]);
+      }
+    }
+    if (cutout_[gi]) {
+      rtcSetGeometryUserData(g, cutout_[gi].get());
+      rtcSetGeometryIntersectFilterFunction(g, &cutout_filter);
+      rtcSetGeometryOccludedFilterFunction(g, &cutout_filter);
     }
     auto* ib = static_cast<unsigned*>(
         rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nv / 3));
@@ -177,21 +256,17 @@ void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const
   hit.front = dot(ng, ray.dir) < 0;
   if (!hit.front) ng = -ng;
   hit.ng = ng;
+  hit.time = ray.time;
   if (!m.normals.empty()) {
-    Vec3 ns = normalize(m.normals[3 * prim] * b0 + m.normals[3 * prim + 1] * b1 + m.normals[3 * prim + 2] * b2);
+    Vec3 ns = m.later_normals.empty() ? m.normals[3 * prim] * b0 + m.normals[3 * prim + 1] * b1 + m.normals[3 * prim + 2] * b2
+                                      : m.normal_at(prim, b1, b2, ray.time);
+    ns = normalize(ns);
     if (dot(ns, ng) < 0) ns = -ns;
     hit.ns = ns;
   } else {
     hit.ns = ng;
   }
-  if (!m.uvs.empty()) {
-    const float* uv = &m.uvs[6 * prim];
-    hit.u = uv[0] * b0 + uv[2] * b1 + uv[4] * b2;
-    hit.v = uv[1] * b0 + uv[3] * b1 + uv[5] * b2;
-  } else {
-    hit.u = b1;
-    hit.v = b2;
-  }
+  m.uv_at(prim, b1, b2, hit.u, hit.v);
   hit.material = &materials[m.material[prim]];
   const Material& mat = *hit.material;
   if (mat.type == MaterialType::kMirror || mat.type == MaterialType::kConductor || mat.type == MaterialType::kDielectric) {
@@ -218,7 +293,7 @@ bool Scene::intersect(const Ray& ray, SurfaceHit& hit) const {
   rh.ray.tfar = ray.tmax;
   rh.ray.mask = 0xFFFFFFFFu;
   rh.ray.flags = 0;
-  rh.ray.time = 0;
+  rh.ray.time = ray.time;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(rtc_, &ctx, &rh);
@@ -241,7 +316,7 @@ bool Scene::occluded(const Ray& ray) const {
   r.tfar = ray.tmax;
   r.mask = 0xFFFFFFFFu;
   r.flags = 0;
-  r.time = 0;
+  r.time = ray.time;
   rtcOccluded1(rtc_, &ctx, &r);
   return r.tfar < 0;  // Embree sets tfar = -inf on a hit
 }
@@ -270,7 +345,7 @@ void Scene::occluded(const rt::Ray* rays, int n, std::uint8_t* hidden) const {
       r.mask[i] = 0xFFFFFFFFu;
       r.id[i] = unsigned(i);
       r.flags[i] = 0;
-      r.time[i] = 0;
+      r.time[i] = ray.time;
     }
     rtcOccluded16(valid, rtc_, &ctx, &r);
     for (int i = 0; i < m; ++i) hidden[first + i] = r.tfar[i] < 0 ? 1 : 0;

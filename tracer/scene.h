@@ -32,6 +32,7 @@ struct Ray {
   Vec3 origin;
   Vec3 dir;  // unit length
   float tmax = 1e30f;
+  float time = 0;  // in the frame interval [0, 1]: where moving geometry is (Camera's shutter)
 };
 
 enum class MaterialType : std::uint8_t {
@@ -66,6 +67,10 @@ struct Material {
   Vec3 absorption{0.0f};         // dielectric: Beer absorption coefficient inside (per world unit)
   bool thin = false;             // dielectric: a thin sheet (window pane), smooth only
   float base_inner_reflectance = 0;  // plastic: fresnel_diffuse_reflectance(1 / ior), set by the loader
+  // Alpha cut-out: index into Scene::textures of the opacity (Texture::opacity), or -1. The
+  // surface is there where the opacity is at least 0.5 and a hole elsewhere, for every ray
+  // (camera, shadow, light and AOV rays alike: an Embree filter function, Scene::commit).
+  int opacity = -1;
   bool is_hard() const { return type >= MaterialType::kConductor; }
   bool is_specular() const { return type != MaterialType::kDiffuse; }
   bool is_emitter() const { return !is_black(emission); }
@@ -88,7 +93,18 @@ struct Mesh {
   std::vector<Vec3> normals;          // 3 per triangle, or empty (flat shading)
   std::vector<float> uvs;             // 6 per triangle, or empty (uv = barycentrics)
   std::vector<std::uint32_t> material;  // 1 per triangle (index into Scene::materials)
+  // Motion blur: the corners at the later time steps k = 1 .. n - 1 of the frame interval
+  // (time k / (n - 1)); `positions` and `normals` are step 0. Embree interpolates linearly
+  // between steps; a rotating object has enough steps for that to follow its arc. Empty: static.
+  std::vector<std::vector<Vec3>> later_positions, later_normals;
   std::size_t triangles() const { return positions.size() / 3; }
+  bool moving() const { return !later_positions.empty(); }
+  std::size_t time_steps() const { return 1 + later_positions.size(); }
+  // Texture coordinates of triangle prim at barycentrics (b1, b2) (the barycentrics themselves
+  // where the mesh has none).
+  void uv_at(unsigned prim, float b1, float b2, float& u, float& v) const;
+  // The interpolated (unnormalised) shading normal of a moving mesh at `time`.
+  Vec3 normal_at(unsigned prim, float b1, float b2, float time) const;
 };
 
 // Everything a renderer needs at a ray's closest hit.
@@ -98,6 +114,7 @@ struct SurfaceHit {
   Vec3 ng;                    // unit geometric normal, flipped to face the incoming ray
   Vec3 ns;                    // unit shading normal, flipped to the same side as ng
   float u = 0, v = 0;         // texture coordinates
+  float time = 0;             // the ray's time (Ray::time): rays leaving this hit carry it
   bool front = true;          // the ray hit the triangle's front (winding) side
   unsigned geom = 0, prim = 0;
   const Material* material = nullptr;
@@ -109,6 +126,8 @@ struct SurfaceHit {
   // A ray origin just off the surface on the side of `dir`, so that the new ray does not hit
   // this triangle again (nor a coplanar duplicate of it, as in CornellBox-Original.obj).
   Vec3 spawn_origin(Vec3 dir) const;
+  // A ray from spawn_origin(dir) along dir, at this hit's time.
+  Ray spawn_ray(Vec3 dir, float tmax = 1e30f) const { return Ray{spawn_origin(dir), dir, tmax, time}; }
   float offset = 1e-4f;       // size of that offset (scales with the position's magnitude)
 };
 
@@ -142,6 +161,19 @@ struct Camera {
   float aperture_radius = 0;   // lens radius in scene units (0: pinhole)
   float focus_distance = 1;    // distance of the sharp plane along the view axis
   bool has_lens() const { return aperture_radius > 0; }
+
+  // Motion blur. The shutter is open over [shutter_open, shutter_close] of the frame interval
+  // [0, 1]; a sample's time is uniform in it (time_at). Moving geometry is where its transform
+  // puts it at that time; the camera moves from (eye, look_at) at time 0 to (eye_end,
+  // look_at_end) at time 1, linearly. A closed shutter (open == close) renders the one instant.
+  float shutter_open = 0, shutter_close = 0;
+  Vec3 eye_end, look_at_end;  // prepare() sets them to eye, look_at unless moving
+  bool moving = false;        // the camera moves (eye_end or look_at_end differ)
+  bool has_shutter() const { return shutter_close > shutter_open; }
+  float time_at(float u) const { return shutter_open + (shutter_close - shutter_open) * u; }
+  // The ray of generate_ray(fx, fy, width, height, u1, u2) with the camera where it is at
+  // `time`, carrying the time.
+  Ray generate_ray_at(float fx, float fy, int width, int height, float u1, float u2, float time) const;
   void prepare();
 
  private:
@@ -253,6 +285,13 @@ class Scene {
 
  private:
   void fill_hit(const rt::Ray& ray, const RTCRayHit& rh, rt::SurfaceHit& hit) const;
+  // Alpha cut-outs (Material::opacity): the filter function and what it reads per mesh.
+  struct Cutout {
+    const Scene* scene;
+    const rt::Mesh* mesh;
+  };
+  static void cutout_filter(const RTCFilterFunctionNArguments* args);
+  std::vector<std::unique_ptr<Cutout>> cutout_;  // per mesh; null where no material cuts out
 
   RTCDevice device_ = nullptr;
   RTCScene rtc_ = nullptr;

@@ -129,7 +129,35 @@ class Loader {
       throw InputError(fmt::format("{}: eye and look_at coincide", c->where("look_at")));
     if (length(cross(normalize(scene_.camera.look_at - scene_.camera.eye), normalize(scene_.camera.up))) < 1e-4f)
       throw InputError(fmt::format("{}: up is parallel to the viewing direction", c->where("up")));
+    read_shutter(*c);
     c->finish();
+  }
+
+  // Motion blur's camera keys: the shutter interval within the frame interval [0, 1], and where
+  // the camera is at the interval's end (it moves linearly from eye, look_at).
+  void read_shutter(ConfigTable& c) {
+    Camera& cam = scene_.camera;
+    static constexpr RealBound kTime{0, 1, "a time in the frame interval [0, 1]"};
+    const auto shutter = c.get("shutter", std::vector<double>{0, 0});
+    if (shutter.size() != 2)
+      throw InputError(fmt::format("{}: expected [open, close], times in the frame interval [0, 1]", c.where("shutter")));
+    for (double v : shutter) check_bound(v, kTime, c.where("shutter"));
+    if (shutter[0] > shutter[1])
+      throw InputError(fmt::format("{}: the shutter opens at {} after it closes at {}", c.where("shutter"), shutter[0],
+                                   shutter[1]));
+    cam.shutter_open = float(shutter[0]);
+    cam.shutter_close = float(shutter[1]);
+    const Arr3 eye{cam.eye.x, cam.eye.y, cam.eye.z}, at{cam.look_at.x, cam.look_at.y, cam.look_at.z};
+    const bool moves = c.contains("eye_end") || c.contains("look_at_end");
+    cam.eye_end = vec3(c.get("eye_end", eye, bounds::kCoordinate));
+    cam.look_at_end = vec3(c.get("look_at_end", at, bounds::kCoordinate));
+    cam.moving = moves && (length(cam.eye_end - cam.eye) > 0 || length(cam.look_at_end - cam.look_at) > 0);
+    if (!cam.moving) return;
+    if (!(length(cam.look_at_end - cam.eye_end) > 0))
+      throw InputError(fmt::format("{}: eye_end and look_at_end coincide", c.where("look_at_end")));
+    if (length(cross(normalize(cam.look_at_end - cam.eye_end), normalize(cam.up))) < 1e-4f)
+      throw InputError(fmt::format("{}: up is parallel to the viewing direction at the end of the motion",
+                                   c.where("look_at_end")));
   }
 
   void read_environment(ConfigTable& root) {
@@ -216,6 +244,15 @@ class Loader {
     m.ior = float(t.get("ior", 1.5, RealBound{1, 10, "an index of refraction above 1", true}));
     m.emission = vec3(t.get("emission", Arr3{0, 0, 0}, bounds::kRadiance));
     m.two_sided = t.get("two_sided", false);
+    std::string cutout = t.get("opacity", std::string());
+    if (!cutout.empty()) {
+      auto it = texture_index_.find(cutout);
+      if (it == texture_index_.end())
+        throw InputError(fmt::format("{}: no texture '{}' in [textures]", t.where("opacity"), cutout));
+      if (const std::string why = scene_.textures[std::size_t(it->second)]->opacity_problem(); !why.empty())
+        throw InputError(fmt::format("{}: texture '{}': {}", t.where("opacity"), cutout, why));
+      m.opacity = it->second;
+    }
     if (m.is_hard()) read_hard_material(t, m);
   }
 
@@ -296,16 +333,45 @@ class Loader {
     return it->second;
   }
 
+  // An object's motion over the frame interval: its transform at time 1 (translate_end,
+  // rotate_end, scale_end; each defaults to its time-0 value). Lights do not move (their
+  // sampling assumes fixed emitters), so they have no such keys.
+  std::optional<Transform> read_motion(ConfigTable& t, const Transform& x) {
+    if (!t.contains("translate_end") && !t.contains("rotate_end") && !t.contains("scale_end")) return std::nullopt;
+    Transform end;
+    end.scale = float(t.get("scale_end", double(x.scale), bounds::kLength));
+    end.rot_deg = vec3(t.get("rotate_end", Arr3{x.rot_deg.x, x.rot_deg.y, x.rot_deg.z}, kAngle));
+    end.translate = vec3(t.get("translate_end", Arr3{x.translate.x, x.translate.y, x.translate.z}, bounds::kCoordinate));
+    return end;
+  }
+
+  // The meshes from `first` on belong to one moving object.
+  void apply_motion(ConfigTable& t, std::size_t first, const Transform& start, const Transform& end) {
+    const char* key = t.contains("translate_end") ? "translate_end" : t.contains("rotate_end") ? "rotate_end" : "scale_end";
+    for (std::size_t i = first; i < scene_.meshes.size(); ++i) {
+      Mesh& m = scene_.meshes[i];
+      for (std::uint32_t mi : m.material)
+        if (scene_.materials[mi].is_emitter())
+          throw InputError(fmt::format("{}: a moving object cannot emit (material '{}'): light sampling assumes "
+                                       "emitters that stay where they are",
+                                       t.where(key), scene_.materials[mi].name));
+      add_motion(m, start, end);
+    }
+  }
+
   void read_object(ConfigTable& t, bool light) {
     std::string type = t.require_string("type");
     std::string name = t.get("name", fmt::format("{}{}", type, scene_.meshes.size()));
     Transform x = read_transform(t);
+    const std::optional<Transform> motion = light ? std::nullopt : read_motion(t, x);
+    const std::size_t first_mesh = scene_.meshes.size();
     if (type == "obj") {
       if (light) throw InputError(fmt::format("{}: lights are quads or spheres", t.where("type")));
       std::string file = t.require_string("file");
       std::string override_mat = t.get("material", std::string());
       t.finish();
       load_obj(t, file, override_mat, x);
+      if (motion) apply_motion(t, first_mesh, x, *motion);
       return;
     }
     auto uvs = t.get("uv_scale", std::vector<double>{1, 1});
@@ -362,12 +428,16 @@ class Loader {
       throw InputError(fmt::format("{}: {} copies of {} triangles are more than {} triangles in one mesh (32-bit "
                                    "vertex indices)",
                                    t.where("repeat"), repeat, b.mesh.material.size(), bounds::kMaxTriangles));
+    if (motion && repeat > 1)
+      throw InputError(fmt::format("{}: a moving object is one copy (repeat = 1): give each copy its own object",
+                                   t.where("repeat")));
     repeat_mesh(b.mesh, repeat, step);
     t.finish();
     // A repeated sphere light is several spheres: those stay triangle emitters.
     if (sphere_light_ && repeat == 1) scene_.sphere_lights.push_back(*sphere_light_);
     sphere_light_.reset();
     scene_.meshes.push_back(std::move(b.mesh));
+    if (motion) apply_motion(t, first_mesh, x, *motion);
   }
 
   fs::path resolve_mesh_path(ConfigTable& t, const std::string& file) {

@@ -124,4 +124,23 @@ void repeat_mesh(Mesh& mesh, int copies, Vec3 step) {
   }
 }
 
+void add_motion(Mesh& mesh, const Transform& start, const Transform& end) {
+  const Vec3 dr = end.rot_deg - start.rot_deg;
+  const float turn = std::max(std::fabs(dr.x), std::max(std::fabs(dr.y), std::fabs(dr.z)));
+  // A chord of a 5-degree arc is within 0.1% of the radius of the arc (1 - cos 2.5 degrees).
+  const int steps = 1 + std::clamp(int(std::ceil(turn / 5.0f)), 1, 128);
+  mesh.later_positions.assign(std::size_t(steps - 1), {});
+  mesh.later_normals.assign(mesh.normals.empty() ? 0 : std::size_t(steps - 1), {});
+  for (int k = 1; k < steps; ++k) {
+    const Transform x = start.towards(end, float(k) / float(steps - 1));
+    auto& pos = mesh.later_positions[std::size_t(k - 1)];
+    pos.reserve(mesh.positions.size());
+    for (const Vec3& p : mesh.positions) pos.push_back(x.point(start.unpoint(p)));
+    if (mesh.normals.empty()) continue;
+    auto& nrm = mesh.later_normals[std::size_t(k - 1)];
+    nrm.reserve(mesh.normals.size());
+    for (const Vec3& n : mesh.normals) nrm.push_back(x.normal(start.unrotate(n)));
+  }
+}
+
 }  // namespace dnb::rt

@@ -30,7 +30,30 @@ struct Transform {
   }
   Vec3 point(Vec3 p) const { return rotate(p * scale) + translate; }
   Vec3 normal(Vec3 n) const { return normalize(rotate(n)); }
+  // The inverses: rotations about z, then y, then x by minus the angles; point() undone.
+  Vec3 unrotate(Vec3 v) const {
+    auto rx = -rot_deg.x * kPi / 180, ry = -rot_deg.y * kPi / 180, rz = -rot_deg.z * kPi / 180;
+    v = {v.x * std::cos(rz) - v.y * std::sin(rz), v.x * std::sin(rz) + v.y * std::cos(rz), v.z};
+    v = {v.x * std::cos(ry) + v.z * std::sin(ry), v.y, -v.x * std::sin(ry) + v.z * std::cos(ry)};
+    v = {v.x, v.y * std::cos(rx) - v.z * std::sin(rx), v.y * std::sin(rx) + v.z * std::cos(rx)};
+    return v;
+  }
+  Vec3 unpoint(Vec3 p) const { return unrotate(p - translate) * (1.0f / scale); }
+  // The transform a fraction t of the way from this one to `end` (each part linearly).
+  Transform towards(const Transform& end, float t) const {
+    Transform x;
+    x.scale = scale + (end.scale - scale) * t;
+    x.rot_deg = rot_deg + (end.rot_deg - rot_deg) * t;
+    x.translate = translate + (end.translate - translate) * t;
+    return x;
+  }
 };
+
+// Motion blur of a mesh built with transform `start`: its later time steps (Mesh::later_positions
+// and later_normals) for an object whose transform goes linearly from `start` at time 0 to `end`
+// at time 1. Enough steps that Embree's linear interpolation between them stays within a degree
+// of the true rotation (one step per 5 degrees of the largest angle change, at least one).
+void add_motion(Mesh& mesh, const Transform& start, const Transform& end);
 
 // Builds meshes of primitives. uv of every face spans [0, uv_scale].
 struct MeshBuilder {

@@ -22,9 +22,12 @@ float fract(float x) { return x - std::floor(x); }
 
 class ImageTexture final : public Texture {
  public:
-  ImageTexture(int w, int h, std::vector<float> rgb) : w_(w), h_(h), rgb_(std::move(rgb)) {}
-  Vec3 eval(float u, float v) const override {
-    // Bilinear between texel centres, wrapping around (textures of the scenes tile).
+  // coverage: the alpha (4 channels) or the grey value (1 channel) as stored, or empty.
+  ImageTexture(std::string path, int w, int h, int channels, std::vector<float> rgb, std::vector<float> coverage)
+      : path_(std::move(path)), w_(w), h_(h), channels_(channels), rgb_(std::move(rgb)), coverage_(std::move(coverage)) {}
+  // Bilinear between texel centres, wrapping around (textures of the scenes tile).
+  template <typename F>
+  auto bilinear(float u, float v, F&& texel) const -> std::decay_t<decltype(texel(std::size_t(0)))> {
     float x = fract(u) * w_ - 0.5f;
     float y = (1.0f - fract(v)) * h_ - 0.5f;
     int x0 = int(std::floor(x)), y0 = int(std::floor(y));
@@ -32,16 +35,31 @@ class ImageTexture final : public Texture {
     auto at = [&](int xi, int yi) {
       xi = ((xi % w_) + w_) % w_;
       yi = ((yi % h_) + h_) % h_;
-      const float* p = &rgb_[(std::size_t(yi) * w_ + xi) * 3];
-      return Vec3(p[0], p[1], p[2]);
+      return texel(std::size_t(yi) * w_ + xi);
     };
     return (at(x0, y0) * (1 - fx) + at(x0 + 1, y0) * fx) * (1 - fy) +
            (at(x0, y0 + 1) * (1 - fx) + at(x0 + 1, y0 + 1) * fx) * fy;
   }
+  Vec3 eval(float u, float v) const override {
+    return bilinear(u, v, [&](std::size_t i) {
+      const float* p = &rgb_[i * 3];
+      return Vec3(p[0], p[1], p[2]);
+    });
+  }
+  float opacity(float u, float v) const override {
+    return bilinear(u, v, [&](std::size_t i) { return coverage_[i]; });
+  }
+  std::string opacity_problem() const override {
+    if (!coverage_.empty()) return {};
+    return fmt::format("image '{}' has {} channels; an opacity needs 1 (grey coverage) or 4 (RGBA: the alpha)", path_,
+                       channels_);
+  }
 
  private:
-  int w_, h_;
+  std::string path_;
+  int w_, h_, channels_;
   std::vector<float> rgb_;
+  std::vector<float> coverage_;
 };
 
 class Checker final : public Texture {
@@ -115,6 +133,33 @@ class Noise final : public Texture {
   int octaves_;
 };
 
+// Leaves for alpha cut-outs (a plant's foliage on quads): one leaf per cell of the (u, v)
+// lattice, `scale` cells per unit, its blade along v, pointed at both ends (half-width
+// 0.42 sin(pi v)^0.7 of the cell), a midrib and paired side veins in color_b over color_a. The
+// blade is opaque, the rest of the cell a hole (opacity()); the colour there is never seen.
+class Leaf final : public Texture {
+ public:
+  Leaf(float scale, Vec3 leaf, Vec3 vein) : scale_(scale), a_(leaf), b_(vein) {}
+  Vec3 eval(float u, float v) const override {
+    const float x = fract(u * scale_) - 0.5f, y = fract(v * scale_);
+    const float ax = std::fabs(x);
+    if (ax < 0.012f) return b_;  // midrib
+    // Side veins: lines leaving the midrib towards the tip, 7 pairs.
+    const float phase = fract((y - 1.2f * ax) * 7.0f);
+    if (phase < 0.06f && ax < 0.9f * half_width(y)) return a_ * 0.35f + b_ * 0.65f;
+    return a_ * (0.85f + 0.15f * fbm_noise(u * scale_ * 24, v * scale_ * 24, 2, 1 << 20));
+  }
+  float opacity(float u, float v) const override {
+    const float x = fract(u * scale_) - 0.5f, y = fract(v * scale_);
+    return std::fabs(x) < half_width(y) ? 1.0f : 0.0f;
+  }
+
+ private:
+  static float half_width(float y) { return 0.42f * std::pow(std::max(0.0f, std::sin(kPi * y)), 0.7f); }
+  float scale_;
+  Vec3 a_, b_;
+};
+
 Vec3 vec3(const std::array<double, 3>& a) { return {float(a[0]), float(a[1]), float(a[2])}; }
 
 }  // namespace
@@ -184,7 +229,13 @@ std::unique_ptr<Texture> load_image_texture(const std::string& path) {
       float v = px[i * c + std::min(k, c - 1)];
       rgb[i * 3 + k] = encoded ? srgb_to_linear(v) : v;
     }
-  return std::make_unique<ImageTexture>(w, h, std::move(rgb));
+  // Coverage for cut-outs: alpha and grey masks are linear data, never sRGB-decoded.
+  std::vector<float> coverage;
+  if (c == 1 || c == 4) {
+    coverage.resize(std::size_t(w) * h);
+    for (std::size_t i = 0; i < coverage.size(); ++i) coverage[i] = px[i * c + (c - 1)];
+  }
+  return std::make_unique<ImageTexture>(path, w, h, c, std::move(rgb), std::move(coverage));
 }
 
 // Pattern scales and counts: finite, positive, and small enough that u * scale keeps float precision.
@@ -225,8 +276,13 @@ std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_d
     Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.3, 0.3, 0.3}, bounds::kReflectance));
     Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.7, 0.7, 0.7}, bounds::kReflectance));
     tex = std::make_unique<Noise>(scale, a, b, t.get("octaves", 4, bounds::kTextureOctaves));
+  } else if (type == "leaf") {
+    float scale = float(t.get("scale", 1.0, kTextureScale));
+    Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.16, 0.36, 0.08}, bounds::kReflectance));
+    Vec3 b = vec3(t.get("color_b", std::array<double, 3>{0.45, 0.55, 0.2}, bounds::kReflectance));
+    tex = std::make_unique<Leaf>(scale, a, b);
   } else {
-    throw InputError(fmt::format("{}: unknown texture type '{}' (expected image, checker, wood, brick or noise)",
+    throw InputError(fmt::format("{}: unknown texture type '{}' (expected image, checker, wood, brick, noise or leaf)",
                                  t.where("type"), type));
   }
   t.finish();

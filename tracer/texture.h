@@ -21,6 +21,13 @@ class Texture {
   virtual ~Texture() = default;
   // Linear RGB reflectance at (u, v).
   virtual Vec3 eval(float u, float v) const = 0;
+  // The texture as an alpha cut-out (Material::opacity): coverage in [0, 1] at (u, v). A
+  // procedural texture's first channel (a checker of white and black makes holes), a `leaf`'s
+  // blade, an image's alpha (RGBA) or its grey value (one channel), never sRGB-decoded.
+  virtual float opacity(float u, float v) const { return eval(u, v).x; }
+  // Why this texture cannot be an opacity (an image with 2 or 3 channels: which one would be
+  // coverage is a guess), or empty.
+  virtual std::string opacity_problem() const { return {}; }
 };
 
 // An image file (any format OpenImageIO reads). 8-bit images are taken as sRGB-encoded and
