@@ -35,7 +35,13 @@ const std::vector<layer::Info>& layer::table() {
                                       {kIndirectVariance, 3, true, false, false, true},
                                       {kEdge, 1, true, false, false, false},
                                       {kSamples, 1, true, false, false, false},
-                                      {kTint, 3, false, true, false, false}};
+                                      {kTint, 3, false, true, false, false},
+                                      {kGlossDirect, 3, true, false, false, true},
+                                      {kGlossIndirect, 3, true, false, false, true},
+                                      {kGlossColor, 3, true, false, false, true},
+                                      {kTransDirect, 3, true, false, false, true},
+                                      {kTransIndirect, 3, true, false, false, true},
+                                      {kTransColor, 3, true, false, false, true}};
   return t;
 }
 

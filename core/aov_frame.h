@@ -29,6 +29,16 @@ inline constexpr const char* kIndirectVariance = "indirect_variance";
 inline constexpr const char* kEdge = "edge";            // 1 for pixels of G, Y
 inline constexpr const char* kSamples = "samples";      // finite samples accumulated, Y
 inline constexpr const char* kTint = "tint";            // only at reflection levels
+// R split as Cycles splits it (level 0 only): R = gloss_color * (gloss_direct + gloss_indirect)
+// + trans_color * (trans_direct + trans_indirect); direct: the light of an emitter (or the sky)
+// reached by the glossy or transmitted bounce itself, indirect: the rest; both demodulated by
+// the lobe's colour (docs/design.md, "AOV frame file").
+inline constexpr const char* kGlossDirect = "gloss_direct";
+inline constexpr const char* kGlossIndirect = "gloss_indirect";
+inline constexpr const char* kGlossColor = "gloss_color";
+inline constexpr const char* kTransDirect = "trans_direct";
+inline constexpr const char* kTransIndirect = "trans_indirect";
+inline constexpr const char* kTransColor = "trans_color";
 // Reflection levels a frame may hold, refl1 .. refl8 (the tracer's bound, tracer/integrator.h).
 inline constexpr int kMaxLevels = 8;
 // "refl<k>.<base>" for reflection level k >= 1; level 0 returns base itself.

@@ -77,6 +77,13 @@ bool absorbs(const SurfaceHit& hit) {
 }
 Vec3 absorption_along(const SurfaceHit& hit) { return beer_transmittance(hit.material->absorption, hit.t); }
 
+// The light a delta bounce of weight `tint` brings from the next level, split as Cycles splits
+// it: direct, the emission (or sky) that level's ray meets; indirect, the rest.
+void split_specular(const LevelSample& next, Vec3 tint, Vec3& direct, Vec3& indirect) {
+  direct = tint * next.emission;
+  indirect = tint * ((next.direct + next.indirect) * next.albedo + next.reflection);
+}
+
 // The BSDF sample of a hard vertex in world space: false when the sample is lost or the shading
 // normal sends it to the other side of the geometric surface than the one it was sampled on.
 bool sample_hard(const SurfaceHit& hit, const HardBsdf& b, const Frame& f, Vec3 wo_l, Sampler& s, BsdfSample& bs,
@@ -106,6 +113,7 @@ PathTracer::HardDirect PathTracer::hard_nee(const SurfaceHit& hit, const HardBsd
   const float k = std::fabs(wi_l.z) * power_heuristic(ls.pdf, b.pdf(wo_l, wi_l)) / ls.pdf;
   out.diffuse_white = ls.radiance * v.diffuse_white * k;
   out.glossy = ls.radiance * v.glossy * k;
+  out.transmitted = (wi_l.z > 0) != (wo_l.z > 0);
   return out;
 }
 
@@ -307,6 +315,7 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
   }
   Vec3 wo = -ray.dir;
   Lobe lobe = choose_lobe(hit, wo, ctx.sampler);
+  if (m.type != MaterialType::kDiffuse) L.gloss_color = m.tint;  // a mirror's or a coat's glossy lobe
   if (lobe.specular) {
     L.tint = lobe.spec_weight;
     Vec3 wr = reflect(wo, hit.ns);
@@ -316,8 +325,12 @@ void PathTracer::decompose(const Ray& ray, int level, int depth, PathContext& ct
       decompose(r, level + 1, depth, ctx, out);
       L.tint *= out.level[level + 1].attenuation;  // exactly 1 outside absorbing glass
       L.reflection = L.tint * out.level[level + 1].color();
+      split_specular(out.level[level + 1], L.tint, L.gloss_direct, L.gloss_indirect);
     } else {
-      L.reflection = L.tint * trace(r, depth, 0.0f, Vec3(0.0f), L.tint, ctx).total();
+      const PathRadiance pr = trace(r, depth, 0.0f, Vec3(0.0f), L.tint, ctx);
+      L.reflection = L.tint * pr.total();
+      L.gloss_direct = L.tint * pr.first_emission;
+      L.gloss_indirect = L.tint * pr.rest;
     }
     return;
   }
@@ -345,10 +358,15 @@ void PathTracer::decompose_hard(const Ray& ray, const SurfaceHit& hit, int level
   const Vec3 wo_l = f.to_local(-ray.dir);
   const HardDirect d = hard_nee(hit, b, f, wo_l, ctx);
   Vec3 direct = d.diffuse_white, indirect(0.0f), glossy = d.glossy, reflection(0.0f), tint(0.0f);
+  // R's parts as Cycles names them: [0] reflected, [1] refracted; direct and indirect.
+  Vec3 spec_direct[2] = {Vec3(0.0f), Vec3(0.0f)}, spec_indirect[2] = {Vec3(0.0f), Vec3(0.0f)};
+  spec_direct[d.transmitted ? 1 : 0] = d.glossy;
   BsdfSample bs;
   Vec3 wi;
   if (sample_hard(hit, b, f, wo_l, ctx.sampler, bs, wi)) {
     const Ray r = hit.spawn_ray(wi);
+    const int part = (bs.wi.z > 0) != (wo_l.z > 0) ? 1 : 0;
+    Vec3 dir, ind;
     if (bs.delta) {
       // A perfect reflection or refraction: the next level is what it shows (behind glass, the
       // first surface seen through it).
@@ -357,8 +375,12 @@ void PathTracer::decompose_hard(const Ray& ray, const SurfaceHit& hit, int level
         decompose(r, level + 1, depth, ctx, out);
         tint *= out.level[level + 1].attenuation;
         reflection = tint * out.level[level + 1].color();
+        split_specular(out.level[level + 1], tint, dir, ind);
       } else {
-        reflection = tint * trace(r, depth, 0.0f, Vec3(0.0f), tint, ctx).total();
+        const PathRadiance pr = trace(r, depth, 0.0f, Vec3(0.0f), tint, ctx);
+        reflection = tint * pr.total();
+        dir = tint * pr.first_emission;
+        ind = tint * pr.rest;
       }
     } else {
       const Vec3 weight = bs.weight_diffuse_white * hit.albedo + bs.weight_glossy;
@@ -366,13 +388,24 @@ void PathTracer::decompose_hard(const Ray& ray, const SurfaceHit& hit, int level
       direct += bs.weight_diffuse_white * pr.first_emission;
       indirect = bs.weight_diffuse_white * pr.rest;
       glossy += bs.weight_glossy * pr.total();
+      dir = bs.weight_glossy * pr.first_emission;
+      ind = bs.weight_glossy * pr.rest;
     }
+    spec_direct[part] += dir;
+    spec_indirect[part] += ind;
   }
   LevelSample& L = out.level[level];
   L.direct = direct;
   L.indirect = indirect;
   L.tint = tint;
   L.reflection = reflection + glossy;
+  L.gloss_direct = spec_direct[0];
+  L.gloss_indirect = spec_indirect[0];
+  L.trans_direct = spec_direct[1];
+  L.trans_indirect = spec_indirect[1];
+  const Material& m = *hit.material;
+  L.gloss_color = m.type == MaterialType::kConductor ? conductor_fresnel(1.0f, m.eta_c, m.k_c, m.schlick, m.tint) : m.tint;
+  if (m.type == MaterialType::kDielectric) L.trans_color = m.transmittance;
 }
 
 void PathTracer::sample_layers(const Ray& camera_ray, PathContext& ctx, SampleResult& out) const {

@@ -78,6 +78,10 @@ struct LevelSample {
   Vec3 normal;
   float depth = 0;
   Vec3 tint;            // weight of the specular bounce into level + 1 (0 when not taken)
+  // R split as Cycles splits it: reflected (gloss) and refracted (trans) light, each direct or
+  // indirect, as radiance (not yet divided by its colour); R = their sum up to rounding. The
+  // colours are the material's glossy and transmission colours at the hit.
+  Vec3 gloss_direct, gloss_indirect, gloss_color, trans_direct, trans_indirect, trans_color;
   Vec3 attenuation{1.0f};  // absorption along this level's ray (inside coloured glass), folded into the parent's tint
   bool present = false; // level 0: always; level k: the sample went through k specular bounces
   Vec3 color() const { return (direct + indirect) * albedo + reflection + emission; }
@@ -157,6 +161,7 @@ class PathTracer {
   void decompose_hard(const Ray& ray, const SurfaceHit& hit, int level, int depth, PathContext& ctx, SampleResult& out) const;
   struct HardDirect {
     Vec3 diffuse_white, glossy;
+    bool transmitted = false;  // the light sample lit the side the ray did not come from
   };
   // The MIS-weighted light sample at a hard material's vertex (0 when every lobe is a delta).
   HardDirect hard_nee(const SurfaceHit& hit, const HardBsdf& b, const Frame& f, Vec3 wo_local,

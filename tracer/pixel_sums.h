@@ -39,6 +39,19 @@ enum : int {
 };
 }  // namespace acc
 
+// Level 0's reflected and refracted light as Cycles splits it (integrator.h's LevelSample), per
+// pixel only: no variance and no half buffer is made of them, so not per sample group.
+namespace acc {
+enum : int {
+  kGlossColor = 0, kGlossDirect = 3, kGlossIndirect = 6, kTransColor = 9, kTransDirect = 12, kTransIndirect = 15,
+  kSpecularSize = 20,  // padded to a multiple of 4
+};
+}  // namespace acc
+
+struct SpecularSums {
+  alignas(32) double v[acc::kSpecularSize] = {};
+};
+
 struct LevelSums {
   std::int64_t n = 0;
   alignas(32) double v[acc::kLevelSize] = {};
@@ -66,6 +79,16 @@ inline void pack_level(const LevelSample& l, float* o) {
   o[29] = o[30] = o[31] = 0;
 }
 
+inline void pack_specular(const LevelSample& l, float* o) {
+  put3(o + acc::kGlossColor, l.gloss_color);
+  put3(o + acc::kGlossDirect, l.gloss_direct);
+  put3(o + acc::kGlossIndirect, l.gloss_indirect);
+  put3(o + acc::kTransColor, l.trans_color);
+  put3(o + acc::kTransDirect, l.trans_direct);
+  put3(o + acc::kTransIndirect, l.trans_indirect);
+  o[18] = o[19] = 0;
+}
+
 template <int N>
 inline void add_values(double* __restrict a, const float* __restrict v) {
   for (int i = 0; i < N; ++i) a[i] += double(v[i]);
@@ -86,6 +109,13 @@ inline float variance_to_float(double var) {
 inline void store(Image& img, int x, int y, const double* s, double inv) {
   float* p = img.pixel(x, y);
   for (int c = 0; c < 3; ++c) p[c] = float(s[c] * inv);
+}
+
+// A glossy or transmission light layer's mean, weighted by its colour as D and I are by T: the
+// sum of the light over the sum of the colour (0 where the colour's sum is 0: no such lobe, so
+// no such light), so that colour * (direct + indirect) is the mean of that part of R.
+inline void colour_weighted(const double* light, const double* colour, float* out) {
+  for (int c = 0; c < 3; ++c) out[c] = colour[c] > 0 ? float(light[c] / colour[c]) : 0.0f;
 }
 
 // The albedo-weighted mean of an illumination layer (tracer/render.cpp's top) into out[0..2].

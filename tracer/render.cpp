@@ -72,6 +72,7 @@ struct HalfImages {
 // The layers the main pass writes, looked up once.
 struct FrameLayers {
   Image *color, *var_f, *var_d, *var_i, *samples, *edge;
+  Image *gloss_direct, *gloss_indirect, *gloss_color, *trans_direct, *trans_indirect, *trans_color;
   std::vector<LevelImages> level;  // 0 .. K
   HalfImages half[2];              // the even and the odd samples' level 0
 };
@@ -103,6 +104,12 @@ FrameLayers layers_of(AovFrame& frame, int K) {
   out.var_i = &frame.layer(layer::kIndirectVariance);
   out.samples = &frame.layer(layer::kSamples);
   out.edge = &frame.layer(layer::kEdge);
+  out.gloss_direct = &frame.layer(layer::kGlossDirect);
+  out.gloss_indirect = &frame.layer(layer::kGlossIndirect);
+  out.gloss_color = &frame.layer(layer::kGlossColor);
+  out.trans_direct = &frame.layer(layer::kTransDirect);
+  out.trans_indirect = &frame.layer(layer::kTransIndirect);
+  out.trans_color = &frame.layer(layer::kTransColor);
   out.level.resize(K + 1);
   for (int k = 0; k <= K; ++k) {
     LevelImages& l = out.level[k];
@@ -138,11 +145,14 @@ struct GroupSums {
 
 // Adds one finite sample to its pixel's sums: its group's level 0 and colour (`group`), and
 // levels 1 .. min(r.levels, K + 1) - 1 to `sums` (level 0 is made from the groups at the end).
-inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, GroupSums& group) {
+inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, GroupSums& group, SpecularSums& spec) {
   alignas(32) float vals[acc::kLevelSize];
   const Vec3 f = r.level[0].color();
   alignas(32) double xvals[acc::kExtraSize] = {f.x, f.y, f.z, 0.0};
   add_values<acc::kExtraSize>(group.extra, xvals);
+  alignas(32) float svals[acc::kSpecularSize];
+  pack_specular(r.level[0], svals);
+  add_values<acc::kSpecularSize>(spec.v, svals);
   for (int k = 0; k < r.levels && k <= K; ++k) {
     pack_level(r.level[k], vals);
     LevelSums& L = k == 0 ? group.level : sums[k];
@@ -220,7 +230,7 @@ void store_demodulated_var(GroupVariance& gv, const GroupSums* groups, int weigh
 // Every layer of pixel (x, y) from its sums (level 0's and the colour's made from the groups
 // here), and the relative depth spread of its samples.
 void store_pixel(const FrameLayers& out, int x, int y, std::vector<LevelSums>& sums, const GroupSums* groups,
-                 Image& depth_spread) {
+                 const SpecularSums& spec, Image& depth_spread) {
   GroupSums all;
   add_groups(groups, 0, 1, all);
   sums[0] = all.level;
@@ -235,6 +245,13 @@ void store_pixel(const FrameLayers& out, int x, int y, std::vector<LevelSums>& s
   store_demodulated_var(gv, groups, acc::kDirectT, acc::kDirect, L0, out.var_d->pixel(x, y));
   store_demodulated_var(gv, groups, acc::kIndirectT, acc::kIndirect, L0, out.var_i->pixel(x, y));
   out.samples->at(x, y, 0) = float(n);
+  const double* s = spec.v;
+  store(*out.gloss_color, x, y, s + acc::kGlossColor, inv);
+  store(*out.trans_color, x, y, s + acc::kTransColor, inv);
+  colour_weighted(s + acc::kGlossDirect, s + acc::kGlossColor, out.gloss_direct->pixel(x, y));
+  colour_weighted(s + acc::kGlossIndirect, s + acc::kGlossColor, out.gloss_indirect->pixel(x, y));
+  colour_weighted(s + acc::kTransDirect, s + acc::kTransColor, out.trans_direct->pixel(x, y));
+  colour_weighted(s + acc::kTransIndirect, s + acc::kTransColor, out.trans_indirect->pixel(x, y));
   for (std::size_t k = 0; k < sums.size(); ++k)
     store_level(out.level[k], x, y, sums[k], k > 0 ? &sums[k - 1] : nullptr);
   if (n > 1) {
@@ -265,11 +282,12 @@ void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image
     for (int x = x0; x < x1; ++x) {
       for (auto& s : sums) s = LevelSums{};
       GroupSums groups[kGroups];
+      SpecularSums spec;
       counts.rays += src.trace_samples(table, x, y, 0, spp, r, [&](int s, const SampleResult& sr, float, float) {
-        if (sample_finite(sr)) accumulate_sample(sr, K, sums.data(), groups[s % kGroups]);
+        if (sample_finite(sr)) accumulate_sample(sr, K, sums.data(), groups[s % kGroups], spec);
         else ++counts.dropped;
       });
-      store_pixel(out, x, y, sums, groups, depth_spread);
+      store_pixel(out, x, y, sums, groups, spec, depth_spread);
     }
 }
 

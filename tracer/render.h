@@ -27,8 +27,9 @@ class Scene;  // tracer/scene.h
 inline constexpr const char* kTracerVersion = "dnb-tracer-6";
 // Bumped whenever a frame gains or loses layers while the images of the layers it had stay the
 // same (part of the frame cache key, not the references'). "halves-1": the half buffers
-// half0.* and half1.* (core/aov_frame.h).
-inline constexpr const char* kFrameLayers = "halves-1";
+// half0.* and half1.* (core/aov_frame.h). "gloss-trans-1": also R split as Cycles splits it,
+// gloss_* and trans_* (core/aov_frame.h).
+inline constexpr const char* kFrameLayers = "gloss-trans-1";
 // Bumped whenever only the images of scenes with a sun change (part of their cache keys, frames
 // and references, beside kTracerVersion; scenes without a sun keep theirs). "sun-rim-1": a sun
 // sample that rounds to just outside the disc is a sky direction (Scene::in_sun), no longer the

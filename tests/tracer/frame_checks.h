@@ -49,4 +49,29 @@ inline void expect_split_holds(const AovFrame& f) {
       }
 }
 
+// R split as Cycles splits it, R = gc (gd + gi) + tc (td + ti), on every pixel and channel of
+// frame f. Per sample a part is tint x (part of the next level's light) where R is tint x (all of
+// it), or a lobe's weight x (first emission, rest) where R adds weight x (their sum): 2 roundings
+// each side plus the additions of the four parts (3); the pixel means are sums in double stored
+// as float (1 for R, 2 for each colour-weighted product). First order about 8u relative (every
+// term non-negative), so 16u; the absolute 1e-9 covers pixels whose R is near 0.
+inline void expect_specular_split_holds(const AovFrame& f) {
+  const Image& R = f.layer(layer::kReflection);
+  const Image& gd = f.layer(layer::kGlossDirect);
+  const Image& gi = f.layer(layer::kGlossIndirect);
+  const Image& gc = f.layer(layer::kGlossColor);
+  const Image& td = f.layer(layer::kTransDirect);
+  const Image& ti = f.layer(layer::kTransIndirect);
+  const Image& tc = f.layer(layer::kTransColor);
+  const double u = 0x1p-24;
+  for (int y = 0; y < R.height(); ++y)
+    for (int x = 0; x < R.width(); ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double composed = double(gc.at(x, y, c)) * (double(gd.at(x, y, c)) + gi.at(x, y, c)) +
+                                double(tc.at(x, y, c)) * (double(td.at(x, y, c)) + ti.at(x, y, c));
+        const double r = R.at(x, y, c);
+        EXPECT_LE(std::fabs(composed - r), 16 * u * std::fabs(r) + 1e-9) << x << "," << y << " c" << c;
+      }
+}
+
 }  // namespace dnb::test

@@ -127,13 +127,19 @@ TEST(HardDecomposition, PixelMeansHoldWithEveryHardMaterialAndALens) {
   s.spp = 16;
   const AovFrame f = render_frame(*scene, s);
   test::expect_split_holds(f);
+  test::expect_specular_split_holds(f);
   const Image& T = f.layer(layer::kAlbedo);
   const Image& R = f.layer(layer::kReflection);
-  int glossy_pixels = 0;
+  int glossy_pixels = 0, refracting = 0, reflecting = 0;
   for (int y = 0; y < s.height; ++y)
-    for (int x = 0; x < s.width; ++x)
+    for (int x = 0; x < s.width; ++x) {
       if (R.at(x, y, 0) > 0 && T.at(x, y, 1) < 0.5f) ++glossy_pixels;
+      if (f.layer(layer::kTransIndirect).at(x, y, 1) > 0) ++refracting;  // the glass balls
+      if (f.layer(layer::kGlossDirect).at(x, y, 1) > 0) ++reflecting;     // the sun in gold and plastic
+    }
   EXPECT_GT(glossy_pixels, 100);  // the spheres are there and reflect
+  EXPECT_GT(refracting, 30);
+  EXPECT_GT(reflecting, 30);
   EXPECT_EQ(f.meta.dropped_samples, 0);
 }
 

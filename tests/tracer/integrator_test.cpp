@@ -392,6 +392,7 @@ TEST(Decomposition, PixelMeansHoldOnEveryPixel) {
   s.spp = 16;
   AovFrame f = render_frame(*scene, s);
   test::expect_split_holds(f);
+  test::expect_specular_split_holds(f);  // the mirror sphere and the coated block: all gloss
   const Image& G = f.layer(layer::kEdge);
   int edges = 0;
   for (int y = 0; y < s.height; ++y)
