@@ -142,6 +142,11 @@ std::vector<Case> cases() {
 // plastic's internal Fdr takes: include/mitsuba/render/fresnel.h).
 double mitsuba_fdr_below_one(double eta) { return 0.0636 / eta + eta * (eta * -1.4399 + 0.7099) + 0.6681; }
 
+// Smith's masking from the tracer's Lambda, written out here rather than taken from Ggx::G1/G2, so
+// that a break of the tracer's G2 moves its image but not the bound it is judged by.
+double g1(const rt::Ggx& g, Vec3 w) { return 1.0 / (1.0 + g.lambda(w)); }
+double g2(const rt::Ggx& g, Vec3 wo, Vec3 wi) { return 1.0 / (1.0 + g.lambda(wo) + g.lambda(wi)); }
+
 constexpr int kQuad = 64;  // visible-normal quadrature: kQuad^2 midpoint nodes over (u1, u2)
 
 // E_m[F G1(wr)] (reflect) or E_m[(1 - F) G1(wt)] (transmit) over the visible normals of w.
@@ -156,10 +161,10 @@ double rough_interface(const rt::Ggx& g, Vec3 w, float eta, bool transmit) {
       const float f = rt::fresnel_dielectric(wm, eta, &cos_t);
       if (!transmit) {
         const Vec3 wr = rt::reflect(w, m);
-        if (wr.z > 0) sum += f * g.G1(wr);
+        if (wr.z > 0) sum += f * g1(g, wr);
       } else if (f < 1) {
         const Vec3 wt = rt::refract_dir(w, m, eta, cos_t);
-        if (wt.z < 0) sum += (1 - f) * g.G1(wt);
+        if (wt.z < 0) sum += (1 - f) * g1(g, wt);
       }
     }
   return sum / (kQuad * kQuad);
@@ -206,7 +211,7 @@ Vec3 model_difference(const rt::Material& m, const PlasticBase* base, Vec3 wo) {
   const rt::Ggx g{m.alpha_x, m.alpha_y};
   const float eta = m.ior;
   if (!g.smooth()) {
-    const float g1o = g.G1(wo);
+    const double g1o = g1(g, wo);
     for (int i = 0; i < kQuad; ++i)
       for (int j = 0; j < kQuad; ++j) {
         const Vec3 h = g.sample_visible(wo, (i + 0.5f) / kQuad, (j + 0.5f) / kQuad);
@@ -222,13 +227,13 @@ Vec3 model_difference(const rt::Material& m, const PlasticBase* base, Vec3 wo) {
           fr = m.tint * f;
         }
         if (wr.z > 0) {
-          const double w = g.G2(wo, wr) / g1o - g.G1(wr);
+          const double w = g2(g, wo, wr) / g1o - g1(g, wr);
           for (int c = 0; c < 3; ++c) d[c] += fr[c] * w;
         }
         if (m.type == rt::MaterialType::kDielectric && f < 1) {
           const Vec3 wt = rt::refract_dir(wo, h, eta, cos_t);
           if (wt.z < 0) {
-            const double w = (1 - f) * (g.G2(wo, wt) / g1o - g.G1(wt)) / (eta * eta);
+            const double w = (1 - f) * (g2(g, wo, wt) / g1o - g1(g, wt)) / (eta * eta);
             for (int c = 0; c < 3; ++c) d[c] += m.transmittance[c] * w;
           }
         }
