@@ -196,6 +196,11 @@ void check_mitsuba_exportable(const Scene& s) {
   if (s.sky.enabled && s.sky.gradient)
     refuse(s, "the gradient sky (zenith/horizon/ground blended by the cosine): Mitsuba 3's `constant` emitter is "
               "uniform, and an `envmap` would be a tabulated approximation");
+  // Mitsuba 3 has no animated transforms (its shapes and sensors are static): no motion blur.
+  if (s.camera.has_shutter() || s.camera.moving || s.camera.shutter_open > 0)
+    refuse(s, "the camera's shutter interval or motion (motion blur): Mitsuba 3 has no animated transforms");
+  for (const Mesh& mesh : s.meshes)
+    if (mesh.moving()) refuse(s, fmt::format("mesh '{}' moves (motion blur): Mitsuba 3 has no animated transforms", mesh.name));
   const std::vector<bool> used = used_materials(s);
   for (std::size_t i = 0; i < s.materials.size(); ++i) {
     if (!used[i]) continue;
@@ -214,6 +219,9 @@ void check_mitsuba_exportable(const Scene& s) {
     if (m.texture >= 0)
       refuse(s, name + ": textures are not exported (an image's v orientation and texel centres are not checked "
                        "against Mitsuba's bitmap; procedural textures would have to be baked)");
+    if (m.opacity >= 0)
+      refuse(s, name + ": an opacity (alpha cut-out) texture: textures are not exported, and Mitsuba's `mask` BSDF "
+                       "is not checked against the tracer's threshold at 0.5");
     if (m.is_emitter() && m.two_sided)
       refuse(s, name + ": a two-sided emitter: Mitsuba 3's area emitter emits from the front only, and a reversed "
                        "coincident copy would occlude it at random");

@@ -447,6 +447,9 @@ TEST(MitsubaExport, RefusesWhatMitsubaCannotRepresent) {
       {sky + "[materials.m]\ntype = \"plastic\"\nroughness_x = 0.2\nroughness_y = 0.1" + obj, "roughplastic is isotropic"},
       {sky + "[textures.t]\ntype = \"checker\"\n[materials.m]\ntexture = \"t\"" + obj, "textures"},
       {sky + "[materials.m]\nemission = [1, 1, 1]\ntwo_sided = true" + obj, "two-sided emitter"},
+      {sky + "[textures.t]\ntype = \"leaf\"\n[materials.m]\nopacity = \"t\"" + obj, "opacity"},
+      {sky + "[materials.m]\n" + obj + "translate_end = [1, 0, 0]\n", "moves"},
+      {std::string(kCamera) + "shutter = [0, 1]\n" + kSky + "[materials.m]\n" + obj, "shutter"},
       {sky + "[materials.m]\ntype = \"conductor\"\nroughness_x = 0.2\nroughness_y = 0.1\n"
              "[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\nradius = 1\n",
        "interpolated normals"},
