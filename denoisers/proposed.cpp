@@ -364,12 +364,37 @@ class Proposed final : public Method {
   }
 
   // The levels composed bottom-up (formula 1, paper 3.2): F'_k = (D'_k + I'_k) T_k + R'_k + E_k
-  // with R'_k = tint_{k+1} F'_{k+1}; the deepest level's R passes through.
+  // with R'_k = tint_{k+1} F'_{k+1} + (R_k - tint_{k+1} F_{k+1}); the deepest level's R passes
+  // through. The bracket is the part of R that no level below explains, passed through unfiltered
+  // as the deepest R is: the light of rough (non-delta) glossy and refracted lobes, which have no
+  // level behind them (rough metal, frosted glass, a rough coat), and the product-of-means
+  // remainder where the tint varies inside a pixel. Without it those surfaces came out black.
   Image compose_levels(const AovFrame& f, const Plan& plan, MethodStats& stats) const {
     Image below;  // F'_{k+1}: the composed, filtered level under the current one
     for (int k = plan.levels; k >= 0; --k) below = compose_level(f, plan, k, below, stats);
     return below;
   }
+
+  // R_k - tint_{k+1} F_{k+1} of the unfiltered frame at element j (compose_levels' comment), with
+  // F_{k+1} = (D + I) T + R + E of level k + 1; 0 when there is no level below.
+  struct Unexplained {
+    Unexplained(const AovFrame& f, int k, const Image* tint_below) : tint(tint_below) {
+      if (!tint) return;
+      refl = &f.layer(layer::at_level(k, layer::kReflection));
+      d = &f.layer(layer::at_level(k + 1, layer::kDirect));
+      i = &f.layer(layer::at_level(k + 1, layer::kIndirect));
+      t = &f.layer(layer::at_level(k + 1, layer::kAlbedo));
+      r = &f.layer(layer::at_level(k + 1, layer::kReflection));
+      e = &f.layer(layer::at_level(k + 1, layer::kEmission));
+    }
+    float operator()(std::size_t j) const {
+      if (!tint) return 0.0f;
+      const float below = (d->data()[j] + i->data()[j]) * t->data()[j] + r->data()[j] + e->data()[j];
+      return refl->data()[j] - tint->data()[j] * below;
+    }
+    const Image* tint;
+    const Image *refl = nullptr, *d = nullptr, *i = nullptr, *t = nullptr, *r = nullptr, *e = nullptr;
+  };
 
   Image compose_level(const AovFrame& f, const Plan& plan, int k, const Image& below, MethodStats& stats) const {
     const Filtered& fdk = plan.fd[std::size_t(k)];
@@ -379,11 +404,15 @@ class Proposed final : public Method {
     const Image& t = f.layer(layer::at_level(k, layer::kAlbedo));
     const Image& e = f.layer(layer::at_level(k, layer::kEmission));
     const Image& refl = f.layer(layer::at_level(k, layer::kReflection));
-    const Image* tint = k < plan.levels ? &f.layer(layer::at_level(k + 1, layer::kTint)) : nullptr;
+    const Image* raw_tint = k < plan.levels ? &f.layer(layer::at_level(k + 1, layer::kTint)) : nullptr;
+    const Image* tint = raw_tint;
     if (tint && !plan.tints[std::size_t(k)].empty()) tint = &plan.tints[std::size_t(k)];
+    const Unexplained unexplained(f, k, raw_tint);
+    auto reflected = [&](std::size_t j) {
+      return tint ? tint->data()[j] * below.data()[j] + unexplained(j) : refl.data()[j];
+    };
     tbb::parallel_for(std::size_t(0), out.size(), [&](std::size_t j) {
-      const float rr = tint ? tint->data()[j] * below.data()[j] : refl.data()[j];
-      out.data()[j] = (fdk.image.data()[j] + fik.image.data()[j]) * t.data()[j] + rr + e.data()[j];
+      out.data()[j] = (fdk.image.data()[j] + fik.image.data()[j]) * t.data()[j] + reflected(j) + e.data()[j];
     });
     if (k != 0 || !plan.edges) return out;
     // Formula 1 per sub-pixel: mean over s of (D'_s + I'_s) T_s, plus the pixel's R' + E.
@@ -398,8 +427,7 @@ class Proposed final : public Method {
           const std::size_t q = (n * EdgeSubpixels::kPerPixel + s) * 3 + c;
           sum += (fdk.queries[q] + fik.queries[q]) * sub[s].albedo[c];
         }
-        const float rr = tint ? tint->data()[px * 3 + c] * below.data()[px * 3 + c] : refl.data()[px * 3 + c];
-        o[c] = sum / EdgeSubpixels::kPerPixel + rr + e.data()[px * 3 + c];
+        o[c] = sum / EdgeSubpixels::kPerPixel + reflected(px * 3 + c) + e.data()[px * 3 + c];
       }
     });
     stats.counters["edge_pixels"] = double(g.size());
