@@ -78,18 +78,23 @@ struct LevelSample {
   Vec3 normal;
   float depth = 0;
   Vec3 tint;            // weight of the specular bounce into level + 1 (0 when not taken)
-  // R split as Cycles splits it: reflected (gloss) and refracted (trans) light, each direct or
-  // indirect, as radiance (not yet divided by its colour); R = their sum up to rounding. The
-  // colours are the material's glossy and transmission colours at the hit.
-  Vec3 gloss_direct, gloss_indirect, gloss_color, trans_direct, trans_indirect, trans_color;
   Vec3 attenuation{1.0f};  // absorption along this level's ray (inside coloured glass), folded into the parent's tint
   bool present = false; // level 0: always; level k: the sample went through k specular bounces
   Vec3 color() const { return (direct + indirect) * albedo + reflection + emission; }
 };
 
+// Level 0's R split as Cycles splits it: reflected (gloss) and refracted (trans) light, each
+// direct or indirect, as radiance (not yet divided by its colour); R = their sum up to rounding.
+// The colours are the material's glossy and transmission colours at the hit. Level 0 only (the
+// frame's layers), so kept apart from LevelSample, which every level zeroes.
+struct SpecularParts {
+  Vec3 gloss_direct, gloss_indirect, gloss_color, trans_direct, trans_indirect, trans_color;
+};
+
 struct SampleResult {
   LevelSample level[kMaxReflectionLevels + 1];
   int levels = 0;  // number of present levels (level[0 .. levels-1])
+  SpecularParts specular;  // of level 0
 };
 
 // Radiance along a ray, split into the emission of its first hit (or the escaped sky/sun
@@ -155,6 +160,10 @@ class PathTracer {
   // point of shading normal prev_n; path_weight is the path's weight so far (Russian roulette).
   PathRadiance trace(Ray ray, int depth, float prev_pdf, Vec3 prev_n, Vec3 path_weight, PathContext& ctx) const;
   void decompose(const Ray& ray, int level, int depth, PathContext& ctx, SampleResult& out) const;
+  // trace()'s step at a hard material: its light sample into `rest`, then the BSDF sample: the
+  // path's weight, the next ray and its density; false when the path ends there.
+  bool hard_vertex(const SurfaceHit& hit, Vec3 wo, PathContext& ctx, Vec3& beta, Vec3& rest, float& prev_pdf,
+                   Ray& ray) const;
   // The level's layers at a hard material (tracer/bsdf.h): the light sample and the BSDF sample,
   // their diffuse parts into D and I, their glossy parts into R; a delta lobe continues the
   // decomposition at level + 1 as a mirror does.

@@ -79,7 +79,7 @@ inline void pack_level(const LevelSample& l, float* o) {
   o[29] = o[30] = o[31] = 0;
 }
 
-inline void pack_specular(const LevelSample& l, float* o) {
+inline void pack_specular(const SpecularParts& l, float* o) {
   put3(o + acc::kGlossColor, l.gloss_color);
   put3(o + acc::kGlossDirect, l.gloss_direct);
   put3(o + acc::kGlossIndirect, l.gloss_indirect);

@@ -150,9 +150,13 @@ inline void accumulate_sample(const SampleResult& r, int K, LevelSums* sums, Gro
   const Vec3 f = r.level[0].color();
   alignas(32) double xvals[acc::kExtraSize] = {f.x, f.y, f.z, 0.0};
   add_values<acc::kExtraSize>(group.extra, xvals);
-  alignas(32) float svals[acc::kSpecularSize];
-  pack_specular(r.level[0], svals);
-  add_values<acc::kSpecularSize>(spec.v, svals);
+  // A sample whose first hit has no glossy or refracting lobe adds only zeros: skipped (most
+  // samples of most scenes; the sums are the same bits either way).
+  if (!is_black(r.specular.gloss_color) || !is_black(r.specular.trans_color)) {
+    alignas(32) float svals[acc::kSpecularSize];
+    pack_specular(r.specular, svals);
+    add_values<acc::kSpecularSize>(spec.v, svals);
+  }
   for (int k = 0; k < r.levels && k <= K; ++k) {
     pack_level(r.level[k], vals);
     LevelSums& L = k == 0 ? group.level : sums[k];

@@ -9,18 +9,6 @@ using namespace rt;
 
 namespace rt {
 
-void Mesh::uv_at(unsigned prim, float b1, float b2, float& u, float& v) const {
-  if (uvs.empty()) {
-    u = b1;
-    v = b2;
-    return;
-  }
-  const float* uv = &uvs[6 * prim];
-  const float b0 = 1.0f - b1 - b2;
-  u = uv[0] * b0 + uv[2] * b1 + uv[4] * b2;
-  v = uv[1] * b0 + uv[3] * b1 + uv[5] * b2;
-}
-
 Vec3 Mesh::normal_at(unsigned prim, float b1, float b2, float time) const {
   // The normals of the two time steps around `time`, interpolated as Embree interpolates the
   // positions (linearly in time between steps), then across the triangle (not normalised).
@@ -39,12 +27,7 @@ Vec3 SurfaceHit::spawn_origin(Vec3 dir) const {
   return p + ng * (dot(dir, ng) >= 0 ? offset : -offset);
 }
 
-Ray Camera::generate_ray_at(float fx, float fy, int width, int height, float u1, float u2, float time) const {
-  if (!moving) {
-    Ray r = generate_ray(fx, fy, width, height, u1, u2);
-    r.time = time;
-    return r;
-  }
+Ray Camera::generate_moving_ray(float fx, float fy, int width, int height, float u1, float u2, float time) const {
   // The camera's pose at `time`: eye and look_at interpolated, the frame made from them.
   Camera c = *this;
   c.moving = false;

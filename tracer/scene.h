@@ -102,7 +102,17 @@ struct Mesh {
   std::size_t time_steps() const { return 1 + later_positions.size(); }
   // Texture coordinates of triangle prim at barycentrics (b1, b2) (the barycentrics themselves
   // where the mesh has none).
-  void uv_at(unsigned prim, float b1, float b2, float& u, float& v) const;
+  void uv_at(unsigned prim, float b1, float b2, float& u, float& v) const {
+    if (uvs.empty()) {
+      u = b1;
+      v = b2;
+      return;
+    }
+    const float* uv = &uvs[6 * prim];
+    const float b0 = 1.0f - b1 - b2;
+    u = uv[0] * b0 + uv[2] * b1 + uv[4] * b2;
+    v = uv[1] * b0 + uv[3] * b1 + uv[5] * b2;
+  }
   // The interpolated (unnormalised) shading normal of a moving mesh at `time`.
   Vec3 normal_at(unsigned prim, float b1, float b2, float time) const;
 };
@@ -173,10 +183,16 @@ struct Camera {
   float time_at(float u) const { return shutter_open + (shutter_close - shutter_open) * u; }
   // The ray of generate_ray(fx, fy, width, height, u1, u2) with the camera where it is at
   // `time`, carrying the time.
-  Ray generate_ray_at(float fx, float fy, int width, int height, float u1, float u2, float time) const;
+  Ray generate_ray_at(float fx, float fy, int width, int height, float u1, float u2, float time) const {
+    if (moving) return generate_moving_ray(fx, fy, width, height, u1, u2, time);
+    Ray r = has_lens() ? generate_ray(fx, fy, width, height, u1, u2) : generate_ray(fx, fy, width, height);
+    r.time = time;
+    return r;
+  }
   void prepare();
 
  private:
+  Ray generate_moving_ray(float fx, float fy, int width, int height, float u1, float u2, float time) const;
   Vec3 forward_{0, 0, -1}, right_{1, 0, 0}, up_{0, 1, 0};
   float tan_half_ = 0.41421356f;
 };
