@@ -56,7 +56,7 @@ HardBsdf hard_bsdf_at(const SurfaceHit& hit) {
   b.type = m.type == MaterialType::kConductor ? HardType::kConductor
            : m.type == MaterialType::kDielectric ? HardType::kDielectric
                                                  : HardType::kPlastic;
-  b.ggx = Ggx{m.alpha_x, m.alpha_y};
+  b.ggx = Ggx{m.alpha_x * hit.roughness_scale, m.alpha_y * hit.roughness_scale};
   b.eta_c = m.eta_c;
   b.k_c = m.k_c;
   b.schlick = m.schlick;

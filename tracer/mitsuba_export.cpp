@@ -219,6 +219,8 @@ void check_mitsuba_exportable(const Scene& s) {
     if (m.texture >= 0)
       refuse(s, name + ": textures are not exported (an image's v orientation and texel centres are not checked "
                        "against Mitsuba's bitmap; procedural textures would have to be baked)");
+    if (m.normal_map >= 0 || m.roughness_map >= 0)
+      refuse(s, name + ": a normal or roughness map: textures are not exported");
     if (m.opacity >= 0)
       refuse(s, name + ": an opacity (alpha cut-out) texture: textures are not exported, and Mitsuba's `mask` BSDF "
                        "is not checked against the tracer's threshold at 0.5");

@@ -181,7 +181,7 @@ MaterialMap import_materials(Scene& scene, const fs::path& path, const std::vect
   map.of_obj.resize(mats.size());
   std::map<std::string, int> tex_cache;  // map_Kd / map_d name -> scene texture: each file read once
   // The scene texture of an MTL texture statement (`what`: map_Kd or map_d).
-  auto texture = [&](const tinyobj::material_t& om, const std::string& name, const char* what) {
+  auto texture = [&](const tinyobj::material_t& om, const std::string& name, const char* what, bool linear = false) {
     if (auto it = tex_cache.find(name); it != tex_cache.end()) return it->second;
     fs::path tp = find_file_ignoring_case(path.parent_path(), name);
     if (tp.empty())
@@ -189,7 +189,7 @@ MaterialMap import_materials(Scene& scene, const fs::path& path, const std::vect
                                    om.name, name, what, path.parent_path().string()));
     scene.files.push_back(tp.string());
     const int index = int(scene.textures.size());
-    scene.textures.push_back(load_image_texture(tp.string()));
+    scene.textures.push_back(load_image_texture(tp.string(), linear));
     return tex_cache[name] = index;
   };
   for (std::size_t i = 0; i < mats.size(); ++i) {
@@ -199,6 +199,12 @@ MaterialMap import_materials(Scene& scene, const fs::path& path, const std::vect
       m.texture = texture(om, om.diffuse_texname, "map_Kd");
       // map_Kd replaces Kd in most exporters' intent when Kd is black.
       if (max_component(m.albedo) <= 0) m.albedo = Vec3(1.0f);
+    }
+    // norm: a tangent-space normal map, data (never sRGB-decoded). Bump (height) maps are not read.
+    if (!om.normal_texname.empty()) {
+      m.normal_map = texture(om, om.normal_texname, "norm", true);
+      if (const std::string why = scene.textures[std::size_t(m.normal_map)]->data_problem(3); !why.empty())
+        throw InputError(fmt::format("'{}': material '{}': norm: {}", path.string(), om.name, why));
     }
     // map_d: the cut-out mask (foliage); its grey value or alpha is the coverage.
     if (!om.alpha_texname.empty()) {

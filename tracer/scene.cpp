@@ -1,5 +1,7 @@
 #include "tracer/scene.h"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "core/errors.h"
@@ -227,6 +229,35 @@ void Scene::commit() {
   sky_select_ = prob[emitters_.size() + ns + 1];
 }
 
+void Scene::apply_normal_map(const Mesh& m, unsigned prim, const Texture& map, SurfaceHit& hit) {
+  // The tangent frame of the triangle from its positions and texture coordinates (dp/du, dp/dv;
+  // time 0's positions for a moving mesh), about the front-facing shading normal, so that the map
+  // means the same whichever side the ray comes from; then flipped to the ray's side as the
+  // shading normal is.
+  const Vec3 p0 = m.positions[3 * prim], e1 = m.positions[3 * prim + 1] - p0, e2 = m.positions[3 * prim + 2] - p0;
+  float du1 = 1, dv1 = 0, du2 = 0, dv2 = 1;  // no uvs: the barycentrics are (u, v)
+  if (!m.uvs.empty()) {
+    const float* uv = &m.uvs[6 * prim];
+    du1 = uv[2] - uv[0], dv1 = uv[3] - uv[1], du2 = uv[4] - uv[0], dv2 = uv[5] - uv[1];
+  }
+  const float det = du1 * dv2 - du2 * dv1;
+  if (!(std::fabs(det) > 1e-12f)) return;  // degenerate texture coordinates: no frame
+  const Vec3 dpdu = (e1 * dv2 - e2 * dv1) * (1.0f / det), dpdv = (e2 * du1 - e1 * du2) * (1.0f / det);
+  const Vec3 n = hit.front ? hit.ns : -hit.ns;
+  Vec3 t = dpdu - n * dot(n, dpdu);
+  if (!(length(t) > 0)) return;
+  t = normalize(t);
+  Vec3 b = cross(n, t);
+  if (dot(b, dpdv) < 0) b = -b;  // mirrored texture coordinates
+  const Vec3 c = map.eval(hit.u, hit.v) * 2.0f - Vec3(1.0f);
+  Vec3 mapped = t * c.x + b * c.y + n * c.z;
+  if (!(length(mapped) > 0)) return;
+  mapped = normalize(hit.front ? mapped : -mapped);
+  // A mapped normal on the other side of the surface than the ray is not a shading normal the
+  // integrator can use (its samples would go below the surface): the unmapped one stays.
+  if (dot(mapped, hit.ng) > 0) hit.ns = mapped;
+}
+
 void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const {
   const Mesh& m = meshes[rh.hit.geomID];
   const unsigned prim = rh.hit.primID;
@@ -252,6 +283,9 @@ void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const
   m.uv_at(prim, b1, b2, hit.u, hit.v);
   hit.material = &materials[m.material[prim]];
   const Material& mat = *hit.material;
+  if (mat.normal_map >= 0) apply_normal_map(m, prim, *textures[std::size_t(mat.normal_map)], hit);
+  if (mat.roughness_map >= 0)
+    hit.roughness_scale = std::clamp(textures[std::size_t(mat.roughness_map)]->eval(hit.u, hit.v).x, 0.0f, 1.0f);
   if (mat.type == MaterialType::kMirror || mat.type == MaterialType::kConductor || mat.type == MaterialType::kDielectric) {
     hit.albedo = Vec3(0.0f);
   } else {

@@ -71,6 +71,11 @@ struct Material {
   // surface is there where the opacity is at least 0.5 and a hole elsewhere, for every ray
   // (camera, shadow, light and AOV rays alike: an Embree filter function, Scene::commit).
   int opacity = -1;
+  // A tangent-space normal map (Scene::textures, linear RGB in [0, 1] -> [-1, 1], z along the
+  // surface normal, x along increasing u, y along increasing v), or -1.
+  int normal_map = -1;
+  // Hard materials: GGX alpha (both axes) times this texture's first channel, or -1.
+  int roughness_map = -1;
   bool is_hard() const { return type >= MaterialType::kConductor; }
   bool is_specular() const { return type != MaterialType::kDiffuse; }
   bool is_emitter() const { return !is_black(emission); }
@@ -125,6 +130,7 @@ struct SurfaceHit {
   Vec3 ns;                    // unit shading normal, flipped to the same side as ng
   float u = 0, v = 0;         // texture coordinates
   float time = 0;             // the ray's time (Ray::time): rays leaving this hit carry it
+  float roughness_scale = 1;  // the material's roughness map at (u, v) (Material::roughness_map)
   bool front = true;          // the ray hit the triangle's front (winding) side
   unsigned geom = 0, prim = 0;
   const Material* material = nullptr;
@@ -307,6 +313,8 @@ class Scene {
     const rt::Mesh* mesh;
   };
   static void cutout_filter(const RTCFilterFunctionNArguments* args);
+  // Material::normal_map applied to hit.ns.
+  static void apply_normal_map(const rt::Mesh& m, unsigned prim, const rt::Texture& map, rt::SurfaceHit& hit);
   std::vector<std::unique_ptr<Cutout>> cutout_;  // per mesh; null where no material cuts out
 
   RTCDevice device_ = nullptr;

@@ -253,11 +253,24 @@ class Loader {
         throw InputError(fmt::format("{}: texture '{}': {}", t.where("opacity"), cutout, why));
       m.opacity = it->second;
     }
+    m.normal_map = data_texture(t, "normal_map", 3);
     if (m.is_hard()) read_hard_material(t, m);
   }
 
   // The hard materials' keys (tracer/bsdf.h), read only for their types, so that a key of
   // another type's (roughness on a diffuse material) is refused as unknown by finish().
+  // The texture a material key names as data (a normal or roughness map): known, and able to hold
+  // data (tracer/texture.h's data_problem); -1 without the key.
+  int data_texture(ConfigTable& t, const char* key, int min_channels) {
+    const std::string name = t.get(key, std::string());
+    if (name.empty()) return -1;
+    auto it = texture_index_.find(name);
+    if (it == texture_index_.end()) throw InputError(fmt::format("{}: no texture '{}' in [textures]", t.where(key), name));
+    if (const std::string why = scene_.textures[std::size_t(it->second)]->data_problem(min_channels); !why.empty())
+      throw InputError(fmt::format("{}: texture '{}': {}", t.where(key), name, why));
+    return it->second;
+  }
+
   void read_hard_material(ConfigTable& t, Material& m) {
     static constexpr RealBound kRoughness{0, 1, "roughness is GGX's alpha, 0 (smooth) to 1 (very rough)"};
     const float r = float(t.get("roughness", 0.0, kRoughness));
@@ -266,6 +279,10 @@ class Loader {
     if ((m.alpha_x < 1e-3f) != (m.alpha_y < 1e-3f))
       throw InputError(fmt::format("{}: roughness_x and roughness_y must both be below 0.001 (smooth) or both above",
                                    t.where("roughness_x")));
+    m.roughness_map = data_texture(t, "roughness_texture", 1);
+    if (m.roughness_map >= 0 && m.alpha_x < 1e-3f)
+      throw InputError(fmt::format("{}: a roughness texture scales the roughness, which is 0 (smooth) here",
+                                   t.where("roughness_texture")));
     if (m.type == MaterialType::kConductor) {
       static constexpr RealBound kEta{0, 100, "a conductor's refractive index is positive, below 100", true};
       static constexpr RealBound kK{0, 100, "a conductor's extinction coefficient is in [0, 100]"};

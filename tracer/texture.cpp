@@ -23,8 +23,10 @@ float fract(float x) { return x - std::floor(x); }
 class ImageTexture final : public Texture {
  public:
   // coverage: the alpha (4 channels) or the grey value (1 channel) as stored, or empty.
-  ImageTexture(std::string path, int w, int h, int channels, std::vector<float> rgb, std::vector<float> coverage)
-      : path_(std::move(path)), w_(w), h_(h), channels_(channels), rgb_(std::move(rgb)), coverage_(std::move(coverage)) {}
+  ImageTexture(std::string path, int w, int h, int channels, bool decoded, std::vector<float> rgb,
+               std::vector<float> coverage)
+      : path_(std::move(path)), w_(w), h_(h), channels_(channels), decoded_(decoded), rgb_(std::move(rgb)),
+        coverage_(std::move(coverage)) {}
   // Bilinear between texel centres, wrapping around (textures of the scenes tile).
   template <typename F>
   auto bilinear(float u, float v, F&& texel) const -> std::decay_t<decltype(texel(std::size_t(0)))> {
@@ -54,10 +56,21 @@ class ImageTexture final : public Texture {
     return fmt::format("image '{}' has {} channels; an opacity needs 1 (grey coverage) or 4 (RGBA: the alpha)", path_,
                        channels_);
   }
+  std::string data_problem(int min_channels) const override {
+    if (decoded_)
+      return fmt::format("image '{}' is read as sRGB colour (8 or 16 bits); a map of data needs its texture's "
+                         "`linear = true`",
+                         path_);
+    if (channels_ < min_channels)
+      return fmt::format("image '{}' has {} channel{}; this map needs {}", path_, channels_, channels_ == 1 ? "" : "s",
+                         min_channels);
+    return {};
+  }
 
  private:
   std::string path_;
   int w_, h_, channels_;
+  bool decoded_;  // the values were sRGB-decoded
   std::vector<float> rgb_;
   std::vector<float> coverage_;
 };
@@ -197,7 +210,7 @@ void require_regular_file(const std::string& path, const std::string& context, c
     throw InputError(fmt::format("{}: {} '{}' is not a regular file", context, what, path));
 }
 
-std::unique_ptr<Texture> load_image_texture(const std::string& path) {
+std::unique_ptr<Texture> load_image_texture(const std::string& path, bool linear) {
   require_regular_file(path, "texture", "image file");
   OIIO::ImageBuf in(path);
   // The size from the header first: a huge image must not be allocated before it is refused.
@@ -217,9 +230,9 @@ std::unique_ptr<Texture> load_image_texture(const std::string& path) {
   if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT))
     throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
   const OIIO::ImageSpec& spec = in.spec();
-  const bool encoded = spec.format.basetype == OIIO::TypeDesc::UINT8 ||
-                       in.nativespec().format.basetype == OIIO::TypeDesc::UINT8 ||
-                       in.nativespec().format.basetype == OIIO::TypeDesc::UINT16;
+  const bool encoded = !linear && (spec.format.basetype == OIIO::TypeDesc::UINT8 ||
+                                   in.nativespec().format.basetype == OIIO::TypeDesc::UINT8 ||
+                                   in.nativespec().format.basetype == OIIO::TypeDesc::UINT16);
   const int w = spec.width, h = spec.height, c = spec.nchannels;
   std::vector<float> px(std::size_t(w) * h * c);
   in.get_pixels(OIIO::ROI(0, w, 0, h, 0, 1, 0, c), OIIO::TypeDesc::FLOAT, px.data());
@@ -235,7 +248,7 @@ std::unique_ptr<Texture> load_image_texture(const std::string& path) {
     coverage.resize(std::size_t(w) * h);
     for (std::size_t i = 0; i < coverage.size(); ++i) coverage[i] = px[i * c + (c - 1)];
   }
-  return std::make_unique<ImageTexture>(path, w, h, c, std::move(rgb), std::move(coverage));
+  return std::make_unique<ImageTexture>(path, w, h, c, encoded, std::move(rgb), std::move(coverage));
 }
 
 // Pattern scales and counts: finite, positive, and small enough that u * scale keeps float precision.
@@ -252,7 +265,7 @@ std::unique_ptr<Texture> make_texture(ConfigTable& t, const std::string& scene_d
     if (p.is_relative()) p = std::filesystem::path(scene_dir) / p;
     require_regular_file(p.string(), t.where("file"), "texture file");
     files.push_back(p.string());
-    tex = load_image_texture(p.string());
+    tex = load_image_texture(p.string(), t.get("linear", false));
   } else if (type == "checker") {
     float scale = float(t.get("scale", 8.0, kTextureScale));
     Vec3 a = vec3(t.get("color_a", std::array<double, 3>{0.8, 0.8, 0.8}, bounds::kReflectance));

@@ -28,20 +28,26 @@ class Texture {
   // Why this texture cannot be an opacity (an image with 2 or 3 channels: which one would be
   // coverage is a guess), or empty.
   virtual std::string opacity_problem() const { return {}; }
+  // Why this texture cannot hold data (a normal map, a roughness map) rather than a colour: an
+  // 8-bit or 16-bit image decoded from sRGB (its `linear` key turns that off), or, with
+  // `min_channels`, an image of fewer channels; empty when it can. Procedural textures can.
+  virtual std::string data_problem(int min_channels) const { return {}; }
 };
 
 // An image file (any format OpenImageIO reads). 8-bit images are taken as sRGB-encoded and
 // converted to linear; float images are used as they are. Bilinear lookup, repeating edges,
 // v = 0 at the bottom row (the OBJ convention). Throws InputError naming the file when it
 // cannot be read, is not a regular file, or is larger than an Image may be (core/bounds.h).
-std::unique_ptr<Texture> load_image_texture(const std::string& path);
+// linear: take 8- and 16-bit values as they are (data such as normal maps), not as sRGB.
+std::unique_ptr<Texture> load_image_texture(const std::string& path, bool linear = false);
 
 // InputError "CONTEXT: WHAT 'PATH' not found" or "... is not a regular file" (a folder, a
 // device such as /dev/zero, a pipe): the files a scene reads as meshes and textures.
 void require_regular_file(const std::string& path, const std::string& context, const std::string& what);
 
 // A texture described by a [textures.NAME] table of a scene file:
-//   type = "image"   file = "path" (relative to the scene file's folder)
+//   type = "image"   file = "path" (relative to the scene file's folder), linear = false (true:
+//                    8- and 16-bit values are data, not sRGB: normal and roughness maps)
 //   type = "checker" scale, color_a, color_b
 //   type = "wood"    scale, color_a (light wood), color_b (dark rings), rings (rings per unit)
 //   type = "brick"   scale, color_a (brick), color_b (mortar), rows, mortar (fraction), variation
