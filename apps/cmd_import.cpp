@@ -18,7 +18,7 @@ void add_import(CLI::App& app, Action& action) {
   auto* cmd = app.add_subcommand("import", "Write another renderer's EXR (Blender Cycles, pbrt-v4, Mitsuba 3, or any "
                                            "through a mapping file) as an AOV frame in the harness's layout");
   struct Opts {
-    std::string format, input, output, layer;
+    std::string format, input, output, layer, second;
     int spp = 0;
     bool json = false;
   };
@@ -28,8 +28,11 @@ void add_import(CLI::App& app, Action& action) {
       ->required();
   cmd->add_option("IN", o->input, "the renderer's EXR")->required();
   cmd->add_option("-o,--output", o->output, "the frame to write (EXR), written atomically")->required();
-  cmd->add_option("--spp", o->spp, "the frame's samples per pixel (over any the file records; foreign files often record none)")
+  cmd->add_option("--spp", o->spp, "the frame's samples per pixel (over any the file records; foreign files often record none; with --second, each file's)")
       ->check(in_bounds(bounds::kSpp));
+  cmd->add_option("--second", o->second,
+                  "a second render of the same view with another seed: the two become the frame's half buffers "
+                  "(half0.*, half1.*) and give the variances the files lack, so nfor, svgf and kpcn can run");
   cmd->add_option("--layer", o->layer, "the prefix of the passes (a Cycles view layer's name) when the file holds several");
   cmd->add_flag("--json", o->json, "print the report as JSON");
   // The methods listed as able to run on the frame include the plug-ins `denoise` would load.
@@ -41,8 +44,14 @@ void add_import(CLI::App& app, Action& action) {
       // The frame and its edge file both replace what is there: neither may be the input.
       require_output_is_not_input(o->output, {{"input", o->input}});
       require_output_is_not_input(edges_path(o->output), {{"input", o->input}});
+      if (!o->second.empty()) {
+        require_output_is_not_input(o->output, {{"second", o->second}});
+        require_output_is_not_input(edges_path(o->output), {{"second", o->second}});
+      }
       const interop::ImportMapping mapping = interop::mapping_for(o->format);
-      interop::Imported im = interop::import_frame(o->input, mapping, {.spp = o->spp, .prefix = o->layer});
+      const interop::ImportOptions options{.spp = o->spp, .prefix = o->layer};
+      interop::Imported im = o->second.empty() ? interop::import_frame(o->input, mapping, options)
+                                               : interop::import_frame_pair(o->input, o->second, mapping, options);
       write_frame(im.frame, o->output);
       const interop::ImportReport& r = im.report;
       const auto methods = methods_for_frame(im.frame);

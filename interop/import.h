@@ -119,6 +119,19 @@ struct Imported {
 // prefixes found when "auto" finds several (pass ImportOptions::prefix to choose).
 Imported import_frame(const std::string& path, const ImportMapping& mapping, const ImportOptions& options = {});
 
+// Two renders of one view with different seeds (`import --second`), each read through the
+// mapping, as one frame: every layer their mean, half0.* and half1.* the two files' layers (those
+// the tracer's frames have halves of), and the variances of the means the files do not carry from
+// the two: variance, direct_variance and indirect_variance = (a - b)^2 / 4, one degree of freedom
+// per value (a file's own variance layers become the sum of the two over 4). spp the sum. So the
+// methods that need half buffers or variances (nfor, svgf, kpcn) run on the frame. InputError
+// naming the files when their sizes or layers differ, when either already has half buffers, or
+// when their colours are identical (the same seed twice).
+Imported import_frame_pair(const std::string& first, const std::string& second, const ImportMapping& mapping,
+                           const ImportOptions& options = {});
+// The same from two frames already read (`first`'s report is extended).
+Imported combine_halves(Imported first, Imported second, const std::string& first_path, const std::string& second_path);
+
 // --input-format: "native" (the harness's own layout), "auto", a preset or "map:FILE.toml".
 // "auto" reads a frame the harness wrote (denoisebench: attributes) natively, then tries each
 // preset's detect rules in order, and reads anything else natively.

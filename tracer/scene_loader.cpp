@@ -372,6 +372,12 @@ class Loader {
           throw InputError(fmt::format("{}: a moving object cannot emit (material '{}'): light sampling assumes "
                                        "emitters that stay where they are",
                                        t.where(key), scene_.materials[mi].name));
+      // Each step is a copy of the mesh's corners: bounded like the triangles of one mesh.
+      const std::int64_t copies = std::int64_t(motion_steps(start, end)) * std::int64_t(m.triangles());
+      if (copies > bounds::kMaxTriangles)
+        throw InputError(fmt::format("{}: {} time steps of {} triangles are more than {} triangles' corners (fewer "
+                                     "degrees of rotation, or a smaller mesh)",
+                                     t.where(key), motion_steps(start, end), m.triangles(), bounds::kMaxTriangles));
       add_motion(m, start, end);
     }
   }

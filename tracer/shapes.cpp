@@ -124,11 +124,15 @@ void repeat_mesh(Mesh& mesh, int copies, Vec3 step) {
   }
 }
 
-void add_motion(Mesh& mesh, const Transform& start, const Transform& end) {
+int motion_steps(const Transform& start, const Transform& end) {
   const Vec3 dr = end.rot_deg - start.rot_deg;
   const float turn = std::max(std::fabs(dr.x), std::max(std::fabs(dr.y), std::fabs(dr.z)));
   // A chord of a 5-degree arc is within 0.1% of the radius of the arc (1 - cos 2.5 degrees).
-  const int steps = 1 + std::clamp(int(std::ceil(turn / 5.0f)), 1, 128);
+  return 1 + int(std::clamp(std::ceil(turn / 5.0f), 1.0f, 128.0f));
+}
+
+void add_motion(Mesh& mesh, const Transform& start, const Transform& end) {
+  const int steps = motion_steps(start, end);
   mesh.later_positions.assign(std::size_t(steps - 1), {});
   mesh.later_normals.assign(mesh.normals.empty() ? 0 : std::size_t(steps - 1), {});
   for (int k = 1; k < steps; ++k) {

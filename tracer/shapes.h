@@ -54,6 +54,8 @@ struct Transform {
 // at time 1. Enough steps that Embree's linear interpolation between them stays within a degree
 // of the true rotation (one step per 5 degrees of the largest angle change, at least one).
 void add_motion(Mesh& mesh, const Transform& start, const Transform& end);
+// The number of time steps add_motion gives a motion from `start` to `end` (2 to 129).
+int motion_steps(const Transform& start, const Transform& end);
 
 // Builds meshes of primitives. uv of every face spans [0, uv_scale].
 struct MeshBuilder {

@@ -31,7 +31,7 @@ class Texture {
   // Why this texture cannot hold data (a normal map, a roughness map) rather than a colour: an
   // 8-bit or 16-bit image decoded from sRGB (its `linear` key turns that off), or, with
   // `min_channels`, an image of fewer channels; empty when it can. Procedural textures can.
-  virtual std::string data_problem(int min_channels) const { return {}; }
+  virtual std::string data_problem(int /*min_channels*/) const { return {}; }
 };
 
 // An image file (any format OpenImageIO reads). 8-bit images are taken as sRGB-encoded and

@@ -11,6 +11,7 @@
 #include "core/exr_io.h"
 #include "denoisers/method.h"
 #include "interop/import.h"
+#include "methods/denoise.h"
 #include <nlohmann/json.hpp>
 
 #include "test_util.h"
@@ -35,11 +36,11 @@ std::vector<float> plane(unsigned seed, float lo = 0.0f, float hi = 1.0f) {
 // A Cycles multilayer EXR as Blender writes one: every pass under the view layer's name, RGB
 // passes as .R/.G/.B, Combined with .A, vectors as .X/.Y/.Z, Depth.Z, the sample count in the
 // header. Combined is composed exactly as Cycles does, in float.
-test::Channels cycles_channels(const std::string& vl, bool transmission) {
+test::Channels cycles_channels(const std::string& vl, bool transmission, unsigned first_seed = 1) {
   test::Channels ch;
   std::map<std::string, std::vector<float>> p;
   const char* rgb[] = {"R", "G", "B"};
-  unsigned seed = 1;
+  unsigned seed = first_seed;
   std::vector<std::string> passes = {"DiffDir", "DiffInd", "DiffCol", "GlossDir", "GlossInd", "GlossCol", "Emit"};
   if (transmission) passes.insert(passes.end(), {"TransDir", "TransInd", "TransCol"});
   for (const auto& pass : passes)
@@ -152,6 +153,66 @@ TEST(CyclesImport, WithoutLightPassesTheDenoisingDataServe) {
   for (const auto& [l, why] : im.report.left_out) left.push_back(l);
   EXPECT_THAT(left, ::testing::ElementsAre("direct", "emission", "gloss_color", "gloss_direct", "gloss_indirect",
                                            "indirect", "reflection", "trans_color", "trans_direct", "trans_indirect"));
+}
+
+// Two renders of one view with different seeds (import --second): their layers are the frame's
+// half buffers, every layer their mean, the colour's and illumination's variances (a - b)^2 / 4,
+// the spp their sum; then nfor, svgf and kpcn (plug-in manifests aside: the built-ins) can run.
+TEST(PairImport, TwoSeedsBecomeHalfBuffersAndVariances) {
+  test::TempDir dir;
+  const auto a = cycles_channels("ViewLayer", false, 1), b = cycles_channels("ViewLayer", false, 500);
+  test::write_exr(dir.file("a.exr"), kW, kH, a, {{"cycles.ViewLayer.samples", "64"}});
+  test::write_exr(dir.file("b.exr"), kW, kH, b, {{"cycles.ViewLayer.samples", "64"}});
+  const interop::Imported im =
+      interop::import_frame_pair(dir.file("a.exr"), dir.file("b.exr"), interop::preset("cycles"));
+  const AovFrame& f = im.frame;
+  EXPECT_EQ(f.meta.spp, 128);
+  const auto& ca = channel(a, "ViewLayer.Combined.G");
+  const auto& cb = channel(b, "ViewLayer.Combined.G");
+  const auto& da = channel(a, "ViewLayer.DiffDir.R");
+  const auto& db = channel(b, "ViewLayer.DiffDir.R");
+  for (std::size_t i = 0; i < kN; ++i) {
+    EXPECT_EQ(f.layer("half0.color").data()[3 * i + 1], ca[i]);
+    EXPECT_EQ(f.layer("half1.color").data()[3 * i + 1], cb[i]);
+    EXPECT_FLOAT_EQ(f.layer("color").data()[3 * i + 1], (ca[i] + cb[i]) / 2);
+    EXPECT_FLOAT_EQ(f.layer("variance").data()[3 * i + 1], (ca[i] - cb[i]) * (ca[i] - cb[i]) / 4);
+    EXPECT_FLOAT_EQ(f.layer("direct_variance").data()[3 * i], (da[i] - db[i]) * (da[i] - db[i]) / 4);
+    EXPECT_EQ(f.layer("half1.direct").data()[3 * i], db[i]);
+  }
+  for (const char* l : {"half0.albedo", "half1.normal", "half0.depth", "indirect_variance"}) EXPECT_TRUE(f.has(l)) << l;
+  EXPECT_EQ(f.meta.extra.at("import.second"), dir.file("b.exr"));
+  const std::vector<std::string> methods = methods_for_frame(f);
+  for (const char* m : {"nfor", "svgf", "proposed"})
+    EXPECT_NE(std::find(methods.begin(), methods.end(), m), methods.end()) << m << ": " << ::testing::PrintToString(methods);
+  // One file alone: no halves, no variance, so neither nfor nor svgf.
+  const std::vector<std::string> single =
+      methods_for_frame(interop::import_frame(dir.file("a.exr"), interop::preset("cycles")).frame);
+  EXPECT_EQ(std::find(single.begin(), single.end(), "nfor"), single.end());
+  EXPECT_EQ(std::find(single.begin(), single.end(), "svgf"), single.end());
+}
+
+TEST(PairImport, HalvesThatCannotBeOneFrameAreRefusedNamingTheFiles) {
+  test::TempDir dir;
+  const auto a = cycles_channels("ViewLayer", false, 1);
+  test::write_exr(dir.file("a.exr"), kW, kH, a);
+  test::write_exr(dir.file("same.exr"), kW, kH, a);
+  auto refusal = [&](const std::string& second) {
+    return test::error_of<InputError>(
+        [&] { interop::import_frame_pair(dir.file("a.exr"), dir.file(second), interop::preset("cycles")); });
+  };
+  EXPECT_THAT(refusal("same.exr"), HasSubstr("another seed"));
+  // Another size.
+  test::Channels small;
+  for (const auto& [n, v] : cycles_channels("ViewLayer", false, 9))
+    small.emplace_back(n, std::vector<float>(v.begin(), v.begin() + (kW - 1) * kH));
+  test::write_exr(dir.file("small.exr"), kW - 1, kH, small);
+  EXPECT_THAT(refusal("small.exr"), HasSubstr("small.exr' is 11x9"));
+  // Other passes: the second without the gloss passes has no reflection layer.
+  test::Channels nogloss;
+  for (const auto& [n, v] : cycles_channels("ViewLayer", false, 9))
+    if (n.find("Gloss") == std::string::npos) nogloss.emplace_back(n, v);
+  test::write_exr(dir.file("nogloss.exr"), kW, kH, nogloss);
+  EXPECT_THAT(refusal("nogloss.exr"), HasSubstr("no layer"));
 }
 
 TEST(CyclesImport, TwoViewLayersNeedAChoice) {
