@@ -175,14 +175,19 @@ std::string cutout_scene(const std::string& extra = "") {
          extra;
 }
 
-TEST(Cutout, CameraRaysAndEveryLayerSeeTheHoles) {
+// A 32 x 32, 4-spp frame of a scene's text.
+AovFrame render_32(const std::string& text) {
   test::TempDir dir;
-  auto scene = load_scene(test::write_text(dir.file("cut.toml"), cutout_scene()));
+  auto scene = load_scene(test::write_text(dir.file("scene.toml"), text));
   RenderSettings s;
   s.width = 32;
   s.height = 32;
   s.spp = 4;
-  const AovFrame f = render_frame(*scene, s);
+  return render_frame(*scene, s);
+}
+
+TEST(Cutout, CameraRaysAndEveryLayerSeeTheHoles) {
+  const AovFrame f = render_32(cutout_scene());
   const Image& F = f.layer(layer::kColor);
   const Image& N = f.layer(layer::kNormal);
   const Image& Z = f.layer(layer::kDepth);
@@ -245,13 +250,7 @@ TEST(Cutout, ShadowsOnTheFloorHaveTheHolesShape) {
       "[materials.leaf]\nalbedo = [0, 0, 0]\nopacity = \"mask\"\n[materials.floor]\nalbedo = [0.5, 0.5, 0.5]\n"
       "[[objects]]\ntype = \"quad\"\nmaterial = \"leaf\"\nvertices = [-2, 1, 2,  2, 1, 2,  2, 1, -2,  -2, 1, -2]\n"
       "[[objects]]\ntype = \"quad\"\nmaterial = \"floor\"\nsize = [10, 10]\n";
-  test::TempDir dir;
-  auto scene = load_scene(test::write_text(dir.file("shadow.toml"), text));
-  RenderSettings s;
-  s.width = 32;
-  s.height = 32;
-  s.spp = 4;
-  const AovFrame f = render_frame(*scene, s);
+  const AovFrame f = render_32(text);
   const Image& F = f.layer(layer::kColor);
   // vfov 2 atan(2): the camera at height 0.5 sees the floor's [-1, 1]^2, one cell per quadrant.
   int lit = 0, dark = 0;
@@ -283,45 +282,37 @@ TEST(Cutout, ShadowsOnTheFloorHaveTheHolesShape) {
 
 // ---- Refusals ----
 
-void expect_refused(const std::string& text, const std::string& key) {
-  test::TempDir dir;
-  const std::string path = test::write_text(dir.file("bad.toml"), text);
-  const std::string msg = test::error_of<InputError>([&] { load_scene(path); });
-  EXPECT_NE(msg.find("bad.toml:"), std::string::npos) << msg;
-  EXPECT_NE(msg.find(key), std::string::npos) << msg;
-}
-
 TEST(MotionAndCutouts, BadValuesAreRefusedNamingFileLineAndKey) {
   const std::string moving = blur_scene("", "translate_end = [2, 0, 0]");
   auto with_shutter = [&](const std::string& s) {
     std::string t = moving;
     return t.replace(t.find("shutter = [0, 1]"), 16, s);
   };
-  expect_refused(with_shutter("shutter = [0.6, 0.2]"), "shutter");  // opens after it closes
-  expect_refused(with_shutter("shutter = [0, 2]"), "shutter");      // outside the frame interval
-  expect_refused(with_shutter("shutter = [0.5]"), "shutter");
-  expect_refused(with_shutter("shutter = [nan, 1]"), "shutter");
-  expect_refused(blur_scene("eye_end = [0, 0, 0]", ""), "look_at_end");  // looks at itself
-  expect_refused(blur_scene("", "translate_end = [2, 0, 0]\nrepeat = 2\nrepeat_offset = [0, 1, 0]"), "repeat");
-  expect_refused(blur_scene("", "rotate_end = [0, 0, inf]"), "rotate_end");
-  expect_refused(blur_scene("", "scale_end = 0"), "scale_end");
+  test::expect_scene_refused(with_shutter("shutter = [0.6, 0.2]"), "shutter");  // opens after it closes
+  test::expect_scene_refused(with_shutter("shutter = [0, 2]"), "shutter");      // outside the frame interval
+  test::expect_scene_refused(with_shutter("shutter = [0.5]"), "shutter");
+  test::expect_scene_refused(with_shutter("shutter = [nan, 1]"), "shutter");
+  test::expect_scene_refused(blur_scene("eye_end = [0, 0, 0]", ""), "look_at_end");  // looks at itself
+  test::expect_scene_refused(blur_scene("", "translate_end = [2, 0, 0]\nrepeat = 2\nrepeat_offset = [0, 1, 0]"), "repeat");
+  test::expect_scene_refused(blur_scene("", "rotate_end = [0, 0, inf]"), "rotate_end");
+  test::expect_scene_refused(blur_scene("", "scale_end = 0"), "scale_end");
   // A moving emitter, and motion keys on a light.
   std::string glow = moving;
   glow.replace(glow.find("albedo = [0.5, 0.5, 0.5]"), 24, "emission = [1, 1, 1]");
-  expect_refused(glow, "translate_end");
-  expect_refused(blur_scene("", "") +
+  test::expect_scene_refused(glow, "translate_end");
+  test::expect_scene_refused(blur_scene("", "") +
                      "[[lights]]\ntype = \"quad\"\nsize = [1, 1]\nemission = [1, 1, 1]\ntranslate_end = [1, 0, 0]\n",
                  "translate_end");
   // Cut-outs: an unknown texture; an image of three channels (which one is coverage?).
   std::string unknown = cutout_scene();
   unknown.replace(unknown.find("opacity = \"mask\""), 16, "opacity = \"mask2\"");
-  expect_refused(unknown, "opacity");
+  test::expect_scene_refused(unknown, "opacity");
   test::TempDir dir;
   test::write_exr(dir.file("rgb.exr"), 2, 2, {{"R", {1, 0, 1, 0}}, {"G", {1, 0, 1, 0}}, {"B", {1, 0, 1, 0}}});
   std::string rgb = cutout_scene();
   rgb.replace(rgb.find("[textures.mask]\ntype = \"checker\""), 32,
               "[textures.mask]\ntype = \"image\"\nfile = \"" + dir.file("rgb.exr") + "\"\n[textures.unused]\ntype = \"checker\"");
-  expect_refused(rgb, "3 channels");
+  test::expect_scene_refused(rgb, "3 channels");
 }
 
 TEST(Cutout, AGreyOrAlphaImageIsACoverageMask) {

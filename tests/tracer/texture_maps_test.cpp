@@ -116,14 +116,6 @@ TEST(RoughnessTexture, ScalesGgxAlpha) {
   EXPECT_TRUE(differs_from_unscaled);
 }
 
-void expect_refused(const std::string& text, const std::string& says) {
-  test::TempDir dir;
-  const std::string path = test::write_text(dir.file("bad.toml"), text);
-  const std::string msg = test::error_of<InputError>([&] { load_scene(path); });
-  EXPECT_NE(msg.find("bad.toml:"), std::string::npos) << msg;
-  EXPECT_NE(msg.find(says), std::string::npos) << msg;
-}
-
 TEST(TextureMaps, MapsOfColourOrTooFewChannelsAreRefusedByName) {
   test::TempDir dir;
   // An 8-bit PNG is sRGB colour unless its texture says linear = true.
@@ -136,20 +128,20 @@ TEST(TextureMaps, MapsOfColourOrTooFewChannelsAreRefusedByName) {
     out->close();
   }
   const std::string png = "[textures.n]\ntype = \"image\"\nfile = \"" + dir.file("n.png") + "\"";
-  expect_refused(plane_scene(png, "normal_map = \"n\""), "linear = true");
+  test::expect_scene_refused(plane_scene(png, "normal_map = \"n\""), "linear = true");
   test::TempDir ok_dir;
   EXPECT_NO_THROW(load_scene(test::write_text(ok_dir.file("ok.toml"), plane_scene(png + "\nlinear = true", "normal_map = \"n\""))));
   // A normal map needs three channels.
   test::write_exr(dir.file("grey.exr"), 1, 1, {{"Y", {0.5f}}});
-  expect_refused(plane_scene("[textures.g]\ntype = \"image\"\nfile = \"" + dir.file("grey.exr") + "\"", "normal_map = \"g\""),
+  test::expect_scene_refused(plane_scene("[textures.g]\ntype = \"image\"\nfile = \"" + dir.file("grey.exr") + "\"", "normal_map = \"g\""),
                  "1 channel");
-  expect_refused(plane_scene("", "normal_map = \"missing\""), "normal_map");
+  test::expect_scene_refused(plane_scene("", "normal_map = \"missing\""), "normal_map");
   // A roughness texture belongs to a rough hard material.
   const std::string rough = "[textures.r]\ntype = \"checker\"";
-  expect_refused(plane_scene(rough, "roughness_texture = \"r\""), "roughness_texture");  // diffuse: no such key
+  test::expect_scene_refused(plane_scene(rough, "roughness_texture = \"r\""), "roughness_texture");  // diffuse: no such key
   std::string smooth = plane_scene(rough, "roughness_texture = \"r\"");
   smooth.replace(smooth.find("albedo = [0.5, 0.5, 0.5]"), 24, "type = \"conductor\"");
-  expect_refused(smooth, "scales the roughness");
+  test::expect_scene_refused(smooth, "scales the roughness");
 }
 
 }  // namespace

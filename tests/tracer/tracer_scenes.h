@@ -1,8 +1,14 @@
 // Small scene files written by the tracer tests into a temporary folder.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <fstream>
 #include <string>
+
+#include "core/errors.h"
+#include "test_util.h"
+#include "tracer/scene_loader.h"
 
 namespace dnb::test {
 
@@ -31,6 +37,16 @@ inline std::string lit_plane_scene(double side, double h, double le) {
          "[[lights]]\ntype = \"quad\"\nsize = [" + std::to_string(side) + ", " + std::to_string(side) +
          "]\nrotate = [180.0, 0.0, 0.0]\ntranslate = [0.0, " + std::to_string(h) + ", 0.0]\nemission = [" +
          std::to_string(le) + ", " + std::to_string(le) + ", " + std::to_string(le) + "]\n";
+}
+
+// A scene file of `text` is refused by load_scene with an InputError naming the file's line
+// ("bad.toml:") and saying `says` (the key, or the reason).
+inline void expect_scene_refused(const std::string& text, const std::string& says) {
+  TempDir dir;
+  const std::string path = write_text(dir.file("bad.toml"), text);
+  const std::string msg = error_of<InputError>([&] { load_scene(path); });
+  EXPECT_NE(msg.find("bad.toml:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find(says), std::string::npos) << msg;
 }
 
 }  // namespace dnb::test
