@@ -27,6 +27,14 @@ Image::Image(int width, int height, int channels, float fill) {
   data_.assign(std::size_t(width) * height * channels, fill);
 }
 
+Image::Image(int width, int height, int channels, NoFill) {
+  check_size(width, height, channels, "image");
+  width_ = width;
+  height_ = height;
+  channels_ = channels;
+  data_.resize(std::size_t(width) * height * channels);
+}
+
 Image to_image(ConstImageView v) {
   Image out(v.width, v.height, v.channels);
   for (int y = 0; y < v.height; ++y) {
