@@ -118,6 +118,25 @@ TEST(Plugins, AWorkersStartUpIsTimedApartFromItsFrames) {
   EXPECT_EQ(recs.at("t_sleepy_worker")["method_info"], json({{"model", "sleepy-1"}, {"layers", "3"}}));
 }
 
+// The `oidn` row is OIDN itself: the plug-in's output equals, bit for bit, what OIDN's own Python
+// API (pyoidn.denoise, not the plug-in's ctypes path) makes of the same frame's colour, albedo and
+// normal in the plug-in's default mode (python/oidn_direct.py). Both at OIDN's default thread
+// count. Skipped, saying why, where .venv has no pyoidn or cffi.
+TEST(Plugins, OidnRowIsOidnItself) {
+  const std::string py = test::source_dir() + "/.venv/bin/python";
+  if (test::run_command(py + " -c 'import pyoidn' 2>&1").exit_code != 0)
+    GTEST_SKIP() << "pyoidn (with cffi) does not import in " << py << " (scripts/setup installs both)";
+  test::TempDir dir;
+  const std::string in = dir.file("in.exr"), out = dir.file("out.exr");
+  for (const auto& args : {"render cornell-box --spp 16 --size 64x48 --seed 3 -o " + in, "denoise oidn " + in + " -o " + out}) {
+    auto r = test::run_denoisebench(args);
+    ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.output;
+  }
+  auto r = test::run_command(py + " " + test::source_dir() + "/python/oidn_direct.py " + in + " " + out + " 2>&1");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr(" 0 of 9216 values differ"));
+}
+
 // The repository's `oidn` plug-in (plugins/oidn: Intel Open Image Denoise from the PyPI package
 // that scripts/setup installs into .venv): on a 16-spp cornell-box frame it runs end to end,
 // gives the same pixels twice on one thread and on two, keeps a constant frame inside its
