@@ -149,6 +149,7 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir, const std::stri
   SceneFiles f;
   f.frame = scene_file(t, "frame", config_dir);
   f.reference = scene_file(t, "reference", config_dir);
+  if (t.contains("second")) f.second = scene_file(t, "second", config_dir);
   // A label the config gives is refused unless it is a file name; the default, the frame file's
   // stem, is mapped to one.
   SceneSpec s{t.contains("label") ? file_names::checked(t.require_string("label"), t.where("label"))
@@ -157,7 +158,8 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir, const std::stri
   const int spp = t.contains("spp") ? t.get("spp", 0, bounds::kSpp) : 0;
   f.input_format = t.get("input_format", input_format);
   t.finish();
-  const AovFrame frame = read_named(t, "frame", [&] { return read_input_frame(f.frame, f.input_format, spp); });
+  const AovFrame frame = read_named(t, f.second.empty() ? "frame" : "second",
+                                    [&] { return read_input_frame(f.frame, f.input_format, spp, f.second); });
   const Reference ref = read_named(t, "reference", [&] { return file_reference(f.reference, f.input_format); });
   f.width = frame.width();
   f.height = frame.height();
@@ -166,7 +168,8 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir, const std::stri
                                  t.where("reference"), f.reference, ref.color.width(), ref.color.height(), f.frame, f.width,
                                  f.height));
   f.spp = frame.meta.spp;
-  if (spp > 0 && f.spp > 0 && spp != f.spp)
+  if (!f.second.empty() && spp > 0) f.spp = 2 * spp;  // `spp` is each file's
+  if (spp > 0 && f.second.empty() && f.spp > 0 && spp != f.spp)
     throw InputError(fmt::format("{}: {} spp, but '{}' records {} spp", t.where("spp"), spp, f.frame, f.spp));
   if (f.spp <= 0) f.spp = spp;
   if (f.spp <= 0)
@@ -175,6 +178,7 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir, const std::stri
   // another frame.
   f.frame_hash = f.input_format == "auto" ? frame_file_hash(f.frame)
                                           : sha256_hex(frame_file_hash(f.frame) + "\ninput_format=" + f.input_format);
+  if (!f.second.empty()) f.frame_hash = sha256_hex(f.frame_hash + "\nsecond=" + frame_file_hash(f.second));
   f.reference_hash = sha256_file(f.reference);
   s.files = std::move(f);
   return s;
@@ -310,7 +314,7 @@ RunConfig ExperimentConfig::recorded() const {
     r.scenes.push_back(s.name);
     rendered = rendered || !s.files;
     if (!s.files) continue;
-    r.scene_files[s.name] = {s.files->frame, s.files->reference};
+    r.scene_files[s.name] = {s.files->frame, s.files->reference, s.files->second};
     if (std::find(r.spp.begin(), r.spp.end(), s.files->spp) == r.spp.end()) r.spp.push_back(s.files->spp);
   }
   if (!rendered && !scenes.empty()) std::tie(r.width, r.height) = std::tuple(scenes[0].files->width, scenes[0].files->height);

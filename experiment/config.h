@@ -16,6 +16,9 @@
 //                                 # none (one that does must agree)
 //   input_format = "cycles"       # optional: another renderer's files (interop/import.h; the
 //                                 # config's top-level `input_format`, else "auto")
+//   second = "frames/in_s2.exr"   # optional: the same view rendered with another seed; the two
+//                                 # are the frame's half buffers and give its variances
+//                                 # (`import --second`), so nfor, svgf and kpcn run on it
 //
 // A file scene has one input (the frame, at its spp), no plain path-tracing curve, and no
 // renderer-type cells (they render the scene, which a file does not hold: skipped, with the
@@ -53,6 +56,7 @@ struct SceneFiles {
   int width = 0, height = 0;     // of both
   int spp = 0;                   // the frame's sample count
   std::string input_format = "auto";  // how both files are read (interop/import.h; `input_format`)
+  std::string second;            // `second`: a render of the frame's view with another seed, or ""
 };
 
 // A scene of the matrix: a rendered one (a built-in scene or scene file), or one read from files.

@@ -51,7 +51,9 @@ class InputFrame {
       : identity_{{"input_file", spec.files->frame_hash}, {"reference_file", spec.files->reference_hash}, {"scene", spec.name}},
         from_file_(true) {
     load_ = [files = *spec.files](bool*) {
-      return std::pair(read_input_frame(files.frame, files.input_format, files.spp), files.frame);
+      return std::pair(read_input_frame(files.frame, files.input_format, files.second.empty() ? files.spp : files.spp / 2,
+                                        files.second),
+                       files.frame);
     };
   }
   InputFrame(const InputFrame&) = delete;

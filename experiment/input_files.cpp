@@ -10,8 +10,11 @@ namespace fs = std::filesystem;
 
 namespace dnb::experiment {
 
-AovFrame read_input_frame(const std::string& path, const std::string& format, int spp) {
-  return interop::read_frame_as(path, format, {.spp = spp}, {layer::kColor});
+AovFrame read_input_frame(const std::string& path, const std::string& format, int spp, const std::string& second) {
+  AovFrame first = interop::read_frame_as(path, format, {.spp = spp}, {layer::kColor});
+  if (second.empty()) return first;
+  AovFrame other = interop::read_frame_as(second, format, {.spp = spp}, {layer::kColor});
+  return interop::combine_halves({std::move(first), {}}, {std::move(other), {}}, path, second).frame;
 }
 
 std::string frame_file_hash(const std::string& path) {

@@ -17,7 +17,10 @@ namespace dnb::experiment {
 // interop/import.h's --input-format (`input_format` in the config: "auto" reads the harness's own
 // frames natively and recognises Cycles, pbrt-v4 and Mitsuba 3 files; a preset; map:FILE.toml);
 // `spp` > 0 is the frame's sample count over any the file records. InputError naming the file.
-AovFrame read_input_frame(const std::string& path, const std::string& format = "auto", int spp = 0);
+// `second`, when given, is a render of the same view with another seed, read the same way: the
+// two are one frame with half buffers and variances (interop::combine_halves, `import --second`).
+AovFrame read_input_frame(const std::string& path, const std::string& format = "auto", int spp = 0,
+                          const std::string& second = "");
 
 // What the cells of a file scene are keyed by (core/hash.h): the SHA-256 of the frame's bytes,
 // and of its edge file's bytes when it has one (edges_path), so that editing either reruns them.

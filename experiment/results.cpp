@@ -293,7 +293,10 @@ namespace {
 
 json scene_files_json(const std::map<std::string, SceneFilesEntry>& files) {
   json o = json::object();
-  for (const auto& [name, f] : files) o[name] = {{"frame", f.frame}, {"reference", f.reference}};
+  for (const auto& [name, f] : files) {
+    o[name] = {{"frame", f.frame}, {"reference", f.reference}};
+    if (!f.second.empty()) o[name]["second"] = f.second;  // only where the config gives one
+  }
   return o;
 }
 
@@ -340,7 +343,8 @@ RunConfig config_from_json(const json& j, const std::string& where) {
   const json files = object_or_empty(j, "scene_files", where);
   for (const auto& [name, f] : files.items()) {
     const std::string fw = where + ": scene_files: " + name;
-    c.scene_files[name] = {jf::get<std::string>(f, "frame", fw), jf::get<std::string>(f, "reference", fw)};
+    c.scene_files[name] = {jf::get<std::string>(f, "frame", fw), jf::get<std::string>(f, "reference", fw),
+                           jf::get_or<std::string>(f, "second", "", fw)};
   }
   c.repeats = jf::get_or<int>(j, "repeats", 0, where);
   const json t2 = object_or_empty(j, "table2", where);

@@ -87,6 +87,7 @@ struct MethodEntry {  // a configured method or variant, as recorded
 // A scene read from files instead of rendered, as recorded: the files the config named (absolute).
 struct SceneFilesEntry {
   std::string frame, reference;
+  std::string second;  // a second seed's render (`second`), or ""
   bool operator==(const SceneFilesEntry&) const = default;
 };
 

@@ -12,6 +12,7 @@
 #include "core/exr_io.h"
 #include "core/hash.h"
 #include "experiment/config.h"
+#include "experiment/input_files.h"
 #include "test_util.h"
 
 namespace dnb::experiment {
@@ -165,6 +166,36 @@ TEST(ExperimentConfig, ASceneReadFromFilesHasItsFramesSizeSppAndContentHashes) {
   EXPECT_FALSE(m.scenes[2].files);
   EXPECT_EQ(m.recorded().spp, (std::vector<int>{8, 4}));
   EXPECT_EQ(m.recorded().scenes, (std::vector<std::string>{"cornell-box", "mine", "conference"}));
+}
+
+// `second`: the same view rendered with another seed becomes the frame's half buffers and gives
+// its variance (import --second), so the methods that need them run on a file scene; the spp is
+// the two files' sum, the cells are keyed by both files, and the results record the second.
+TEST(ExperimentConfig, ASecondSeedMakesAFileScenesHalfBuffers) {
+  test::TempDir dir;
+  std::filesystem::create_directories(dir.path() / "frames");
+  write_test_frame(dir.file("frames/in.exr"), 32, 24, 4, 0.5f);
+  write_test_frame(dir.file("frames/in2.exr"), 32, 24, 4, 0.25f);
+  write_test_frame(dir.file("frames/ref.exr"), 32, 24, 64);
+  test::write(dir.file("one.toml"), file_config());
+  test::write(dir.file("two.toml"), file_config(std::string(kFileScene) + "second = \"frames/in2.exr\"\n"));
+  const ExperimentConfig one = load_config(dir.file("one.toml")), two = load_config(dir.file("two.toml"));
+  const SceneFiles& f = *two.scenes[0].files;
+  EXPECT_EQ(f.second, dir.file("frames/in2.exr"));
+  EXPECT_EQ(f.spp, 8);
+  EXPECT_NE(f.frame_hash, one.scenes[0].files->frame_hash);
+  EXPECT_EQ(two.recorded().scene_files.at("in").second, f.second);
+  const AovFrame frame = read_input_frame(f.frame, f.input_format, 0, f.second);
+  EXPECT_EQ(frame.layer("half0.color").at(3, 2, 0), 0.5f);
+  EXPECT_EQ(frame.layer("half1.color").at(3, 2, 0), 0.25f);
+  EXPECT_FLOAT_EQ(frame.layer(layer::kColor).at(3, 2, 0), 0.375f);
+  EXPECT_FLOAT_EQ(frame.layer(layer::kVariance).at(3, 2, 0), 0.25f * 0.25f / 4);
+  // The same file twice is refused, naming the key.
+  test::write(dir.file("same.toml"), file_config(std::string(kFileScene) + "second = \"frames/in.exr\"\n"));
+  const std::string msg = test::error_of<InputError>([&] { load_config(dir.file("same.toml")); });
+  EXPECT_NE(msg.find("same.toml:6: key"), std::string::npos) << msg;  // the `second` line
+  EXPECT_NE(msg.find("second"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("another seed"), std::string::npos) << msg;
 }
 
 TEST(ExperimentConfig, SceneFileErrorsNameTheKeyAndTheFile) {
