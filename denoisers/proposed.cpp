@@ -368,7 +368,8 @@ class Proposed final : public Method {
   // through. The bracket is the part of R that no level below explains, passed through unfiltered
   // as the deepest R is: the light of rough (non-delta) glossy and refracted lobes, which have no
   // level behind them (rough metal, frosted glass, a rough coat), and the product-of-means
-  // remainder where the tint varies inside a pixel. Without it those surfaces came out black.
+  // remainder where the tint varies inside a pixel. Composed from the levels alone, those surfaces
+  // would be black.
   Image compose_levels(const AovFrame& f, const Plan& plan, MethodStats& stats) const {
     Image below;  // F'_{k+1}: the composed, filtered level under the current one
     for (int k = plan.levels; k >= 0; --k) below = compose_level(f, plan, k, below, stats);

@@ -191,9 +191,8 @@ class IrradianceCacheRenderer final : public Method {
         std::vector<ShadePoint> pts;
         // With motion blur, the overture's records at the middle of the shutter interval.
         const rt::Camera& cam = run.scene.camera;
-        const bool timed = cam.has_shutter() || cam.moving || cam.shutter_open > 0;
         follow(run.scene,
-               timed ? cam.generate_ray_at(x + 0.5f, y + 0.5f, W, H, 0.5f, 0.5f, cam.time_at(0.5f))
+               cam.timed() ? cam.generate_ray_at(x + 0.5f, y + 0.5f, W, H, 0.5f, 0.5f, cam.time_at(0.5f))
                      : cam.generate_ray(x + 0.5f, y + 0.5f, W, H),
                Vec3(1.0f), 0.0f, 0, pts);
         for (std::size_t i = 0; i < pts.size(); ++i) {
@@ -274,7 +273,7 @@ class IrradianceCacheRenderer final : public Method {
       // Motion blur: the sample's time, drawn as the tracer draws it; the records its path
       // creates or reads are where the geometry is then (a record is reused at other times: the
       // cache's own interpolation error, as across space).
-      if (cam.has_shutter() || cam.moving || cam.shutter_open > 0) {
+      if (cam.timed()) {
         const float time = cam.has_shutter() ? cam.time_at(rng.next()) : cam.shutter_open;
         camera_ray = cam.generate_ray_at(x + fx, y + fy, run.W, run.H, lu, lv, time);
       }

@@ -186,6 +186,9 @@ struct Camera {
   Vec3 eye_end, look_at_end;  // prepare() sets them to eye, look_at unless moving
   bool moving = false;        // the camera moves (eye_end or look_at_end differ)
   bool has_shutter() const { return shutter_close > shutter_open; }
+  // Whether rays need a time other than 0: a shutter interval, a moving camera, or one instant
+  // after time 0.
+  bool timed() const { return has_shutter() || moving || shutter_open > 0; }
   float time_at(float u) const { return shutter_open + (shutter_close - shutter_open) * u; }
   // The ray of generate_ray(fx, fy, width, height, u1, u2) with the camera where it is at
   // `time`, carrying the time.

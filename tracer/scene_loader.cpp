@@ -233,41 +233,29 @@ class Loader {
           "{}: expected \"diffuse\", \"mirror\", \"coated\", \"conductor\", \"dielectric\" or \"plastic\"",
           t.where("type")));
     m.albedo = vec3(t.get("albedo", Arr3{0.8, 0.8, 0.8}, bounds::kReflectance));
-    std::string tex = t.get("texture", std::string());
-    if (!tex.empty()) {
-      auto it = texture_index_.find(tex);
-      if (it == texture_index_.end())
-        throw InputError(fmt::format("{}: no texture '{}' in [textures]", t.where("texture"), tex));
-      m.texture = it->second;
-    }
+    m.texture = texture_key(t, "texture");
     m.tint = vec3(t.get("tint", Arr3{1, 1, 1}, bounds::kReflectance));
     m.ior = float(t.get("ior", 1.5, RealBound{1, 10, "an index of refraction above 1", true}));
     m.emission = vec3(t.get("emission", Arr3{0, 0, 0}, bounds::kRadiance));
     m.two_sided = t.get("two_sided", false);
-    std::string cutout = t.get("opacity", std::string());
-    if (!cutout.empty()) {
-      auto it = texture_index_.find(cutout);
-      if (it == texture_index_.end())
-        throw InputError(fmt::format("{}: no texture '{}' in [textures]", t.where("opacity"), cutout));
-      if (const std::string why = scene_.textures[std::size_t(it->second)]->opacity_problem(); !why.empty())
-        throw InputError(fmt::format("{}: texture '{}': {}", t.where("opacity"), cutout, why));
-      m.opacity = it->second;
-    }
-    m.normal_map = data_texture(t, "normal_map", 3);
+    m.opacity = texture_key(t, "opacity", [](const Texture& x) { return x.opacity_problem(); });
+    m.normal_map = texture_key(t, "normal_map", [](const Texture& x) { return x.data_problem(3); });
     if (m.is_hard()) read_hard_material(t, m);
   }
 
   // The hard materials' keys (tracer/bsdf.h), read only for their types, so that a key of
   // another type's (roughness on a diffuse material) is refused as unknown by finish().
-  // The texture a material key names as data (a normal or roughness map): known, and able to hold
-  // data (tracer/texture.h's data_problem); -1 without the key.
-  int data_texture(ConfigTable& t, const char* key, int min_channels) {
+  // The index of the texture a material key names (-1 without the key): one of [textures], and,
+  // with `problem`, fit for the use (a colour, an opacity, a map of data: tracer/texture.h says
+  // why a texture is not), else InputError naming the key.
+  int texture_key(ConfigTable& t, const char* key, std::string (*problem)(const Texture&) = nullptr) {
     const std::string name = t.get(key, std::string());
     if (name.empty()) return -1;
     auto it = texture_index_.find(name);
     if (it == texture_index_.end()) throw InputError(fmt::format("{}: no texture '{}' in [textures]", t.where(key), name));
-    if (const std::string why = scene_.textures[std::size_t(it->second)]->data_problem(min_channels); !why.empty())
-      throw InputError(fmt::format("{}: texture '{}': {}", t.where(key), name, why));
+    if (problem)
+      if (const std::string why = problem(*scene_.textures[std::size_t(it->second)]); !why.empty())
+        throw InputError(fmt::format("{}: texture '{}': {}", t.where(key), name, why));
     return it->second;
   }
 
@@ -279,7 +267,7 @@ class Loader {
     if ((m.alpha_x < 1e-3f) != (m.alpha_y < 1e-3f))
       throw InputError(fmt::format("{}: roughness_x and roughness_y must both be below 0.001 (smooth) or both above",
                                    t.where("roughness_x")));
-    m.roughness_map = data_texture(t, "roughness_texture", 1);
+    m.roughness_map = texture_key(t, "roughness_texture", [](const Texture& x) { return x.data_problem(1); });
     if (m.roughness_map >= 0 && m.alpha_x < 1e-3f)
       throw InputError(fmt::format("{}: a roughness texture scales the roughness, which is 0 (smooth) here",
                                    t.where("roughness_texture")));
@@ -365,6 +353,7 @@ class Loader {
   // The meshes from `first` on belong to one moving object.
   void apply_motion(ConfigTable& t, std::size_t first, const Transform& start, const Transform& end) {
     const char* key = t.contains("translate_end") ? "translate_end" : t.contains("rotate_end") ? "rotate_end" : "scale_end";
+    const int steps = motion_steps(start, end);
     for (std::size_t i = first; i < scene_.meshes.size(); ++i) {
       Mesh& m = scene_.meshes[i];
       for (std::uint32_t mi : m.material)
@@ -373,11 +362,10 @@ class Loader {
                                        "emitters that stay where they are",
                                        t.where(key), scene_.materials[mi].name));
       // Each step is a copy of the mesh's corners: bounded like the triangles of one mesh.
-      const std::int64_t copies = std::int64_t(motion_steps(start, end)) * std::int64_t(m.triangles());
-      if (copies > bounds::kMaxTriangles)
+      if (std::int64_t(steps) * std::int64_t(m.triangles()) > bounds::kMaxTriangles)
         throw InputError(fmt::format("{}: {} time steps of {} triangles are more than {} triangles' corners (fewer "
                                      "degrees of rotation, or a smaller mesh)",
-                                     t.where(key), motion_steps(start, end), m.triangles(), bounds::kMaxTriangles));
+                                     t.where(key), steps, m.triangles(), bounds::kMaxTriangles));
       add_motion(m, start, end);
     }
   }

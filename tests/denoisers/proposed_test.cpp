@@ -233,8 +233,8 @@ TEST(Proposed, EdgeResolveDoesNotRaiseTheErrorOnARenderedScene) {
 
 // Rough glossy and refracting surfaces (tracer 7's hard materials) have light in R that no
 // reflection level explains: a rough lobe has no level behind it (refl1.tint is 0 there). That
-// part passes through as the deepest level's R does; before it did, a rough gold ball, frosted
-// glass and a rough coat came out black (still-life's mse 1614 against the input's 3.2). On a
+// part passes through as the deepest level's R does; composed from the levels alone a rough gold
+// ball, frosted glass and a rough coat are black (still-life's mse 1614 against the input's 3.2). On a
 // frame of both kinds, rough metal beside clear glass: the error against a 16x render is below
 // the input's, and the rough ball's mean stays the input's within 2% (only noise is removed).
 TEST(Proposed, RoughGlossyLightWithoutALevelBehindItIsKept) {
