@@ -3,7 +3,7 @@
 // the scene file, and the content hash. The format is documented in configs/scenes/README.md;
 // every table's keys are read where their defaults are written and finish() rejects any other
 // key (core/config.h). Shapes are tessellated by tracer/shapes.h, OBJ files imported by
-// tracer/obj_import.h.
+// tracer/obj_import.h, glTF files by tracer/gltf_import.h.
 #include "core/env.h"
 #include "tracer/scene_loader.h"
 
@@ -15,11 +15,13 @@
 #include <optional>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "core/bounds.h"
 #include "core/config.h"
 #include "core/errors.h"
 #include "tracer/bsdf.h"
+#include "tracer/gltf_import.h"
 #include "tracer/obj_import.h"
 #include "tracer/scene.h"
 #include "tracer/shapes.h"
@@ -98,7 +100,8 @@ class Loader {
     dir_ = fs::path(path).parent_path().string();
     ConfigTable root = file.root();
     root.get("description", std::string());
-    read_camera(root);
+    const bool own_camera = root.contains("camera");
+    if (own_camera) read_camera(root);
     read_environment(root);
     read_textures(root);
     read_materials(root);
@@ -106,7 +109,31 @@ class Loader {
     for (auto& t : root.tables("lights")) read_object(t, true);
     root.finish();
     if (scene_.meshes.empty()) throw InputError(fmt::format("{}: the scene has no geometry", path));
+    if (!own_camera) {
+      if (!gltf_camera_)
+        throw InputError(fmt::format("{}: missing [camera] table (eye, look_at, up, vfov), and no glTF object has a "
+                                     "perspective camera",
+                                     path));
+      scene_.camera = *gltf_camera_;
+    }
   }
+
+  // A glTF file alone: its default scene, lit by its lights, seen through its first perspective
+  // camera (which it must have).
+  void load_gltf(const std::string& path) {
+    scene_.source_file = path;
+    dir_ = fs::path(path).parent_path().string();
+    require_regular_file(path, "scene", "glTF file");
+    const GltfImport g = import_gltf(scene_, path, Transform{}, std::nullopt);
+    warnings_.insert(warnings_.end(), g.warnings.begin(), g.warnings.end());
+    if (!g.camera)
+      throw InputError(fmt::format("{}: no perspective camera in the default scene (render it from a scene TOML with a "
+                                   "[camera] and an object of type \"gltf\")",
+                                   path));
+    scene_.camera = *g.camera;
+  }
+
+  const std::vector<std::string>& warnings() const { return warnings_; }
 
  private:
   void read_camera(ConfigTable& root) {
@@ -376,12 +403,13 @@ class Loader {
     Transform x = read_transform(t);
     const std::optional<Transform> motion = light ? std::nullopt : read_motion(t, x);
     const std::size_t first_mesh = scene_.meshes.size();
-    if (type == "obj") {
+    if (type == "obj" || type == "gltf") {
       if (light) throw InputError(fmt::format("{}: lights are quads or spheres", t.where("type")));
       std::string file = t.require_string("file");
       std::string override_mat = t.get("material", std::string());
       t.finish();
-      load_obj(t, file, override_mat, x);
+      if (type == "obj") load_obj(t, file, override_mat, x);
+      else load_gltf_object(t, file, override_mat, x);
       if (motion) apply_motion(t, first_mesh, x, *motion);
       return;
     }
@@ -428,7 +456,7 @@ class Loader {
     } else {
       throw InputError(fmt::format("{}: unknown {} type '{}' (expected {})", t.where("type"),
                                    light ? "light" : "object", type,
-                                   light ? "quad or sphere" : "quad, box, sphere, cylinder, arch or obj"));
+                                   light ? "quad or sphere" : "quad, box, sphere, cylinder, arch, obj or gltf"));
     }
     if (light && type != "quad" && type != "sphere")
       throw InputError(fmt::format("{}: lights are quads or spheres", t.where("type")));
@@ -465,17 +493,29 @@ class Loader {
     return p.is_relative() ? fs::path(dir_) / p : p;
   }
 
+  // The scene material an OBJ or glTF object's `material` key forces on all its faces, if any.
+  std::optional<unsigned> override_material(ConfigTable& t, const std::string& name) {
+    if (name.empty()) return std::nullopt;
+    auto it = material_index_.find(name);
+    if (it == material_index_.end())
+      throw InputError(fmt::format("{}: no material '{}' in [materials]", t.where("material"), name));
+    return it->second;
+  }
+
   void load_obj(ConfigTable& t, const std::string& file, const std::string& override_mat, const Transform& x) {
     fs::path path = resolve_mesh_path(t, file);
     require_regular_file(path.string(), t.where("file"), "OBJ file");
-    std::optional<unsigned> forced;
-    if (!override_mat.empty()) {
-      auto it = material_index_.find(override_mat);
-      if (it == material_index_.end())
-        throw InputError(fmt::format("{}: no material '{}' in [materials]", t.where("material"), override_mat));
-      forced = it->second;
-    }
-    import_obj(scene_, path, x, forced);
+    import_obj(scene_, path, x, override_material(t, override_mat));
+  }
+
+  void load_gltf_object(ConfigTable& t, const std::string& file, const std::string& override_mat, const Transform& x) {
+    fs::path path = resolve_mesh_path(t, file);
+    require_regular_file(path.string(), t.where("file"), "glTF file");
+    if (!is_gltf_path(path))
+      throw InputError(fmt::format("{}: '{}': expected a .gltf or .glb file", t.where("file"), path.string()));
+    GltfImport g = import_gltf(scene_, path, x, override_material(t, override_mat));
+    warnings_.insert(warnings_.end(), g.warnings.begin(), g.warnings.end());
+    if (!gltf_camera_ && g.camera) gltf_camera_ = g.camera;
   }
 
   Scene& scene_;
@@ -484,6 +524,8 @@ class Loader {
   std::map<std::string, int> texture_index_;
   std::map<std::string, unsigned> material_index_;
   std::optional<SphereLight> sphere_light_;  // of the object being read
+  std::optional<Camera> gltf_camera_;         // the first glTF object's camera
+  std::vector<std::string> warnings_;         // what glTF files hold that the tracer leaves out
 };
 
 }  // namespace
@@ -520,7 +562,11 @@ std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const S
   }
   auto scene = std::make_shared<Scene>();
   scene->name = name;
-  Loader(*scene, options).load(path.string());
+  Loader loader(*scene, options);
+  if (is_gltf_path(path)) loader.load_gltf(path.string());
+  else loader.load(path.string());
+  // Every reader of scenes (render, reference, run, export) lists what was left out.
+  for (const auto& w : loader.warnings()) spdlog::warn("{}", w);
   scene->commit();
   scene->content_hash = scene_content_hash(*scene);  // once: the OBJ files can be large
   return scene;

@@ -4,6 +4,8 @@
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/filesystem.h>
 #include <fmt/format.h>
 
 #include "core/config.h"
@@ -56,6 +58,7 @@ class ImageTexture final : public Texture {
     return fmt::format("image '{}' has {} channels; an opacity needs 1 (grey coverage) or 4 (RGBA: the alpha)", path_,
                        channels_);
   }
+  int channels() const override { return channels_; }
   std::string data_problem(int min_channels) const override {
     if (decoded_)
       return fmt::format("image '{}' is read as sRGB colour (8 or 16 bits); a map of data needs its texture's "
@@ -210,32 +213,25 @@ void require_regular_file(const std::string& path, const std::string& context, c
     throw InputError(fmt::format("{}: {} '{}' is not a regular file", context, what, path));
 }
 
-std::unique_ptr<Texture> load_image_texture(const std::string& path, bool linear) {
-  require_regular_file(path, "texture", "image file");
-  OIIO::ImageBuf in(path);
-  // The size from the header first: a huge image must not be allocated before it is refused.
-  if (!in.init_spec(path, 0, 0))
-    throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
-  {
-    const OIIO::ImageSpec& s = in.spec();
-    if (!within(s.width, bounds::kSide) || !within(s.height, bounds::kSide) ||
-        std::int64_t(s.width) * s.height > bounds::kMaxTexels || s.nchannels < 1 || s.nchannels > 64)
-      throw InputError(fmt::format("texture '{}': {}x{} with {} channels is not accepted (each side 1..{}, at most "
-                                   "{} texels: they are held as float RGB, 768 MB at the bound)",
-                                   path, s.width, s.height, s.nchannels, bounds::kSide.max, bounds::kMaxTexels));
-    // Within the bound, 64 channels of 8192 x 8192 still decode to 16 GiB: refused when it does
-    // not fit the memory this process may use (the frame readers' rule).
-    check_decode_memory(path, s.width, s.height, s.nchannels, memory_budget_bytes());
-  }
-  if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT))
-    throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
-  const OIIO::ImageSpec& spec = in.spec();
-  const bool encoded = !linear && (spec.format.basetype == OIIO::TypeDesc::UINT8 ||
-                                   in.nativespec().format.basetype == OIIO::TypeDesc::UINT8 ||
-                                   in.nativespec().format.basetype == OIIO::TypeDesc::UINT16);
-  const int w = spec.width, h = spec.height, c = spec.nchannels;
-  std::vector<float> px(std::size_t(w) * h * c);
-  in.get_pixels(OIIO::ROI(0, w, 0, h, 0, 1, 0, c), OIIO::TypeDesc::FLOAT, px.data());
+namespace {
+
+// The size check before any pixel is decoded: a huge image must not be allocated before it is
+// refused. `name` is the file, or what an embedded image is called in its scene file.
+void check_image_spec(const std::string& name, const OIIO::ImageSpec& s) {
+  if (!within(s.width, bounds::kSide) || !within(s.height, bounds::kSide) ||
+      std::int64_t(s.width) * s.height > bounds::kMaxTexels || s.nchannels < 1 || s.nchannels > 64)
+    throw InputError(fmt::format("texture '{}': {}x{} with {} channels is not accepted (each side 1..{}, at most "
+                                 "{} texels: they are held as float RGB, 768 MB at the bound)",
+                                 name, s.width, s.height, s.nchannels, bounds::kSide.max, bounds::kMaxTexels));
+  // Within the bound, 64 channels of 8192 x 8192 still decode to 16 GiB: refused when it does
+  // not fit the memory this process may use (the frame readers' rule).
+  check_decode_memory(name, s.width, s.height, s.nchannels, memory_budget_bytes());
+}
+
+// The texture of decoded float pixels (w x h x c, interleaved). encoded: 8- or 16-bit values
+// that are sRGB colour, decoded to linear here.
+std::unique_ptr<Texture> image_texture(const std::string& name, int w, int h, int c, bool encoded,
+                                       const std::vector<float>& px) {
   std::vector<float> rgb(std::size_t(w) * h * 3);
   for (std::size_t i = 0; i < std::size_t(w) * h; ++i)
     for (int k = 0; k < 3; ++k) {
@@ -248,7 +244,76 @@ std::unique_ptr<Texture> load_image_texture(const std::string& path, bool linear
     coverage.resize(std::size_t(w) * h);
     for (std::size_t i = 0; i < coverage.size(); ++i) coverage[i] = px[i * c + (c - 1)];
   }
-  return std::make_unique<ImageTexture>(path, w, h, c, encoded, std::move(rgb), std::move(coverage));
+  return std::make_unique<ImageTexture>(name, w, h, c, encoded, std::move(rgb), std::move(coverage));
+}
+
+bool integer_format(OIIO::TypeDesc t) {
+  return t.basetype == OIIO::TypeDesc::UINT8 || t.basetype == OIIO::TypeDesc::UINT16;
+}
+
+// A texture's first channel raised to a power, or another channel of it (tracer/texture.h).
+class ChannelView final : public Texture {
+ public:
+  ChannelView(const Texture& source, int channel, float power) : source_(source), channel_(channel), power_(power) {}
+  Vec3 eval(float u, float v) const override {
+    const float c = std::max(0.0f, source_.eval(u, v)[channel_]);
+    return Vec3(power_ == 1 ? c : std::pow(c, power_));
+  }
+  std::string data_problem(int min_channels) const override { return source_.data_problem(std::max(min_channels, channel_ + 1)); }
+  std::string opacity_problem() const override { return "a channel of another texture is not an opacity"; }
+
+ private:
+  const Texture& source_;
+  int channel_;
+  float power_;
+};
+
+}  // namespace
+
+std::unique_ptr<Texture> load_image_texture(const std::string& path, bool linear) {
+  require_regular_file(path, "texture", "image file");
+  OIIO::ImageBuf in(path);
+  if (!in.init_spec(path, 0, 0))
+    throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
+  check_image_spec(path, in.spec());
+  if (!in.read(0, 0, true, OIIO::TypeDesc::FLOAT))
+    throw InputError(fmt::format("texture '{}': cannot read image: {}", path, in.geterror()));
+  const OIIO::ImageSpec& spec = in.spec();
+  const bool encoded = !linear && (spec.format.basetype == OIIO::TypeDesc::UINT8 || integer_format(in.nativespec().format));
+  const int w = spec.width, h = spec.height, c = spec.nchannels;
+  std::vector<float> px(std::size_t(w) * h * c);
+  in.get_pixels(OIIO::ROI(0, w, 0, h, 0, 1, 0, c), OIIO::TypeDesc::FLOAT, px.data());
+  return image_texture(path, w, h, c, encoded, px);
+}
+
+std::unique_ptr<Texture> load_image_texture(const std::string& name, const unsigned char* data, std::size_t size,
+                                            bool linear) {
+  // OIIO reads from memory through an IOProxy; the format comes from the name's extension, or
+  // from trying every reader when it has none that OIIO knows.
+  OIIO::Filesystem::IOMemReader mem(data, size);
+  auto in = OIIO::ImageInput::open(name, nullptr, &mem);
+  if (!in) throw InputError(fmt::format("texture '{}': cannot read image: {}", name, OIIO::geterror()));
+  const OIIO::ImageSpec spec = in->spec();
+  check_image_spec(name, spec);
+  const int w = spec.width, h = spec.height, c = spec.nchannels;
+  std::vector<float> px(std::size_t(w) * h * c);
+  if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, px.data()))
+    throw InputError(fmt::format("texture '{}': cannot read image: {}", name, in->geterror()));
+  return image_texture(name, w, h, c, !linear && integer_format(spec.format), px);
+}
+
+std::unique_ptr<Texture> channel_texture(const Texture& source, int channel, float power) {
+  return std::make_unique<ChannelView>(source, channel, power);
+}
+
+Vec3 texture_mean(const Texture& t) {
+  // A 256 x 256 grid of texel-centre lookups: the mean of a bilinear image to well under 1% for
+  // images up to 4K, and the one answer for procedural textures too.
+  constexpr int n = 256;
+  Vec3 sum(0.0f);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) sum += t.eval((i + 0.5f) / n, (j + 0.5f) / n);
+  return sum / float(n * n);
 }
 
 // Pattern scales and counts: finite, positive, and small enough that u * scale keeps float precision.

@@ -32,6 +32,8 @@ class Texture {
   // 8-bit or 16-bit image decoded from sRGB (its `linear` key turns that off), or, with
   // `min_channels`, an image of fewer channels; empty when it can. Procedural textures can.
   virtual std::string data_problem(int /*min_channels*/) const { return {}; }
+  // The channels an image holds (4: RGBA, whose alpha a glTF cut-out reads); 3 for procedural ones.
+  virtual int channels() const { return 3; }
 };
 
 // An image file (any format OpenImageIO reads). 8-bit images are taken as sRGB-encoded and
@@ -40,6 +42,19 @@ class Texture {
 // cannot be read, is not a regular file, or is larger than an Image may be (core/bounds.h).
 // linear: take 8- and 16-bit values as they are (data such as normal maps), not as sRGB.
 std::unique_ptr<Texture> load_image_texture(const std::string& path, bool linear = false);
+
+// An image held in memory (a glTF file's embedded image): as load_image_texture, with `name`
+// (the image's place in its scene file, ending in the format's extension) in messages.
+std::unique_ptr<Texture> load_image_texture(const std::string& name, const unsigned char* data, std::size_t size,
+                                            bool linear = false);
+
+// A view of `source` (which must outlive it) as grey data: its channel `channel` (0, 1, 2),
+// clamped at 0 and raised to `power`. glTF's roughness is the green channel of its
+// metallic-roughness image, and GGX's alpha is roughness squared.
+std::unique_ptr<Texture> channel_texture(const Texture& source, int channel, float power = 1);
+
+// The mean colour of a texture over the unit square of (u, v).
+Vec3 texture_mean(const Texture& t);
 
 // InputError "CONTEXT: WHAT 'PATH' not found" or "... is not a regular file" (a folder, a
 // device such as /dev/zero, a pipe): the files a scene reads as meshes and textures.
