@@ -14,7 +14,9 @@
 #include "apps/commands.h"
 #include "core/errors.h"
 #include "denoisers/method.h"
+#include "experiment/estimate.h"
 #include "experiment/runner.h"
+#include "core/atomic_file.h"
 #include "methods/plugins.h"
 #include "distributed/mpi_context.h"
 
@@ -23,8 +25,9 @@ namespace dnb::app {
 namespace {
 
 struct Opts {
-  std::string config, out, cache_dir;
-  bool no_cache = false;
+  std::string config, out, cache_dir, estimate_json;
+  bool no_cache = false, estimate = false;
+  int ranks = 1;
   std::optional<std::uint64_t> seed;
 };
 
@@ -36,6 +39,13 @@ int run(const Opts& o, const std::vector<std::string>& plugin_folders) {
   opt.out_dir = o.out.empty() ? "results/" + c.name : o.out;
   opt.use_cache = !o.no_cache;
   opt.cache_dir = o.cache_dir;
+  if (o.estimate) {
+    if (mpi::size() > 1) throw InputError("run --estimate: run it as one process; --ranks N says how N ranks would do");
+    const auto est = experiment::estimate_run(c, opt, MethodRegistry::global(), o.ranks);
+    fmt::print("{}", est.text());
+    if (!o.estimate_json.empty()) write_text_atomic(o.estimate_json, est.to_json().dump(1) + "\n");
+    return 0;
+  }
   const auto doc = experiment::run_experiment(c, opt, MethodRegistry::global());
   if (doc.failures.empty()) return 0;
   // The run kept every other cell; the failed ones are listed in results.json and tried
@@ -56,6 +66,12 @@ void add_run(CLI::App& app, Action& action) {
   cmd->add_option("--seed", o->seed, "seed of the input frames instead of the config's (the reference keeps its own)")
       ->check(in_bounds(bounds::kSeed));
   cmd->add_option("--cache-dir", o->cache_dir, "render cache folder (default: $DENOISEBENCH_CACHE or ~/.cache/denoisebench)");
+  cmd->add_flag("--estimate", o->estimate,
+                "print what the run would cost (per scene and stage, from a short probe of this machine; what the "
+                "cache and the results folder hold) and do nothing else (docs/estimate.md)");
+  cmd->add_option("--ranks", o->ranks, "with --estimate: the estimate for an MPI run of N ranks, each as fast as this process")
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--estimate-json", o->estimate_json, "with --estimate: also write the estimate as JSON to this file");
   auto plugins = add_plugins_option(cmd);
   cmd->callback([&action, o, plugins] {
     action = [o, plugins] {

@@ -193,11 +193,19 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodRegistry& registry, 
 // Every cell of a rendered scene: the plain path-tracing curve, then per input spp and seed the
 // input and every method on it.
 std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, const RunOptions& opt,
-                                                 const MethodRegistry& registry, Cache& cache, const std::string& name) {
+                                                 const MethodRegistry& registry, Cache& cache, const std::string& name,
+                                                 bool with_reference) {
   auto sp = std::make_unique<ScenePlans>();
   sp->scene = load_scene(name);
   const Scene& scene = *sp->scene;
-  sp->cells = rendered_scene_cells(c, opt, cache, scene, name, sp->ref);
+  if (with_reference) {
+    sp->cells = rendered_scene_cells(c, opt, cache, scene, name, sp->ref);
+  } else {
+    sp->cells.scene = name;
+    std::tie(sp->cells.width, sp->cells.height) = std::pair(c.width, c.height);
+    sp->cells.scene_hash = scene_content_hash(scene);
+    sp->cells.seed = c.seed;
+  }
   sp->cells.reference = &sp->ref;
   PlanGroup& plain = sp->groups.emplace_back();
   plain.curve = std::make_unique<PlainCurve>(c, scene, cache, opt.use_cache);

@@ -44,9 +44,11 @@ struct ScenePlans {
 
 // Every cell of a rendered scene: the plain path-tracing curve, then per input spp and seed the
 // input and every method on it. Renders (or reads from the cache) the scene's reference: under
-// MPI collectively, only rank 0 keeping it.
+// MPI collectively, only rank 0 keeping it. Without `with_reference` (run --estimate: the plans'
+// cell keys only) the reference is neither rendered nor read, and the folder is not touched.
 std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, const RunOptions& opt,
-                                                 const MethodRegistry& registry, Cache& cache, const std::string& name);
+                                                 const MethodRegistry& registry, Cache& cache, const std::string& name,
+                                                 bool with_reference = true);
 // Every cell of a scene read from files: the input and every filter on it; a renderer-type
 // method is a skipped plan (there is no scene to render).
 std::unique_ptr<ScenePlans> file_scene_plans(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry,
