@@ -24,6 +24,7 @@ void add_report(CLI::App& app, Action& action);
 void add_list(CLI::App& app, Action& action);
 void add_nightly(CLI::App& app, Action& action);
 void add_export_mitsuba(CLI::App& app, Action& action);
+void add_export_gltf(CLI::App& app, Action& action);
 
 // --plugins DIR (repeatable) on the commands that name methods: plug-in folders searched before
 // $DENOISEBENCH_PLUGINS and the repository's plugins/ (methods/plugins.h). The folders are read

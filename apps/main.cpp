@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   dnb::app::add_list(app, action);
   dnb::app::add_nightly(app, action);
   dnb::app::add_export_mitsuba(app, action);
+  dnb::app::add_export_gltf(app, action);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -42,7 +42,7 @@ namespace {
 // extensionsRequired, an error).
 const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual",  "KHR_materials_emissive_strength", "KHR_materials_ior",
-    "KHR_materials_transmission", "KHR_materials_volume",      "KHR_mesh_quantization"};
+    "KHR_materials_transmission", "KHR_materials_volume",      "KHR_mesh_quantization", "KHR_materials_specular"};
 
 constexpr double kBig = 1e30;  // the bound of factors and intensities (bounds::kRadiance)
 
@@ -365,12 +365,34 @@ class DocCheck {
       texture_info(tr, at(pe, "KHR_materials_transmission"), "transmissionTexture");
       const json& es = object(ext, pe, "KHR_materials_emissive_strength", false);
       number(es, at(pe, "KHR_materials_emissive_strength"), "emissiveStrength", 0, kBig, false, "a non-negative scale");
+      exact_material(m, p);
+      const json& spec = object(ext, pe, "KHR_materials_specular", false);
+      number(spec, at(pe, "KHR_materials_specular"), "specularFactor", 0, 1, false, "the strength of the specular layer");
       const json& vol = object(ext, pe, "KHR_materials_volume", false);
       const std::string pv = at(pe, "KHR_materials_volume");
       number(vol, pv, "thicknessFactor", 0, kBig, false, "a thickness in the mesh's units");
       number(vol, pv, "attenuationDistance", 1e-30, kBig, false, "a positive distance");
       numbers(vol, pv, "attenuationColor", 3, 0, 1, "a colour left after attenuationDistance");
     }
+  }
+
+  // extras.denoisebench: the tracer's own material as export-gltf writes it (tracer/gltf_export.h).
+  void exact_material(const json& m, const std::string& p) const {
+    const json& extras = object(m, p, "extras", false);
+    const json& e = object(extras, at(p, "extras"), "denoisebench", false);
+    if (e.empty()) return;
+    const std::string pe = at(at(p, "extras"), "denoisebench");
+    const std::string type = string(e, pe, "type", true);
+    static const std::set<std::string> types = {"diffuse", "mirror", "coated", "conductor", "dielectric", "plastic"};
+    if (!types.count(type)) fail(at(pe, "type"), fmt::format("'{}': expected one of {}", type, fmt::join(types, ", ")));
+    for (const char* key : {"albedo", "tint", "transmittance"}) numbers(e, pe, key, 3, 0, 1, "a reflectance");
+    for (const char* key : {"eta", "k"}) numbers(e, pe, key, 3, 0, 100, "a conductor's complex index");
+    numbers(e, pe, "absorption", 3, 0, 1e6, "a Beer coefficient");
+    numbers(e, pe, "emission", 3, 0, kBig, "a radiance");
+    number(e, pe, "ior", 1, 10, false, "an index of refraction");
+    number(e, pe, "alpha", 0, 1, false, "GGX's alpha");
+    for (const char* key : {"schlick", "thin", "two_sided"})
+      if (e.contains(key) && !e[key].is_boolean()) fail(at(pe, key), "expected true or false");
   }
 
   void meshes() {
@@ -474,6 +496,15 @@ class DocCheck {
           fail(at(at(p, "nodes"), r), fmt::format("{} is not a node index (the file has {} nodes)", roots[r].dump(), count("nodes")));
     }
     index(doc_, "", "scene", "scenes", false);
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const std::string p = at(at("/scenes", i), "extras");
+      const json& e = object(object(list[i], at("/scenes", i), "extras", false), p, "denoisebench", false);
+      const std::string pe = at(p, "denoisebench");
+      numbers(e, pe, "sky", 3, 0, kBig, "a sky radiance");
+      const json& g = object(e, pe, "sky_gradient", false);
+      for (const char* key : {"zenith", "horizon", "ground"}) numbers(g, at(pe, "sky_gradient"), key, 3, 0, kBig, "a sky radiance");
+      numbers(g, at(pe, "sky_gradient"), "up", 3, -1, 1, "a unit direction");
+    }
   }
 
   const std::string& file_;
@@ -642,6 +673,7 @@ class Importer {
     else if (scene == 0 && model_.scenes.size() > 1)
       warn("/scenes", fmt::format("scene 0 of {} is rendered (no default scene); the others are left out", model_.scenes.size()));
     walk(roots, scene >= 0 ? fmt::format("/scenes/{}/nodes", scene) : "/nodes");
+    if (scene >= 0) sky(scene);
     if (!model_.animations.empty()) warn("/animations", "animations are not read: the scene is rendered at rest");
     if (!model_.skins.empty()) warn("/skins", "skins are not read: skinned meshes are rendered in their bind pose");
     mesh_.name = path_.stem().string();
@@ -693,6 +725,33 @@ class Importer {
       for (std::size_t c = n.children.size(); c-- > 0;)
         stack.push_back({n.children[c], world, fmt::format("{}/children/{}", np, c)});
     }
+  }
+
+  // The sky export-gltf keeps in the scene's extras (glTF has none), unless the scene file has one.
+  void sky(int scene) {
+    const json& e = sub(sub(doc_["scenes"][std::size_t(scene)], "extras"), "denoisebench");
+    if (!e.contains("sky") && !e.contains("sky_gradient")) return;
+    const std::string p = fmt::format("/scenes/{}/extras/denoisebench", scene);
+    if (scene_.sky.enabled) {
+      warn(p, "the scene file's sky is kept; the glTF's is left out");
+      return;
+    }
+    auto vec = [](const json& a) { return Vec3(float(a[0].get<double>()), float(a[1].get<double>()), float(a[2].get<double>())); };
+    Sky& s = scene_.sky;
+    s.enabled = true;
+    if (e.contains("sky")) {
+      s.color = s.average = vec(e["sky"]);
+      return;
+    }
+    const json& g = e["sky_gradient"];
+    s.gradient = true;
+    s.zenith = vec(g.value("zenith", json::array({0, 0, 0})));
+    s.horizon = vec(g.value("horizon", json::array({0, 0, 0})));
+    s.ground = vec(g.value("ground", json::array({0, 0, 0})));
+    const Vec3 up = vec(g.value("up", json::array({0, 1, 0})));
+    if (!(length(up) > 0)) throw InputError(fmt::format("{}: {}/sky_gradient/up: expected a non-zero direction", file_, p));
+    s.up = x_.rotate(normalize(up));
+    s.average_gradient();
   }
 
   void add_camera(int index, const Mat4& world, const std::string& np) {
@@ -958,9 +1017,15 @@ class Importer {
     if (ior == 0) ior = 1.5f;  // KHR_materials_ior: 0 means 1.5 for dielectric layers' purposes here
     const int base_tex = texture(pbr, mp + "/pbrMetallicRoughness/baseColorTexture", false);
 
+    const json& specular = sub(ext, "KHR_materials_specular");
+    const double specular_factor = get(specular, "specularFactor", 1);
     if (metallic >= 0.5f) m.type = MaterialType::kConductor;
     else if (transmission >= 0.5f) m.type = MaterialType::kDielectric;
+    else if (specular_factor == 0 && !specular.contains("specularTexture")) m.type = MaterialType::kDiffuse;
     else m.type = MaterialType::kPlastic;
+    if (m.type == MaterialType::kPlastic && specular_factor != 1)
+      warn(mp + "/extensions/KHR_materials_specular",
+           "a specular layer of strength other than 0 (none: diffuse) or 1 is rendered at 1");
     if (metallic > 0 && metallic < 1)
       warn(mp + "/pbrMetallicRoughness/metallicFactor",
            fmt::format("metalness {:g} is rendered as {} (the tracer's material is a metal or not)", metallic,
@@ -985,7 +1050,12 @@ class Importer {
         m.roughness_map = int(scene_.textures.size() - 1);
       }
     }
-    if (m.type == MaterialType::kPlastic) {
+    if (m.type == MaterialType::kDiffuse) {
+      m.albedo = base;
+      m.texture = base_tex;
+      m.alpha_x = m.alpha_y = 0;
+      m.roughness_map = -1;
+    } else if (m.type == MaterialType::kPlastic) {
       m.albedo = base;
       m.texture = base_tex;
       m.ior = std::max(ior, 1.0001f);
@@ -1043,6 +1113,7 @@ class Importer {
     }
     m.emission = emission;
     m.two_sided = mj.value("doubleSided", false);
+    exact(sub(sub(mj, "extras"), "denoisebench"), base_tex, m);
 
     const std::string mode = mj.value("alphaMode", std::string("OPAQUE"));
     if (mode != "OPAQUE") {
@@ -1060,6 +1131,41 @@ class Importer {
     }
     scene_.materials.push_back(m);
     return unsigned(scene_.materials.size() - 1);
+  }
+
+  // A material export-gltf wrote: its exact parameters from extras.denoisebench (checked by
+  // DocCheck::exact_material) replace the glTF mapping's, so that the tracer's own scenes come back
+  // as they were. The base colour texture stays the glTF's.
+  static void exact(const json& e, int base_tex, Material& m) {
+    if (e.empty()) return;
+    auto vec = [&](const char* key, Vec3 def) {
+      auto it = e.find(key);
+      return it == e.end() ? def : Vec3(float((*it)[0].get<double>()), float((*it)[1].get<double>()), float((*it)[2].get<double>()));
+    };
+    const std::string type = e["type"].get<std::string>();
+    Material x;
+    x.name = m.name;
+    x.type = type == "diffuse" ? MaterialType::kDiffuse : type == "mirror" ? MaterialType::kMirror
+           : type == "coated" ? MaterialType::kCoated : type == "conductor" ? MaterialType::kConductor
+           : type == "dielectric" ? MaterialType::kDielectric : MaterialType::kPlastic;
+    x.albedo = vec("albedo", x.albedo);
+    x.tint = vec("tint", x.tint);
+    x.transmittance = vec("transmittance", x.transmittance);
+    x.absorption = vec("absorption", x.absorption);
+    x.eta_c = vec("eta", x.eta_c);
+    x.k_c = vec("k", x.k_c);
+    x.emission = vec("emission", Vec3(0.0f));
+    x.ior = float(get(e, "ior", 1.5));
+    x.alpha_x = x.alpha_y = x.is_hard() ? float(get(e, "alpha", 0)) : 0.0f;
+    x.schlick = e.value("schlick", false);
+    x.thin = e.value("thin", false);
+    x.two_sided = e.value("two_sided", false);
+    if (x.type == MaterialType::kPlastic) x.base_inner_reflectance = fresnel_diffuse_reflectance(1.0f / x.ior);
+    if (x.type == MaterialType::kDiffuse || x.type == MaterialType::kPlastic || x.type == MaterialType::kCoated)
+      x.texture = base_tex;
+    x.normal_map = m.normal_map;
+    if (x.is_hard() && x.alpha_x > 0) x.roughness_map = m.roughness_map;
+    m = x;
   }
 
   // The scene texture of the texture info `key`'s owner `o` (pointer `ptr` of the info itself), as
@@ -1126,7 +1232,11 @@ class Importer {
         if (!(length(toward) > 0)) throw InputError(fmt::format("{}: {}: the node matrix collapses the light's direction", file_, ln.ptr));
         scene_.sun.enabled = true;
         scene_.sun.direction = x_.rotate(normalize(toward));
-        scene_.sun.cos_max = std::cos(0.27f * kPi / 180);  // the sun's own angular radius
+        // The sun's own angular radius, or what export-gltf kept in the light's extras.
+        const double radius = get(sub(sub(l, "extras"), "denoisebench"), "angular_radius_degrees", 0.27);
+        if (!(radius > 0 && radius < 30))
+          throw InputError(fmt::format("{}: {}/extras/denoisebench/angular_radius_degrees: expected degrees in (0, 30)", file_, lp));
+        scene_.sun.cos_max = std::cos(float(radius) * kPi / 180);
         scene_.sun.radiance = power / scene_.sun.solid_angle();
         continue;
       }

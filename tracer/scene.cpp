@@ -48,6 +48,18 @@ void Camera::prepare() {
   tan_half_ = std::tan(vfov_degrees * kPi / 360.0f);
 }
 
+void Sky::average_gradient() {
+  Vec3 sum(0.0f);
+  const int n = 512;
+  for (int i = 0; i < n; ++i) {
+    float c = -1 + 2 * (i + 0.5f) / n;
+    Vec3 d = up * c;  // only dot(d, up) matters
+    d = d + Frame(up).t * std::sqrt(std::max(0.0f, 1 - c * c));
+    sum += radiance(normalize(d));
+  }
+  average = sum / float(n);
+}
+
 Vec3 Sky::radiance(Vec3 dir) const {
   if (!enabled) return Vec3(0.0f);
   if (!gradient) return color;

@@ -215,6 +215,8 @@ struct Sky {
   Vec3 up{0, 1, 0};
   Vec3 radiance(Vec3 dir) const;
   Vec3 average = Vec3(0.0f);              // mean radiance over the sphere (for light selection)
+  // Sets `average` of a gradient sky (by quadrature in the cosine, on which alone it depends).
+  void average_gradient();
 };
 
 // A directional sun of angular radius `angular_radius`: a disc of constant radiance

@@ -203,16 +203,7 @@ class Loader {
         const Vec3 up = vec3(s->get("up", Arr3{0, 1, 0}, bounds::kCoordinate));
         if (!(length(up) > 0)) throw InputError(fmt::format("{}: expected a non-zero direction", s->where("up")));
         sky.up = normalize(up);
-        // Mean over the sphere by quadrature in the cosine (the sky depends on it only).
-        Vec3 sum(0.0f);
-        const int n = 512;
-        for (int i = 0; i < n; ++i) {
-          float c = -1 + 2 * (i + 0.5f) / n;
-          Vec3 d = sky.up * c;  // only dot(d, up) matters
-          d = d + Frame(sky.up).t * std::sqrt(std::max(0.0f, 1 - c * c));
-          sum += sky.radiance(normalize(d));
-        }
-        sky.average = sum / float(n);
+        sky.average_gradient();
       } else {
         throw InputError(fmt::format("{}: expected \"constant\" or \"gradient\"", s->where("type")));
       }
