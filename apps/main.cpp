@@ -9,6 +9,7 @@
 #include "apps/commands.h"
 #include "core/errors.h"
 #include "core/build_info.h"
+#include "interop/renderers.h"
 #include "methods/plugins.h"
 
 int main(int argc, char** argv) {
@@ -52,5 +53,6 @@ int main(int argc, char** argv) {
     status = 1;
   }
   dnb::shutdown_plugin_workers();  // worker plug-ins end while the log still runs
+  dnb::interop::shutdown_renderer_workers();  // and renderer back-ends' workers
   return status;
 }

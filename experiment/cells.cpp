@@ -12,6 +12,7 @@
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "core/hash.h"
+#include "core/line_worker.h"
 #include "methods/plugins.h"
 #include "metrics/metrics.h"
 
@@ -117,7 +118,8 @@ ComputedCell compute_cell(const CellPlan& plan, const std::string& scene_name, c
   } catch (const std::exception& e) {
     if (!plan.contain_failures || !(dynamic_cast<const WorkError*>(&e) || dynamic_cast<const InputError*>(&e))) throw;
     FailedCell f{scene_name, plan.method, plan.spp, key, e.what(), {}};
-    if (auto* pe = dynamic_cast<const PluginError*>(&e)) f.reason = pe->reason(), f.log_tail = pe->log_tail();
+    // A plug-in's or a renderer back-end's program: the reason apart from its last lines.
+    if (auto* pe = dynamic_cast<const WorkerError*>(&e)) f.reason = pe->reason(), f.log_tail = pe->log_tail();
     spdlog::error("cell {} / {} / {} spp failed: {}", scene_name, plan.method, plan.spp, e.what());
     return f;
   }

@@ -13,6 +13,7 @@
 #include "core/bounds.h"
 #include "core/config.h"
 #include "interop/import.h"
+#include "interop/renderers.h"
 #include "core/errors.h"
 #include "core/file_names.h"
 #include "core/hash.h"
@@ -184,22 +185,70 @@ SceneSpec file_scene(ConfigTable& t, const fs::path& config_dir, const std::stri
   return s;
 }
 
+// A [[scene]] a renderer back-end renders: the back-end must exist and the file too; what the
+// back-end makes of the file is its own business (a malformed file fails that scene's cells
+// with the back-end's message, when the run renders it).
+SceneSpec renderer_scene(ConfigTable& t, const fs::path& config_dir, const std::vector<std::string>& renderer_dirs) {
+  for (const char* key : {"name", "frame", "reference", "second", "input_format", "spp"})
+    if (t.contains(key))
+      throw InputError(fmt::format("{}: a [[scene]] a back-end renders (`renderer`, `file`) takes only `label` besides: "
+                                   "remove `{}`",
+                                   t.where(key), key));
+  SceneRenderer r;
+  r.renderer = t.require_string("renderer");
+  if (!t.contains("file"))
+    throw InputError(fmt::format("{}: a back-end renders a scene file: add `file = \"scene.xml\"` to this [[scene]]",
+                                 t.where("renderer")));
+  r.file = scene_file(t, "file", config_dir);
+  const auto found = interop::find_renderers(interop::renderer_search_dirs(renderer_dirs));
+  if (!found.count(r.renderer)) {
+    std::vector<std::string> names;
+    for (const auto& [n, m] : found) names.push_back(n);
+    throw InputError(fmt::format("{}: renderer '{}' is not a back-end found in {} (found: {}; docs/renderers.md)",
+                                 t.where("renderer"), r.renderer,
+                                 fmt::join(interop::renderer_search_dirs(renderer_dirs), ", "),
+                                 names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", "))));
+  }
+  r.file_hash = sha256_file(r.file);
+  SceneSpec s{t.contains("label") ? file_names::checked(t.require_string("label"), t.where("label"))
+                                  : file_names::mapped(fs::path(r.file).stem().string()),
+              std::nullopt, std::move(r)};
+  t.finish();
+  return s;
+}
+
 // `scenes = [...]` (rendered), then every [[scene]]: `name = "..."` (rendered, as in `scenes`)
 // or `frame` and `reference` (read from files).
 void read_scenes(ConfigTable& root, ExperimentConfig& c) {
   const fs::path config_dir = fs::absolute(c.path).parent_path();
   const bool listed = root.contains("scenes");
   for (const auto& n : root.get("scenes", std::vector<std::string>{})) c.scenes.push_back({n, std::nullopt});
+  for (const auto& d : root.get("renderers", std::vector<std::string>{})) {
+    const fs::path p = fs::path(d).is_absolute() ? fs::path(d) : config_dir / d;
+    if (!fs::is_directory(p))
+      throw InputError(fmt::format("{}: renderer folder '{}' is not a folder", root.where("renderers"), p.string()));
+    c.renderers.push_back(p.lexically_normal().string());
+  }
   const std::string input_format = root.get("input_format", std::string("auto"));
   if (input_format != "auto" && input_format != "native")
     read_named(root, "input_format", [&] { return interop::mapping_for(input_format).name; });  // a typo fails here
   for (auto& t : root.tables("scene")) {
+    if (t.contains("renderer")) {
+      c.scenes.push_back(renderer_scene(t, config_dir, c.renderers));
+      continue;
+    }
+    if (t.contains("file"))
+      throw InputError(fmt::format("{}: a scene file for a renderer back-end needs `renderer = \"NAME\"` (docs/renderers.md); "
+                                   "a scene file for the harness's tracer is `name = \"...\"`",
+                                   t.where("file")));
     const bool files = t.contains("frame") || t.contains("reference");
     if (t.contains("name") && files)
       throw InputError(fmt::format("{}: a [[scene]] is rendered (`name`) or read from files (`frame`, `reference`), not both",
                                    t.where(t.contains("frame") ? "frame" : "reference")));
     if (!t.contains("name") && !files)
-      throw InputError(fmt::format("{}: expected `name` (a scene to render) or `frame` and `reference` (files)", t.where("name")));
+      throw InputError(fmt::format("{}: expected `name` (a scene to render), `renderer` and `file` (a scene a back-end "
+                                   "renders) or `frame` and `reference` (files)",
+                                   t.where("name")));
     if (files) {
       c.scenes.push_back(file_scene(t, config_dir, input_format));
     } else {
@@ -273,6 +322,13 @@ ExperimentConfig load_config(const std::string& path) {
   if (!any_rendered(c)) refuse_render_keys(root);
   c.spp = root.get("spp", std::vector<int>{256}, bounds::kSpp);
   if (c.spp.empty()) throw InputError(fmt::format("{}: expected a non-empty list of spp", root.where("spp")));
+  // A back-end's input is two independent halves of spp / 2 samples each (its half buffers).
+  if (std::any_of(c.scenes.begin(), c.scenes.end(), [](const SceneSpec& s) { return s.renderer.has_value(); }))
+    for (int spp : c.spp)
+      if (spp % 2 != 0)
+        throw InputError(fmt::format("{}: {} spp: a scene a renderer back-end renders takes an even spp (its input is two "
+                                     "independent halves of spp / 2 samples)",
+                                     root.where("spp"), spp));
   if (!any_rendered(c)) c.spp.clear();
   // Plug-in folders, relative to the config file; registered before the methods are checked.
   for (const auto& d : root.get("plugins", std::vector<std::string>{})) {
@@ -312,6 +368,7 @@ RunConfig ExperimentConfig::recorded() const {
   bool rendered = false;
   for (const auto& s : scenes) {
     r.scenes.push_back(s.name);
+    if (s.renderer) r.scene_renderers[s.name] = {s.renderer->renderer, s.renderer->file};
     rendered = rendered || !s.files;
     if (!s.files) continue;
     r.scene_files[s.name] = {s.files->frame, s.files->reference, s.files->second};

@@ -20,6 +20,17 @@
 //                                 # are the frame's half buffers and give its variances
 //                                 # (`import --second`), so nfor, svgf and kpcn run on it
 //
+// A scene rendered by a renderer back-end (docs/renderers.md) instead of the tracer:
+//
+//   [[scene]]
+//   renderer = "mitsuba"          # a back-end of renderers/ (or of `renderers = ["dir"]`, or
+//                                 # $DENOISEBENCH_RENDERERS)
+//   file = "scenes/box.xml"       # the back-end's scene file, relative to the config's folder
+//   label = "box"                 # optional: the scene's name (default: the file's stem)
+//
+// It is a rendered scene: width, height, seeds, spp (even: the input is two halves of spp / 2
+// samples, two seeds, combined as `import --second` does), [reference] and [speedup] apply.
+//
 // A file scene has one input (the frame, at its spp), no plain path-tracing curve, and no
 // renderer-type cells (they render the scene, which a file does not hold: skipped, with the
 // reason in results.json). Both files are read when the config is loaded: a missing file,
@@ -59,10 +70,20 @@ struct SceneFiles {
   std::string second;            // `second`: a render of the frame's view with another seed, or ""
 };
 
-// A scene of the matrix: a rendered one (a built-in scene or scene file), or one read from files.
+// A scene a renderer back-end renders ([[scene]] renderer = "mitsuba", file = "scene.xml";
+// interop/renderers.h, docs/renderers.md), checked at load: the back-end exists, the file too.
+struct SceneRenderer {
+  std::string renderer;   // the back-end's name
+  std::string file;       // the scene file, absolute
+  std::string file_hash;  // SHA-256 of its bytes
+};
+
+// A scene of the matrix: a rendered one (a built-in scene or scene file, by the tracer or by a
+// renderer back-end), or one read from files.
 struct SceneSpec {
-  std::string name;                 // the row name: the scene, or a file scene's label
+  std::string name;                 // the row name: the scene, or a file or back-end scene's label
   std::optional<SceneFiles> files;  // set: read from files, not rendered
+  std::optional<SceneRenderer> renderer = std::nullopt;  // set: rendered by this back-end, not the tracer
 };
 
 struct ExperimentConfig {
@@ -91,6 +112,7 @@ struct ExperimentConfig {
   int threads = 0;
   Table2Columns table2;               // [table2] filter_cpu, filter_opencl, irradiance_cache
   std::vector<std::string> plugins;   // plug-in folders (`plugins = [...]`, relative to the file)
+  std::vector<std::string> renderers; // renderer back-end folders searched first (`renderers = [...]`)
 
   // The config as results.json records it.
   RunConfig recorded() const;

@@ -20,7 +20,7 @@ RenderSettings input_settings(const ExperimentConfig& c, int spp, std::uint64_t 
 
 void PlainCurve::load() {
   const RenderSettings settings = input_settings(config_, rendered_spp(), config_.seed);
-  const CacheKey key = curve_cache_key(scene_, settings, prefixes_);
+  const CacheKey key = curve_cache_key(*scene_, settings, prefixes_);
   if (!use_cache_) cache_.remove(key);
   if (auto entry = cache_.lookup(key)) {
     for (int spp : prefixes_) {
@@ -33,7 +33,7 @@ void PlainCurve::load() {
     hit_ = true;
     return;
   }
-  render_color_prefixes(scene_, settings, prefixes_, [&](std::size_t k, Image image, double seconds) {
+  render_color_prefixes(*scene_, settings, prefixes_, [&](std::size_t k, Image image, double seconds) {
     points_[prefixes_[k]] = {std::move(image), seconds};
   });
   hit_ = false;

@@ -1,9 +1,13 @@
 // Where a run's cells get their pixels: the input frame of a scene at one spp, loaded on first
 // use (InputFrame), and the plain path-tracing curve, one progressive render whose prefixes are
-// its points (PlainCurve). Both go through the render cache (tracer/render_cache.h).
+// its points (PlainCurve). Both go through the render cache (tracer/render_cache.h). A scene a
+// renderer back-end renders (BackendScene, docs/renderers.md) gets its input, its curve and its
+// reference (backend_reference) from the back-end, through the same cache.
 #pragma once
 
 #include <cstdint>
+#include <exception>
+#include <memory>
 #include <functional>
 #include <map>
 #include <optional>
@@ -15,9 +19,11 @@
 #include <nlohmann/json.hpp>
 
 #include "core/aov_frame.h"
+#include "core/hash.h"
 #include "core/image.h"
 #include "experiment/config.h"
 #include "experiment/input_files.h"
+#include "interop/renderers.h"
 #include "tracer/render_cache.h"
 #include "tracer/render_cache_keys.h"
 #include "tracer/render.h"
@@ -27,6 +33,36 @@ namespace dnb::experiment {
 
 // The render settings of the input frames of config `c` at `spp` with `seed`.
 RenderSettings input_settings(const ExperimentConfig& c, int spp, std::uint64_t seed);
+
+// A scene a renderer back-end renders ([[scene]] renderer = ..., file = ...): the back-end, the
+// scene file and what every render of it is keyed by.
+struct BackendScene {
+  std::shared_ptr<interop::RendererBackend> backend;
+  std::string file;       // the scene file, absolute
+  std::string file_hash;  // SHA-256 of its bytes
+  std::string identity;   // the back-end's (interop::RendererBackend::identity: name, version, folder)
+  // What a record's scene_hash is for this scene: the back-end's identity and the file's content.
+  std::string scene_hash() const { return sha256_hex("renderer=" + identity + "\nfile=" + file_hash + "\n"); }
+  // A request of `settings` (size, spp, threads, max depth) with the back-end seed `seed`.
+  interop::RenderRequest request(const RenderSettings& settings, std::uint32_t seed, std::vector<std::string> layers) const;
+  // The cache key of a product of `kind` made from the renders of `settings`: the back-end's
+  // identity, the scene file's content, size, spp, seed, max depth, and `parts`.
+  CacheKey key(const std::string& kind, const RenderSettings& settings,
+               const std::vector<std::pair<std::string, std::string>>& parts = {}) const;
+};
+
+// The 32-bit seed a back-end render is given: a hash of the kind of render (`stream`: "half0",
+// "half1", "reference", "curve"), the config's seed and an index (a block, an increment), so
+// that no two renders of a run share their random numbers. Deterministic.
+std::uint32_t backend_seed(const std::string& stream, std::uint64_t seed, int index);
+
+// The reference of a back-end scene: `spp` samples in blocks of `block_spp`, each block a render
+// of its own seed kept in the render cache as it finishes (the checkpoint: an interrupted run
+// renders only the blocks it lacks), then the mean, with the variance of the mean from the
+// spread of the block means (none with a single block), stored in the cache as the tracer's
+// references are (reference.exr: R,G,B and variance.R/G/B) and its blocks removed.
+Reference backend_reference(Cache& cache, const BackendScene& b, const RenderSettings& settings, std::uint64_t seed,
+                            int block_spp, bool use_cache);
 
 // The input frame of a scene at one spp, read on first use only (a scene whose cells are all
 // finished reads no frame): rendered, through the render cache, or read from the file a
@@ -46,6 +82,11 @@ class InputFrame {
       return std::pair(std::move(f), cache.entry_dir(key) + "/frame.exr");
     };
   }
+  // A back-end scene's frame: two independent renders of spp / 2 samples (two seeds), combined
+  // into one frame with half buffers and variances as `import --second` does
+  // (interop::combine_halves), kept in the render cache whole. Keyed by its cache key's digest
+  // and the reference's spp, as a tracer frame.
+  InputFrame(Cache& cache, const BackendScene& b, RenderSettings settings, bool use_cache, int reference_spp);
   // A frame read from a file: keyed by the contents of both files and the scene's name.
   explicit InputFrame(const SceneSpec& spec)
       : identity_{{"input_file", spec.files->frame_hash}, {"reference_file", spec.files->reference_hash}, {"scene", spec.name}},
@@ -61,11 +102,19 @@ class InputFrame {
 
   const nlohmann::json& identity() const { return identity_; }
   bool from_file() const { return from_file_; }
+  // The frame; a load that failed (a back-end's render) throws the same error again without
+  // trying again, so that the cells of a frame that cannot be had fail with its reason at once.
   const AovFrame& get() {
+    if (error_) std::rethrow_exception(error_);
     if (!frame_) {
-      auto [frame, path] = load_(&hit_);
-      frame_ = std::move(frame);
-      path_ = std::move(path);
+      try {
+        auto [frame, path] = load_(&hit_);
+        frame_ = std::move(frame);
+        path_ = std::move(path);
+      } catch (...) {
+        error_ = std::current_exception();
+        throw;
+      }
     }
     return *frame_;
   }
@@ -96,6 +145,7 @@ class InputFrame {
   std::optional<bool> stored_hit_;
   std::optional<AovFrame> frame_;
   std::string path_;
+  std::exception_ptr error_;
 };
 
 // The plain path-tracing curve of a scene: one progressive render to the curve's largest spp,
@@ -107,7 +157,15 @@ class InputFrame {
 class PlainCurve {
  public:
   PlainCurve(const ExperimentConfig& c, const Scene& scene, Cache& cache, bool use_cache)
-      : config_(c), scene_(scene), cache_(cache), use_cache_(use_cache) {
+      : PlainCurve(c, &scene, nullptr, cache, use_cache) {}
+  // A back-end scene's curve: the back-end renders the samples each point adds to the last
+  // (point N is the spp-weighted mean of the renders up to it, the first N samples of one
+  // sequence of renders), each render of its own seed and cached; a point's time is the sum of
+  // the render times up to it.
+  PlainCurve(const ExperimentConfig& c, const BackendScene& b, Cache& cache, bool use_cache)
+      : PlainCurve(c, nullptr, &b, cache, use_cache) {}
+  PlainCurve(const ExperimentConfig& c, const Scene* scene, const BackendScene* backend, Cache& cache, bool use_cache)
+      : config_(c), scene_(scene), backend_(backend), cache_(cache), use_cache_(use_cache) {
     for (int spp : c.plain_spp) prefixes_.push_back(spp);
     std::sort(prefixes_.begin(), prefixes_.end());
     prefixes_.erase(std::unique(prefixes_.begin(), prefixes_.end()), prefixes_.end());
@@ -115,7 +173,16 @@ class PlainCurve {
   int rendered_spp() const { return prefixes_.empty() ? 0 : prefixes_.back(); }
   // Point spp's image and seconds.
   const std::pair<Image, double>& get(int spp) {
-    if (points_.empty()) load();
+    if (error_) std::rethrow_exception(error_);  // as InputFrame::get
+    if (points_.empty()) {
+      try {
+        backend_ ? load_backend() : load();
+      } catch (...) {
+        points_.clear();
+        error_ = std::current_exception();
+        throw;
+      }
+    }
     return points_.at(spp);
   }
   // Whether the points came from the render cache (known once a point was asked for).
@@ -127,15 +194,18 @@ class PlainCurve {
   // took to reach it, as first measured), else rendered and stored there: a run whose plain cells
   // must be scored again (the metrics changed) reads the curve instead of rendering it again.
   void load();
+  void load_backend();
   static std::string point_file(int spp) { return fmt::format("prefix_{}.exr", spp); }
 
   const ExperimentConfig& config_;
-  const Scene& scene_;
+  const Scene* scene_;
+  const BackendScene* backend_;
   Cache& cache_;
   bool use_cache_;
   bool hit_ = false;
   std::vector<int> prefixes_;
   std::map<int, std::pair<Image, double>> points_;
+  std::exception_ptr error_;
 };
 
 }  // namespace dnb::experiment

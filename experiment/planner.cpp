@@ -16,6 +16,8 @@
 #include "metrics/metrics.h"
 #include "methods/inputs.h"
 #include "distributed/mpi_context.h"
+#include "core/errors.h"
+#include "interop/renderers.h"
 #include "tracer/scene_loader.h"
 
 namespace dnb::experiment {
@@ -255,6 +257,99 @@ std::unique_ptr<ScenePlans> file_scene_plans(const ExperimentConfig& c, const Ru
     }
     g.plans.push_back(method_cell(c, registry, m, nullptr, *g.frame, spp));
   }
+  return sp;
+}
+
+namespace {
+
+// A plan that fails with `error` (its scene's back-end or reference could not be had): recorded
+// as a failed cell with the back-end's message, like any contained failure.
+CellPlan failing(CellPlan p, std::exception_ptr error) {
+  if (p.skip_reason) return p;
+  p.contain_failures = true;
+  p.compute = [error]() -> CellOutput { std::rethrow_exception(error); };
+  return p;
+}
+
+}  // namespace
+
+std::unique_ptr<ScenePlans> backend_scene_plans(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry,
+                                                Cache& cache, const SceneSpec& spec) {
+  auto sp = std::make_unique<ScenePlans>();
+  sp->backend = std::make_unique<BackendScene>();
+  BackendScene& b = *sp->backend;
+  b.backend = interop::renderer_backend(spec.renderer->renderer, interop::renderer_search_dirs(c.renderers));
+  b.file = spec.renderer->file;
+  b.file_hash = spec.renderer->file_hash;
+  const std::string& name = spec.name;
+  const int ref_spp = c.reference_spp_for(name);
+  // The back-end's identity and the reference: rank 0 first, the other ranks then find the
+  // reference in the (shared) cache. A failure fails the scene's cells, not the run.
+  std::exception_ptr failure;
+  auto prepare = [&] {
+    try {
+      b.identity = b.backend->identity();
+      spdlog::info("{}: reference {} spp at {}x{} by renderer '{}' ({})", name, ref_spp, c.width, c.height,
+                   b.backend->manifest().name, b.backend->version());
+      sp->ref = backend_reference(cache, b, input_settings(c, ref_spp, c.reference_seed), c.reference_seed,
+                                  c.reference_block_spp, opt.use_cache);
+    } catch (const std::exception& e) {
+      if (!dynamic_cast<const WorkError*>(&e) && !dynamic_cast<const InputError*>(&e)) throw;
+      spdlog::error("{}: renderer '{}' on '{}': {}; every cell of the scene fails", name, spec.renderer->renderer, b.file,
+                    e.what());
+      failure = std::current_exception();
+    }
+  };
+  if (mpi::is_root()) prepare();
+  mpi::barrier();
+  if (!mpi::is_root()) prepare();
+  SceneCells& s = sp->cells;
+  if (mpi::is_root() && !failure) {
+    s = scene_cells(opt.out_dir, name, sp->ref);
+  } else {
+    s.scene = name;
+    std::tie(s.width, s.height) = std::pair(c.width, c.height);
+  }
+  s.scene_hash = b.scene_hash();
+  s.seed = c.seed;
+  s.reference_info.spp = ref_spp;
+  s.reference_info.seed = c.reference_seed;
+  s.reference_info.seconds = sp->ref.meta.render_seconds;  // as first rendered, also from the cache
+  s.reference_info.cache_hit = sp->ref.cache_hit;
+  s.reference = &sp->ref;
+  auto add = [&](PlanGroup& g, CellPlan p) {
+    p.contain_failures = true;  // a render that fails fails the cells that need it, not the run
+    g.plans.push_back(failure ? failing(std::move(p), failure) : std::move(p));
+  };
+  PlanGroup& plain = sp->groups.emplace_back();
+  plain.curve = std::make_unique<PlainCurve>(c, b, cache, opt.use_cache);
+  for (int spp : c.plain_spp) add(plain, plain_cell(c, *plain.curve, s.scene_hash, spp, ref_spp));
+  for (int spp : c.spp)
+    for (std::uint64_t seed : c.seeds) {
+      PlanGroup& g = sp->groups.emplace_back();
+      g.frame = std::make_unique<InputFrame>(cache, b, input_settings(c, spp, seed), opt.use_cache, ref_spp);
+      const std::string suffix = c.seeds.size() > 1 ? fmt::format("_s{}", seed) : "";
+      auto seeded = [&](CellPlan p) {
+        p.seed = seed;
+        p.stem += suffix;
+        return p;
+      };
+      add(g, seeded(input_cell(*g.frame, spp)));
+      for (const auto& m : c.methods) {
+        if (registry.info(m.method).kind == MethodKind::Renderer) {
+          CellPlan skip;
+          skip.method = m.name;
+          skip.spp = spp;
+          skip.seed = seed;
+          skip.skip_reason = fmt::format("'{}' renders with the harness's tracer, and scene '{}' is rendered by renderer '{}' "
+                                         "('{}')",
+                                         m.method, name, spec.renderer->renderer, b.file);
+          g.plans.push_back(std::move(skip));
+          continue;
+        }
+        add(g, seeded(method_cell(c, registry, m, nullptr, *g.frame, spp)));
+      }
+    }
   return sp;
 }
 

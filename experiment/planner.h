@@ -36,7 +36,8 @@ struct PlanGroup {
 };
 
 struct ScenePlans {
-  std::shared_ptr<const Scene> scene;  // null for a scene read from files
+  std::shared_ptr<const Scene> scene;  // null for a scene read from files or rendered by a back-end
+  std::unique_ptr<BackendScene> backend;  // a scene a renderer back-end renders
   Reference ref;                       // under MPI: on rank 0 only
   SceneCells cells;
   std::vector<PlanGroup> groups;
@@ -53,6 +54,13 @@ std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, cons
 // method is a skipped plan (there is no scene to render).
 std::unique_ptr<ScenePlans> file_scene_plans(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry,
                                              const SceneSpec& spec);
+// Every cell of a scene a renderer back-end renders (docs/renderers.md): as a rendered scene's,
+// the reference, inputs (two halves each) and curve coming from the back-end. A back-end that
+// cannot render (not installed, its version command fails, the scene file is refused) fails
+// every cell of the scene with its message, and the run goes on; a render that fails fails the
+// cells that need it. Renderer-type methods are skipped (they render with the harness's tracer).
+std::unique_ptr<ScenePlans> backend_scene_plans(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry,
+                                                Cache& cache, const SceneSpec& spec);
 // How many cells the config has (the progress bar's total).
 std::int64_t cell_count(const ExperimentConfig& c);
 

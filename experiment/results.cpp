@@ -320,6 +320,7 @@ json config_json(const RunConfig& c) {
               {"irradiance_cache", c.table2.irradiance_cache}}},
             {"methods", methods}};
   if (!c.scene_files.empty()) j["scene_files"] = scene_files_json(c.scene_files);  // only configs that have them
+  for (const auto& [name, r] : c.scene_renderers) j["scene_renderers"][name] = {{"renderer", r.renderer}, {"file", r.file}};
   if (c.seeds.size() > 1) j["seeds"] = c.seeds;  // only configs of several seeds: one-seed files read as before
   if (!c.reference_scene_spp.empty()) j["reference_scene_spp"] = c.reference_scene_spp;
   return j;
@@ -345,6 +346,11 @@ RunConfig config_from_json(const json& j, const std::string& where) {
     const std::string fw = where + ": scene_files: " + name;
     c.scene_files[name] = {jf::get<std::string>(f, "frame", fw), jf::get<std::string>(f, "reference", fw),
                            jf::get_or<std::string>(f, "second", "", fw)};
+  }
+  const json renderers = object_or_empty(j, "scene_renderers", where);
+  for (const auto& [name, r] : renderers.items()) {
+    const std::string rw = where + ": scene_renderers: " + name;
+    c.scene_renderers[name] = {jf::get<std::string>(r, "renderer", rw), jf::get<std::string>(r, "file", rw)};
   }
   c.repeats = jf::get_or<int>(j, "repeats", 0, where);
   const json t2 = object_or_empty(j, "table2", where);

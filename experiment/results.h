@@ -91,6 +91,12 @@ struct SceneFilesEntry {
   bool operator==(const SceneFilesEntry&) const = default;
 };
 
+// A scene rendered by a renderer back-end, as recorded: the back-end's name and the scene file.
+struct SceneRendererEntry {
+  std::string renderer, file;
+  bool operator==(const SceneRendererEntry&) const = default;
+};
+
 // The config as the results record it (experiment/config.h is the config file itself).
 struct RunConfig {
   std::string path, name;
@@ -102,6 +108,7 @@ struct RunConfig {
   std::vector<int> spp, plain_spp;
   std::vector<std::string> scenes;  // every scene's name, config order (file scenes by label)
   std::map<std::string, SceneFilesEntry> scene_files;  // the scenes read from files, by name
+  std::map<std::string, SceneRendererEntry> scene_renderers;  // the scenes a back-end renders, by name
   int repeats = 0;
   Table2Columns table2;
   std::vector<MethodEntry> methods;

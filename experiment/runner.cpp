@@ -63,7 +63,9 @@ ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt,
   }
   mpi::barrier();  // the spool folder exists before any rank writes into it
   for (const auto& s : c.scenes) {
-    const auto sp = s.files ? file_scene_plans(c, opt, registry, s) : rendered_scene_plans(c, opt, registry, cache, s.name);
+    const auto sp = s.files      ? file_scene_plans(c, opt, registry, s)
+                    : s.renderer ? backend_scene_plans(c, opt, registry, cache, s)
+                                 : rendered_scene_plans(c, opt, registry, cache, s.name);
     if (distributed)
       run_scene_distributed(*sp, opt, root ? &*context : nullptr);
     else

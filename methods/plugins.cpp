@@ -21,6 +21,7 @@
 #include "core/exr_io.h"
 #include "core/file_names.h"
 #include "core/hash.h"
+#include "core/line_worker.h"
 #include "core/subprocess.h"
 #include "core/timer.h"
 
@@ -166,118 +167,33 @@ class WorkDir {
 };
 
 // A worker plug-in's process, shared by every method instance (cell) of the plug-in in this
-// process: started on first use, restarted once if it dies, then failing.
+// process (core/line_worker.h: started on first use, restarted once if it dies, then failing),
+// its failures told as the plug-in's: PluginError, or MethodUnavailable when it cannot run here.
 class Worker {
  public:
-  explicit Worker(const PluginManifest& m) : m_(m) {}
-  ~Worker() { stop(false); }
+  explicit Worker(const PluginManifest& m)
+      : worker_({.what = fmt::format("plug-in '{}' ({})", m.name, m.path), .short_name = fmt::format("plug-in '{}'", m.name),
+                 .argv = m.command, .cwd = m.folder, .env = child_env(), .timeout_seconds = m.timeout_seconds,
+                 .log_name = m.name}) {}
 
   // Sends one request; returns the round trip's wall seconds. PluginError on any failure.
   double request(const json& req) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    start();
-    Stopwatch sw;
-    if (!proc_->write_line(req.dump())) died("closed its stdin before the request");
-    std::string answer;
-    const auto r = proc_->read_line(answer, m_.timeout_seconds);
-    const double seconds = sw.seconds();
-    if (r == Subprocess::Read::Timeout) {
-      proc_->kill_group();
-      fail(m_, fmt::format("no answer within timeout_seconds = {} (its process group was killed)", m_.timeout_seconds),
-           tail_of(*proc_));
-    }
-    if (r == Subprocess::Read::Eof) died("ended before answering");
-    json a;
+    double seconds = 0;
     try {
-      a = json::parse(answer);
-    } catch (const json::exception&) {
-      fail(m_, fmt::format("answered '{}', expected one JSON line {{\"ok\": true}} or {{\"ok\": false, \"error\": ...}}",
-                           answer.substr(0, 200)),
-           tail_of(*proc_));
+      worker_.request(req, &seconds);
+    } catch (const WorkerUnavailable& e) {
+      throw MethodUnavailable(e.what());
+    } catch (const WorkerError& e) {
+      throw PluginError(e.reason(), e.log_tail(), e.what());
     }
-    if (!a.is_object() || !a.contains("ok") || !a["ok"].is_boolean())
-      fail(m_, fmt::format("answered {}, expected an object with a boolean \"ok\"", a.dump().substr(0, 200)), tail_of(*proc_));
-    if (!a["ok"].get<bool>())
-      fail(m_, fmt::format("reported an error: {}", a.value("error", json("(no \"error\" given)")).dump()), tail_of(*proc_));
     return seconds;
   }
-  double setup_seconds() const { return setup_seconds_; }
-  // The ready line's "info" object, values as strings (JSON text for non-strings).
-  const std::map<std::string, std::string>& info() const { return info_; }
-
-  // Closes stdin and waits for the worker to end; kills its group after a grace period.
-  void stop(bool log) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!proc_) return;
-    if (!log) proc_->set_on_log_line({});  // at exit the log may already be gone
-    end_process();
-  }
+  double setup_seconds() const { return worker_.setup_seconds(); }
+  const std::map<std::string, std::string>& info() const { return worker_.info(); }
+  void stop(bool log) { worker_.stop(log); }
 
  private:
-  // Closes stdin and waits for the worker to end; kills its group after a grace period. The
-  // caller holds mutex_.
-  void end_process() {
-    proc_->close_stdin();
-    if (!proc_->wait(5.0)) proc_->kill_group();
-    proc_.reset();
-  }
-  void start() {
-    if (!unavailable_.empty()) throw MethodUnavailable(unavailable_);
-    if (proc_ && proc_->running()) return;
-    if (proc_) proc_->kill_group();  // a dead one's leftovers
-    if (starts_ >= 2) fail(m_, "the worker died twice; its remaining cells are not run", last_tail_);
-    ++starts_;
-    Stopwatch sw;
-    proc_ = std::make_unique<Subprocess>(ProcessOptions{.argv = m_.command, .cwd = m_.folder, .env = child_env(),
-                                                        .pipe_stdin = true, .pipe_stdout = true,
-                                                        .on_log_line = log_to(m_.name)});
-    std::string line;
-    const auto r = proc_->read_line(line, m_.timeout_seconds);
-    if (r == Subprocess::Read::Timeout) {
-      proc_->kill_group();
-      fail(m_, fmt::format("not ready within timeout_seconds = {} (its process group was killed)", m_.timeout_seconds),
-           keep_tail());
-    }
-    if (r == Subprocess::Read::Eof) died("ended during start-up, before its ready line");
-    json ready;
-    try {
-      ready = json::parse(line);
-    } catch (const json::exception&) {
-    }
-    if (ready.is_object() && ready.value("ready", true) == false && ready.contains("unavailable")) {
-      // The program cannot serve here (docs/plugins.md): every cell of it is skipped, not failed.
-      const std::string why = ready["unavailable"].is_string() ? ready["unavailable"].get<std::string>()
-                                                                : ready["unavailable"].dump();
-      unavailable_ = fmt::format("plug-in '{}' is not available on this machine: {}", m_.name, why);
-      end_process();
-      throw MethodUnavailable(unavailable_);
-    }
-    if (!ready.is_object() || ready.value("ready", false) != true) {
-      proc_->kill_group();
-      fail(m_, fmt::format("printed '{}' as its first line, expected {{\"ready\": true}}", line.substr(0, 200)), keep_tail());
-    }
-    setup_seconds_ = sw.seconds();
-    info_.clear();
-    if (ready.contains("info") && ready["info"].is_object())
-      for (const auto& [k, v] : ready["info"].items()) info_[k] = v.is_string() ? v.get<std::string>() : v.dump();
-    spdlog::info("plug-in '{}': worker {} ready in {:.3f} s", m_.name, proc_->pid(), setup_seconds_);
-  }
-  std::vector<std::string> keep_tail() { return last_tail_ = tail_of(*proc_); }
-  [[noreturn]] void died(const std::string& when) {
-    auto st = proc_->wait(2.0);
-    if (!st) st = proc_->kill_group();
-    fail(m_, fmt::format("the worker {} ({}){}", when, st->describe(), starts_ < 2 ? "; it is restarted for the next cell" : ""),
-         keep_tail());
-  }
-
-  PluginManifest m_;
-  std::mutex mutex_;
-  std::unique_ptr<Subprocess> proc_;
-  int starts_ = 0;
-  double setup_seconds_ = 0;
-  std::map<std::string, std::string> info_;
-  std::string unavailable_;  // set once the program said it cannot run here
-  std::vector<std::string> last_tail_;
+  LineWorker worker_;
 };
 
 std::mutex& workers_mutex() {

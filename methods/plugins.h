@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/line_worker.h"
 #include "denoisers/method.h"
 
 namespace dnb {
@@ -40,17 +41,11 @@ struct PluginManifest {
 
 // A plug-in failed on a frame (it exited non-zero, crashed, timed out, wrote nothing or a wrong
 // image, a worker answered an error or died). The message names the plug-in and the reason;
-// log_tail holds the last lines it printed on stderr.
-class PluginError : public WorkError {
+// log_tail holds the last lines it printed on stderr (core/line_worker.h's WorkerError, which a
+// worker plug-in's failures are).
+class PluginError : public WorkerError {
  public:
-  PluginError(const std::string& reason, std::vector<std::string> log_tail, const std::string& message)
-      : WorkError(message), reason_(reason), log_tail_(std::move(log_tail)) {}
-  const std::string& reason() const { return reason_; }  // what() without the log lines
-  const std::vector<std::string>& log_tail() const { return log_tail_; }
-
- private:
-  std::string reason_;
-  std::vector<std::string> log_tail_;
+  using WorkerError::WorkerError;
 };
 
 // Reads and checks one manifest: unknown keys, a missing program, a bad layer name or a bad
