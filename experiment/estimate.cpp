@@ -203,9 +203,10 @@ RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const
   for (const SceneSpec& spec : c.scenes) {
     SceneEstimate se;
     se.scene = spec.name;
-    if (spec.files) {
+    if (spec.files || spec.renderer) {
       se.estimated = false;
-      se.why_not = "read from files: its methods' cost is not probed";
+      se.why_not = spec.files ? "read from files: not probed"
+                              : fmt::format("rendered by the '{}' back-end: not probed", spec.renderer->renderer);
       est.scenes.push_back(se);
       continue;
     }
