@@ -1,9 +1,15 @@
 #include "core/line_worker.h"
 
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
+#include "core/hash.h"
 #include "core/subprocess.h"
 #include "core/timer.h"
 
@@ -122,6 +128,65 @@ void LineWorker::died(const std::string& when) {
   if (!st) st = proc_->kill_group();
   fail(fmt::format("the worker {} ({}){}", when, st->describe(), starts_ < 2 ? "; it is restarted for the next request" : ""),
        keep_tail());
+}
+
+std::vector<std::string> split_path_list(const std::string& list) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (start <= list.size()) {
+    const std::size_t end = std::min(list.find(':', start), list.size());
+    if (end > start) out.push_back(list.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
+}
+
+namespace {
+bool executable(const std::filesystem::path& p) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
+}
+}  // namespace
+
+std::string resolve_program(const std::string& program, const std::filesystem::path& folder, const std::string& where) {
+  namespace fs = std::filesystem;
+  if (program.empty()) throw InputError(fmt::format("{}: the program (first element) is empty", where));
+  if (program.find('/') != std::string::npos) {
+    const fs::path p = fs::path(program).is_absolute() ? fs::path(program) : folder / program;
+    if (!executable(p))
+      throw InputError(fmt::format("{}: program '{}' {}", where, p.string(),
+                                   fs::exists(p) ? "is not an executable file" : "does not exist"));
+    return fs::absolute(p).lexically_normal().string();
+  }
+  const char* path = std::getenv("PATH");
+  const std::string dirs = path ? path : "/usr/local/bin:/usr/bin:/bin";
+  for (const std::string& d : split_path_list(dirs))
+    if (executable(fs::path(d) / program)) return program;
+  throw InputError(fmt::format("{}: program '{}' is not on PATH ({})", where, program, dirs));
+}
+
+std::map<std::string, std::string> python_worker_env(const std::filesystem::path& helper_dir) {
+  std::string pp = helper_dir.string();
+  if (const char* old = std::getenv("PYTHONPATH"); old && *old) pp += std::string(":") + old;
+  return {{"PYTHONPATH", pp}, {"PYTHONDONTWRITEBYTECODE", "1"}, {"PYTHONUNBUFFERED", "1"}};
+}
+
+void hash_folder(const std::filesystem::path& root, const std::string& label, bool recurse, std::vector<std::string>& parts) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(root, ec)) return;
+  std::vector<std::pair<std::string, std::string>> files;
+  for (auto it = fs::recursive_directory_iterator(root, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    const std::string leaf = it->path().filename().string();
+    if (leaf.front() == '.' || leaf == "__pycache__" || (it->is_directory() && !recurse)) {
+      if (it->is_directory()) it.disable_recursion_pending();
+      continue;
+    }
+    if (it->is_regular_file()) files.emplace_back(fs::relative(it->path(), root).string(), sha256_file(it->path().string()));
+  }
+  std::sort(files.begin(), files.end());
+  for (const auto& [rel, h] : files) parts.push_back(label + "/" + rel + ":" + h);
 }
 
 }  // namespace dnb

@@ -17,6 +17,7 @@
 //   nlohmann::json answer = w.request({{"input", in}, {"output", out}});
 #pragma once
 
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -99,5 +100,24 @@ class LineWorker {
   std::string unavailable_;  // set once the program said it cannot run here
   std::vector<std::string> last_tail_;
 };
+
+// ---- What plug-ins and back-ends share about their programs ----
+
+// "a:b::c" -> a, b, c (empty entries dropped), for PATH-like lists.
+std::vector<std::string> split_path_list(const std::string& list);
+
+// A manifest's program as it will be run: absolute, relative to the manifest's `folder`, or a
+// name found on PATH (returned as it is). InputError "WHERE: program ..." when there is none.
+std::string resolve_program(const std::string& program, const std::filesystem::path& folder, const std::string& where);
+
+// The environment of a Python worker: `helper_dir` (the harness's helper module) on PYTHONPATH
+// before any inherited one; no bytecode written into the folders (they are hashed); stderr
+// unbuffered, line by line.
+std::map<std::string, std::string> python_worker_env(const std::filesystem::path& helper_dir);
+
+// Every regular file under `root` (`recurse`: in sub-folders too) as lines "label/rel:sha256",
+// sorted, appended to `parts`; hidden entries and Python caches are left out (they do not change
+// what a program does). What a worker's content hash is made of.
+void hash_folder(const std::filesystem::path& root, const std::string& label, bool recurse, std::vector<std::string>& parts);
 
 }  // namespace dnb

@@ -36,41 +36,12 @@ fs::path renderers_dir() {
   return fs::path(DNB_SOURCE_RENDERERS_DIR);
 }
 
-std::vector<std::string> split_colons(const std::string& list) {
-  std::vector<std::string> out;
-  std::size_t start = 0;
-  while (start <= list.size()) {
-    const std::size_t end = std::min(list.find(':', start), list.size());
-    if (end > start) out.push_back(list.substr(start, end - start));
-    start = end + 1;
-  }
-  return out;
-}
-
-bool executable(const fs::path& p) {
-  std::error_code ec;
-  return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
-}
-
 // An argv as it will be run: argv[0] absolute, relative to the folder, or found on PATH; later
 // arguments naming files of the folder made absolute.
 std::vector<std::string> resolve_argv(std::vector<std::string> argv, const fs::path& folder, const std::string& where) {
   if (argv.empty() || argv[0].empty())
     throw InputError(fmt::format("{}: expected [\"program\", \"arg\", ...] with a program first", where));
-  std::string& program = argv[0];
-  if (program.find('/') != std::string::npos) {
-    const fs::path p = fs::path(program).is_absolute() ? fs::path(program) : folder / program;
-    if (!executable(p))
-      throw InputError(fmt::format("{}: program '{}' {}", where, p.string(),
-                                   fs::exists(p) ? "is not an executable file" : "does not exist"));
-    program = fs::absolute(p).lexically_normal().string();
-  } else {
-    const char* path = std::getenv("PATH");
-    const std::string dirs = path ? path : "/usr/local/bin:/usr/bin:/bin";
-    const auto found = split_colons(dirs);
-    if (std::none_of(found.begin(), found.end(), [&](const std::string& d) { return executable(fs::path(d) / program); }))
-      throw InputError(fmt::format("{}: program '{}' is not on PATH ({})", where, program, dirs));
-  }
+  argv[0] = resolve_program(argv[0], folder, where);
   for (std::size_t i = 1; i < argv.size(); ++i) {
     std::error_code ec;
     const fs::path p = folder / argv[i];
@@ -81,30 +52,8 @@ std::vector<std::string> resolve_argv(std::vector<std::string> argv, const fs::p
 }
 
 std::map<std::string, std::string> child_env() {
-  // The helper module (renderers/denoisebench_renderer.py) importable; no bytecode written into
-  // back-end folders (they are hashed); stderr unbuffered, line by line.
-  std::string pp = renderers_dir().string();
-  if (const char* old = std::getenv("PYTHONPATH"); old && *old) pp += std::string(":") + old;
-  return {{"PYTHONPATH", pp}, {"PYTHONDONTWRITEBYTECODE", "1"}, {"PYTHONUNBUFFERED", "1"}};
-}
-
-// Every regular file under `root` by relative path and content (hidden entries and Python caches
-// left out), as lines "label/rel:sha256".
-void hash_tree(const fs::path& root, const std::string& label, bool recurse, std::vector<std::string>& parts) {
-  std::error_code ec;
-  if (!fs::is_directory(root, ec)) return;
-  std::vector<std::pair<std::string, std::string>> files;
-  for (auto it = fs::recursive_directory_iterator(root, ec); !ec && it != fs::recursive_directory_iterator();
-       it.increment(ec)) {
-    const std::string leaf = it->path().filename().string();
-    if (leaf.front() == '.' || leaf == "__pycache__" || (it->is_directory() && !recurse)) {
-      if (it->is_directory()) it.disable_recursion_pending();
-      continue;
-    }
-    if (it->is_regular_file()) files.emplace_back(fs::relative(it->path(), root).string(), sha256_file(it->path().string()));
-  }
-  std::sort(files.begin(), files.end());
-  for (const auto& [rel, h] : files) parts.push_back(label + "/" + rel + ":" + h);
+  // The helper module (renderers/denoisebench_renderer.py) importable.
+  return python_worker_env(renderers_dir());
 }
 
 std::vector<fs::path> manifests_in(const fs::path& dir) {
@@ -174,7 +123,7 @@ RendererManifest load_renderer_manifest(const std::string& path) { return manife
 std::vector<std::string> renderer_search_dirs(const std::vector<std::string>& extra) {
   std::vector<std::string> dirs = extra;
   if (const char* env = env::get("RENDERERS"))
-    for (const std::string& d : split_colons(env)) dirs.push_back(d);
+    for (const std::string& d : split_path_list(env)) dirs.push_back(d);
   dirs.push_back(renderers_dir().string());
   return dirs;
 }
@@ -241,8 +190,8 @@ const std::string& RendererBackend::version() {
 const std::string& RendererBackend::identity() {
   if (!identity_.empty()) return identity_;
   std::vector<std::string> parts = {"name=" + m_.name, "version=" + version()};
-  hash_tree(m_.folder, "renderer", true, parts);
-  hash_tree(renderers_dir(), "helper", false, parts);  // denoisebench_renderer.py, not the other back-ends
+  hash_folder(m_.folder, "renderer", true, parts);
+  hash_folder(renderers_dir(), "helper", false, parts);  // denoisebench_renderer.py, not the other back-ends
   identity_ = sha256_hex(fmt::format("{}", fmt::join(parts, "\n")));
   return identity_;
 }

@@ -40,40 +40,6 @@ fs::path source_dir(const char* sub, const char* compiled) {
 }
 fs::path python_dir() { return source_dir("python", DNB_SOURCE_PYTHON_DIR); }
 
-// "a:b::c" -> a, b, c (empty entries dropped), for PATH-like lists.
-std::vector<std::string> split_colons(const std::string& list) {
-  std::vector<std::string> out;
-  std::size_t start = 0;
-  while (start <= list.size()) {
-    const std::size_t end = std::min(list.find(':', start), list.size());
-    if (end > start) out.push_back(list.substr(start, end - start));
-    start = end + 1;
-  }
-  return out;
-}
-
-bool executable(const fs::path& p) {
-  std::error_code ec;
-  return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
-}
-
-// argv[0] as it will be run: absolute, relative to the manifest's folder, or found on PATH.
-std::string resolve_program(const std::string& program, const fs::path& folder, const std::string& where) {
-  if (program.empty()) throw InputError(fmt::format("{}: the program (first element) is empty", where));
-  if (program.find('/') != std::string::npos) {
-    const fs::path p = fs::path(program).is_absolute() ? fs::path(program) : folder / program;
-    if (!executable(p))
-      throw InputError(fmt::format("{}: program '{}' {}", where, p.string(),
-                                   fs::exists(p) ? "is not an executable file" : "does not exist"));
-    return fs::absolute(p).lexically_normal().string();
-  }
-  const char* path = std::getenv("PATH");
-  const std::string dirs = path ? path : "/usr/local/bin:/usr/bin:/bin";
-  for (const std::string& d : split_colons(dirs))
-    if (executable(fs::path(d) / program)) return program;
-  throw InputError(fmt::format("{}: program '{}' is not on PATH ({})", where, program, dirs));
-}
-
 ParamType param_type(const std::string& t, const std::string& where) {
   if (t == "float") return ParamType::Float;
   if (t == "int") return ParamType::Int;
@@ -114,11 +80,8 @@ ParamSpec read_param(ConfigTable& t, const std::string& name) {
 // Running a plug-in.
 
 std::map<std::string, std::string> child_env() {
-  // The helper module (python/denoisebench_plugin.py) importable without installing it; no
-  // bytecode written into plug-in folders (they are hashed); stderr unbuffered, line by line.
-  std::string pp = python_dir().string();
-  if (const char* old = std::getenv("PYTHONPATH"); old && *old) pp += std::string(":") + old;
-  return {{"PYTHONPATH", pp}, {"PYTHONDONTWRITEBYTECODE", "1"}, {"PYTHONUNBUFFERED", "1"}};
+  // The helper module (python/denoisebench_plugin.py) importable without installing it.
+  return python_worker_env(python_dir());
 }
 
 std::function<void(const std::string&)> log_to(const std::string& name) {
@@ -368,32 +331,15 @@ std::string plugin_content_hash(const PluginManifest& m) {
   // Every regular file under the folder and under the helper's, by relative path and content;
   // hidden entries and Python caches are left out (they do not change what the program does).
   std::vector<std::string> parts;
-  auto add_tree = [&](const fs::path& root, const std::string& label) {
-    std::error_code ec;
-    if (!fs::is_directory(root, ec)) return;
-    std::vector<std::pair<std::string, std::string>> files;
-    for (auto it = fs::recursive_directory_iterator(root, ec); !ec && it != fs::recursive_directory_iterator();
-         it.increment(ec)) {
-      const std::string leaf = it->path().filename().string();
-      if (leaf.front() == '.' || leaf == "__pycache__") {
-        if (it->is_directory()) it.disable_recursion_pending();
-        continue;
-      }
-      if (it->is_regular_file())
-        files.emplace_back(fs::relative(it->path(), root).string(), sha256_file(it->path().string()));
-    }
-    std::sort(files.begin(), files.end());
-    for (const auto& [rel, h] : files) parts.push_back(label + "/" + rel + ":" + h);
-  };
-  add_tree(m.folder, "plugin");
-  add_tree(python_dir(), "harness-python");
+  hash_folder(m.folder, "plugin", true, parts);
+  hash_folder(python_dir(), "harness-python", true, parts);
   return sha256_hex(fmt::format("{}", fmt::join(parts, "\n")));
 }
 
 std::vector<std::string> plugin_search_dirs(const std::vector<std::string>& extra) {
   std::vector<std::string> dirs = extra;
   if (const char* env = env::get("PLUGINS"))
-    for (const std::string& d : split_colons(env)) dirs.push_back(d);
+    for (const std::string& d : split_path_list(env)) dirs.push_back(d);
   dirs.push_back(source_dir("plugins", DNB_SOURCE_PLUGINS_DIR).string());
   return dirs;
 }
