@@ -189,4 +189,19 @@ void hash_folder(const std::filesystem::path& root, const std::string& label, bo
   for (const auto& [rel, h] : files) parts.push_back(label + "/" + rel + ":" + h);
 }
 
+std::vector<std::filesystem::path> manifest_files_in(const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> out;
+  std::error_code ec;
+  auto add_from = [&](const fs::path& d) {
+    for (const auto& e : fs::directory_iterator(d, ec))
+      if (e.is_regular_file() && e.path().extension() == ".toml") out.push_back(e.path());
+  };
+  add_from(dir);
+  for (const auto& e : fs::directory_iterator(dir, ec))
+    if (e.is_directory() && e.path().filename().string().front() != '.') add_from(e.path());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 }  // namespace dnb

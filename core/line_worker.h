@@ -120,4 +120,8 @@ std::map<std::string, std::string> python_worker_env(const std::filesystem::path
 // what a program does). What a worker's content hash is made of.
 void hash_folder(const std::filesystem::path& root, const std::string& label, bool recurse, std::vector<std::string>& parts);
 
+// The manifests (*.toml) in `dir` and in its sub-folders one level down (hidden ones left out),
+// sorted: where plug-ins and back-ends are found.
+std::vector<std::filesystem::path> manifest_files_in(const std::filesystem::path& dir);
+
 }  // namespace dnb

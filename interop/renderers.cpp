@@ -56,20 +56,6 @@ std::map<std::string, std::string> child_env() {
   return python_worker_env(renderers_dir());
 }
 
-std::vector<fs::path> manifests_in(const fs::path& dir) {
-  std::vector<fs::path> out;
-  std::error_code ec;
-  auto add_from = [&](const fs::path& d) {
-    for (const auto& e : fs::directory_iterator(d, ec))
-      if (e.is_regular_file() && e.path().extension() == ".toml") out.push_back(e.path());
-  };
-  add_from(dir);
-  for (const auto& e : fs::directory_iterator(dir, ec))
-    if (e.is_directory() && e.path().filename().string().front() != '.') add_from(e.path());
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 RendererManifest manifest_from(const ConfigFile& file, const std::string& path) {
   ConfigTable root = file.root();
   auto r = root.table("renderer");
@@ -136,7 +122,7 @@ std::map<std::string, RendererManifest> find_renderers(const std::vector<std::st
       if (d == renderers_dir().string()) continue;  // an installed copy may lack the repository's folder
       throw InputError(fmt::format("renderer folder '{}' {}", d, fs::exists(d, ec) ? "is not a folder" : "does not exist"));
     }
-    for (const fs::path& p : manifests_in(d)) {
+    for (const fs::path& p : manifest_files_in(d)) {
       const ConfigFile file = ConfigFile::load(p.string());
       if (!file.root().contains("renderer")) continue;
       RendererManifest m = manifest_from(file, p.string());

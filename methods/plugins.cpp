@@ -258,20 +258,6 @@ class PluginMethod : public Method {
   std::unique_ptr<WorkDir> dir_;
 };
 
-std::vector<fs::path> manifests_in(const fs::path& dir) {
-  std::vector<fs::path> out;
-  std::error_code ec;
-  auto add_from = [&](const fs::path& d) {
-    for (const auto& e : fs::directory_iterator(d, ec))
-      if (e.is_regular_file() && e.path().extension() == ".toml") out.push_back(e.path());
-  };
-  add_from(dir);
-  for (const auto& e : fs::directory_iterator(dir, ec))
-    if (e.is_directory() && e.path().filename().string().front() != '.') add_from(e.path());
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 PluginManifest manifest_from(const ConfigFile& file, const std::string& path, const std::vector<std::string>& builtins);
 
 }  // namespace
@@ -359,7 +345,7 @@ std::vector<std::string> register_plugins(const std::vector<std::string>& dirs) 
       if (d == source_dir("plugins", DNB_SOURCE_PLUGINS_DIR).string()) continue;
       throw InputError(fmt::format("plug-in folder '{}' {}", d, fs::exists(d, ec) ? "is not a folder" : "does not exist"));
     }
-    for (const fs::path& p : manifests_in(d)) {
+    for (const fs::path& p : manifest_files_in(d)) {
       // Any *.toml of the folder: a manifest when it has a [plugin] table (a malformed file is
       // reported: it may be a manifest with a typo).
       const ConfigFile file = ConfigFile::load(p.string());
