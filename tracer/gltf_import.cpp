@@ -1215,8 +1215,9 @@ class Importer {
       Vec3 color(1.0f);
       if (auto it = l.find("color"); it != l.end())
         color = Vec3(float((*it)[0].get<double>()), float((*it)[1].get<double>()), float((*it)[2].get<double>()));
-      // Photometric units are taken as the tracer's radiometric ones (no 683 lm/W): intensity
-      // (cd) as radiant intensity, a directional light's lux as irradiance.
+      // Units as Blender's glTF I/O takes them (its default "standard" lighting mode), so that a
+      // scene exported from Blender is lit as Blender lit it: a directional light's lux as
+      // irradiance (W/m^2), a point light's candela divided by 683 lm/W as radiant intensity.
       const Vec3 power = color * float(get(l, "intensity", 1));
       const std::string type = l["type"].get<std::string>();
       if (type == "spot") {
@@ -1240,15 +1241,16 @@ class Importer {
         scene_.sun.radiance = power / scene_.sun.solid_angle();
         continue;
       }
-      // A point light of intensity I becomes a sphere of radius r and radiance I / (pi r^2),
-      // which has that intensity in every direction; r is 0.5% of the glTF's extent.
+      // A point light of radiant intensity I becomes a sphere of radius r and radiance
+      // I / (pi r^2), which has that intensity in every direction; r is 0.5% of the glTF's extent.
+      constexpr float kLumensPerWatt = 683;
       const float r = std::max(1e-4f, 0.005f * diagonal);
       const double origin[3] = {0, 0, 0};
       const Vec3 c = x_.point(apply_point(ln.world, origin));
       Material em;
       em.name = fmt::format("{}/light{}", path_.stem().string(), ln.light);
       em.albedo = Vec3(0.0f);
-      em.emission = power / (kPi * r * r);
+      em.emission = power / (kLumensPerWatt * kPi * r * r);
       if (max_component(em.emission) > bounds::kRadiance.max)
         throw InputError(fmt::format("{}: {}/intensity: a radiance of {:g} on its sphere of radius {:g} is beyond {:g}", file_, lp,
                                      max_component(em.emission), r, bounds::kRadiance.max));

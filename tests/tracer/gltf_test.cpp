@@ -439,12 +439,13 @@ TEST(Gltf, NodeMatricesCamerasAndLightsPlaceWhatTheySay) {
   EXPECT_NEAR(p.z, 1, 1e-6);
   EXPECT_NEAR(s->camera.look_at.x - s->camera.eye.x, -1, 1e-6);
   EXPECT_NEAR(s->camera.vfov_degrees, 0.5 * 180 / kPi, 1e-4);
-  // The point light: a sphere light at (0, 4, 0) whose intensity pi r^2 L is 3.
+  // The point light: a sphere light at (0, 4, 0) whose radiant intensity pi r^2 L is 3 cd at
+  // 683 lm/W (Blender's glTF reading).
   ASSERT_EQ(s->sphere_lights.size(), 1u);
   const rt::SphereLight& l = s->sphere_lights[0];
   EXPECT_NEAR(l.center.y, 4, 1e-6);
   const float L = s->materials[s->meshes[l.mesh].material[0]].emission.x;
-  EXPECT_NEAR(kPi * l.radius * l.radius * L, 3, 3e-5);
+  EXPECT_NEAR(kPi * l.radius * l.radius * L, 3.0 / 683, 1e-7);
   // The directional light shines along its node's -z, turned -90 degrees about x: down; the sun
   // is up, with irradiance 2.
   ASSERT_TRUE(s->sun.enabled);
