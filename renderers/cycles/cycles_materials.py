@@ -177,13 +177,8 @@ def build_material(mat, exact):
     out = g.node("ShaderNodeOutputMaterial", target="CYCLES")
     albedo = _rgb(exact.get("albedo", [0.8, 0.8, 0.8]), "albedo")
     tint = _rgb(exact.get("tint", [1, 1, 1]), "tint")
-    base = albedo
-    if textured is not None:
-        mul = g.node("ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY")
-        mul.inputs["Factor"].default_value = 1.0
-        tree.links.new(textured, mul.inputs[6])
-        mul.inputs[7].default_value = (*albedo, 1.0)
-        base = mul.outputs[2]
+    # With a texture, the importer's base colour is already baseColorFactor (= albedo) times it.
+    base = albedo if textured is None else textured
     alpha = float(exact.get("alpha", 0.0))
     ior = float(exact.get("ior", 1.5))
     surface, volume = None, None
