@@ -14,6 +14,7 @@
 #include "core/config.h"
 #include "interop/import.h"
 #include "interop/renderers.h"
+#include "tracer/scene_loader.h"
 #include "core/errors.h"
 #include "core/file_names.h"
 #include "core/hash.h"
@@ -196,10 +197,24 @@ SceneSpec renderer_scene(ConfigTable& t, const fs::path& config_dir, const std::
                                    t.where(key), key));
   SceneRenderer r;
   r.renderer = t.require_string("renderer");
-  if (!t.contains("file"))
-    throw InputError(fmt::format("{}: a back-end renders a scene file: add `file = \"scene.xml\"` to this [[scene]]",
+  if (t.contains("file") == t.contains("scene"))
+    throw InputError(fmt::format("{}: a back-end renders a scene file (`file = \"scene.xml\"`) or one of the tracer's "
+                                 "scenes exported as glTF (`scene = \"cornell-box\"`): give one of the two",
                                  t.where("renderer")));
-  r.file = scene_file(t, "file", config_dir);
+  if (t.contains("scene")) {
+    // Checked now (a typo is an error naming the key, before any work); exported by the run.
+    r.scene = t.require_string("scene");
+    const fs::path as_file = config_dir / r.scene;
+    std::error_code ec;
+    if (fs::is_regular_file(as_file, ec)) r.scene = as_file.lexically_normal().string();
+    try {
+      (void)load_scene(r.scene);
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("{}: {}", t.where("scene"), e.what()));
+    }
+  } else {
+    r.file = scene_file(t, "file", config_dir);
+  }
   const auto found = interop::find_renderers(interop::renderer_search_dirs(renderer_dirs));
   if (!found.count(r.renderer)) {
     std::vector<std::string> names;
@@ -209,9 +224,9 @@ SceneSpec renderer_scene(ConfigTable& t, const fs::path& config_dir, const std::
                                  fmt::join(interop::renderer_search_dirs(renderer_dirs), ", "),
                                  names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", "))));
   }
-  r.file_hash = sha256_file(r.file);
-  SceneSpec s{t.contains("label") ? file_names::checked(t.require_string("label"), t.where("label"))
-                                  : file_names::mapped(fs::path(r.file).stem().string()),
+  if (!r.file.empty()) r.file_hash = sha256_file(r.file);
+  const std::string stem = r.file.empty() ? fs::path(r.scene).stem().string() + "-" + r.renderer : fs::path(r.file).stem().string();
+  SceneSpec s{t.contains("label") ? file_names::checked(t.require_string("label"), t.where("label")) : file_names::mapped(stem),
               std::nullopt, std::move(r)};
   t.finish();
   return s;
@@ -368,7 +383,8 @@ RunConfig ExperimentConfig::recorded() const {
   bool rendered = false;
   for (const auto& s : scenes) {
     r.scenes.push_back(s.name);
-    if (s.renderer) r.scene_renderers[s.name] = {s.renderer->renderer, s.renderer->file};
+    if (s.renderer)
+      r.scene_renderers[s.name] = {s.renderer->renderer, s.renderer->file.empty() ? "scene:" + s.renderer->scene : s.renderer->file};
     rendered = rendered || !s.files;
     if (!s.files) continue;
     r.scene_files[s.name] = {s.files->frame, s.files->reference, s.files->second};

@@ -74,8 +74,11 @@ struct SceneFiles {
 // interop/renderers.h, docs/renderers.md), checked at load: the back-end exists, the file too.
 struct SceneRenderer {
   std::string renderer;   // the back-end's name
-  std::string file;       // the scene file, absolute
-  std::string file_hash;  // SHA-256 of its bytes
+  std::string file;       // the scene file, absolute (empty with `scene`)
+  std::string file_hash;  // SHA-256 of its bytes (empty with `scene`: known once exported)
+  // Or a scene of the tracer (`scene = "cornell-box"`: a built-in name or a scene file), which the
+  // run exports as glTF into the render cache (tracer/gltf_export.h) for the back-end to render.
+  std::string scene;
 };
 
 // A scene of the matrix: a rendered one (a built-in scene or scene file, by the tracer or by a

@@ -1,6 +1,7 @@
 #include "experiment/planner.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <tuple>
 #include <utility>
 
@@ -18,7 +19,10 @@
 #include "distributed/mpi_context.h"
 #include "core/errors.h"
 #include "interop/renderers.h"
+#include "tracer/gltf_export.h"
 #include "tracer/scene_loader.h"
+
+namespace fs = std::filesystem;
 
 namespace dnb::experiment {
 
@@ -271,6 +275,23 @@ CellPlan failing(CellPlan p, std::exception_ptr error) {
   return p;
 }
 
+// `scene = "NAME"` of a back-end's [[scene]]: the tracer's scene exported as glTF into the render
+// cache (scenes/<name>-<content hash>-<W>x<H>.gltf: the camera's aspect ratio is the run's), once
+// (rank 0 first under MPI; the others find it), then rendered as a file. export-gltf's refusals
+// (a thin lens, motion blur, maps) fail the scene's cells.
+void export_for_backend(const ExperimentConfig& c, const Cache& cache, const std::string& scene_name, BackendScene& b) {
+  const auto scene = load_scene(scene_name);
+  const std::string path = fmt::format("{}/scenes/{}-{}-{}x{}.gltf", cache.dir(), file_names::mapped(scene->name),
+                                       scene_content_hash(*scene), c.width, c.height);
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) {
+    create_folder(fs::path(path).parent_path().string());
+    export_gltf(*scene, {.width = c.width, .height = c.height}, path);
+  }
+  b.file = path;
+  b.file_hash = sha256_file(path);
+}
+
 }  // namespace
 
 std::unique_ptr<ScenePlans> backend_scene_plans(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry,
@@ -288,6 +309,7 @@ std::unique_ptr<ScenePlans> backend_scene_plans(const ExperimentConfig& c, const
   std::exception_ptr failure;
   auto prepare = [&] {
     try {
+      if (!spec.renderer->scene.empty()) export_for_backend(c, cache, spec.renderer->scene, b);
       b.identity = b.backend->identity();
       spdlog::info("{}: reference {} spp at {}x{} by renderer '{}' ({})", name, ref_spp, c.width, c.height,
                    b.backend->manifest().name, b.backend->version());

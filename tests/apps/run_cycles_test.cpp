@@ -1,5 +1,6 @@
 // `denoisebench run` on a scene the Blender Cycles back-end renders (renderers/cycles,
-// docs/renderers.md "Blender Cycles"): the built-in Cornell box exported with export-gltf, tiny,
+// docs/renderers.md "Blender Cycles"): the built-in Cornell box (`scene = "cornell-box"`, which
+// the run exports as glTF into its render cache), tiny,
 // inputs of three seeds as two halves, the reference, the curve and every method (nfor, svgf and
 // kpcn on the halves), then a second run that renders nothing. Skipped (saying why) without
 // Blender: DNB_SETUP_BLENDER=1 scripts/setup installs it (CI has none: tests/allowed_skips.txt).
@@ -39,7 +40,7 @@ spp = [2, 4]
 repeats = 1
 [[scene]]
 renderer = "cycles"
-file = "cornell-box.gltf"
+scene = "cornell-box"
 label = "box"
 )";
 
@@ -62,16 +63,19 @@ std::size_t entries(const fs::path& cache) {
 TEST(RunCycles, RendersInputsReferenceCurveAndEveryMethodThenReusesTheCache) {
   if (const std::string why = blender_missing(); !why.empty()) GTEST_SKIP() << why;
   test::TempDir dir;
-  auto r = run_in(dir, "export-gltf cornell-box -o " + dir.file("cornell-box.gltf") + " --size 32x24");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
   write(dir.path() / "c.toml", kCyclesConfig);
-  r = run_in(dir, "run " + dir.file("c.toml") + " -o " + dir.file("first"));
+  auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + dir.file("first"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto first = nlohmann::json::parse(slurp(dir.file("first/results.json")));
   EXPECT_TRUE(first["failures"].empty()) << first["failures"].dump(1);
   ASSERT_EQ(first["skipped"].size(), 3u);  // irradiance_cache renders with the tracer
   EXPECT_THAT(first["skipped"][0]["reason"].get<std::string>(), HasSubstr("rendered by renderer 'cycles'"));
   EXPECT_EQ(first["config"]["scene_renderers"]["box"]["renderer"], "cycles");
+  // The export is in the render cache, at the run's size.
+  std::size_t exported = 0;
+  for (const auto& e : fs::directory_iterator(dir.path() / "cache" / "scenes"))
+    exported += e.path().extension() == ".gltf" && e.path().filename().string().find("-32x24.gltf") != std::string::npos;
+  EXPECT_EQ(exported, 1u);
   std::set<std::pair<std::string, std::uint64_t>> cells;
   std::set<int> curve;
   for (const auto& rec : first["records"]) {

@@ -131,6 +131,16 @@ TEST(RunRenderers, ConfigErrorsNameTheKey) {
   r = run_in(dir, "run " + dir.file("d.toml") + " -o " + dir.file("out"));
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_THAT(r.output, HasSubstr("takes an even spp"));
+  // `scene` (one of the tracer's scenes, exported by the run) or `file`, one of the two; a scene
+  // that does not load is named at its key.
+  write(dir.path() / "e.toml", head + "[[scene]]\nrenderer = \"mitsuba\"\nfile = \"box.xml\"\nscene = \"cornell-box\"\n");
+  r = run_in(dir, "run " + dir.file("e.toml") + " -o " + dir.file("out"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.output, HasSubstr("give one of the two"));
+  write(dir.path() / "f.toml", head + "[[scene]]\nrenderer = \"mitsuba\"\nscene = \"no-such-scene\"\n");
+  r = run_in(dir, "run " + dir.file("f.toml") + " -o " + dir.file("out"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_THAT(r.output, HasSubstr("f.toml:7: key 'scene[0].scene': scene 'no-such-scene'"));
 }
 
 // ---- the Mitsuba 3 back-end ----
