@@ -146,8 +146,15 @@ SceneModel probe_scene(const ExperimentConfig& c, const Scene& scene, const Meth
       m.method_create[spec.name] = timed([&] { method = registry.create(spec.method, spec.params); });
       const MethodInput in1 = frame_input(f1, &scene), in2 = frame_input(f2, &scene);
       (void)run_method(*method, in1);  // warm-up, as a cell's first run is
-      const double t1 = timed([&] { (void)run_method(*method, in1); });
-      const double t2 = timed([&] { (void)run_method(*method, in2); });
+      // The median of three runs per size: a plug-in's runs (files and a pipe to another process)
+      // vary by tens of percent from one to the next, and the fit extrapolates their difference.
+      auto median_run = [&](const MethodInput& in) {
+        std::vector<double> t;
+        for (int i = 0; i < 3; ++i) t.push_back(timed([&] { (void)run_method(*method, in); }));
+        std::sort(t.begin(), t.end());
+        return t[1];
+      };
+      const double t1 = median_run(in1), t2 = median_run(in2);
       m.method[spec.name] = Linear::fit(n1, t1, n2, t2);
     } catch (const std::exception& e) {
       // The cell will fail the same way: it costs what creating the method costs.
