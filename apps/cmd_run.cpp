@@ -27,7 +27,7 @@ namespace {
 struct Opts {
   std::string config, out, cache_dir, estimate_json;
   bool no_cache = false, estimate = false;
-  int ranks = 1;
+  std::vector<int> ranks;
   std::optional<std::uint64_t> seed;
 };
 
@@ -41,9 +41,9 @@ int run(const Opts& o, const std::vector<std::string>& plugin_folders) {
   opt.cache_dir = o.cache_dir;
   if (o.estimate) {
     if (mpi::size() > 1) throw InputError("run --estimate: run it as one process; --ranks N says how N ranks would do");
-    const auto est = experiment::estimate_run(c, opt, MethodRegistry::global(), o.ranks);
-    fmt::print("{}", est.text());
-    if (!o.estimate_json.empty()) write_text_atomic(o.estimate_json, est.to_json().dump(1) + "\n");
+    const auto est = experiment::estimate_run(c, opt, MethodRegistry::global());
+    fmt::print("{}", est.text(o.ranks));
+    if (!o.estimate_json.empty()) write_text_atomic(o.estimate_json, est.to_json(o.ranks).dump(1) + "\n");
     return 0;
   }
   const auto doc = experiment::run_experiment(c, opt, MethodRegistry::global());
@@ -69,7 +69,9 @@ void add_run(CLI::App& app, Action& action) {
   cmd->add_flag("--estimate", o->estimate,
                 "print what the run would cost (per scene and stage, from a short probe of this machine; what the "
                 "cache and the results folder hold) and do nothing else (docs/estimate.md)");
-  cmd->add_option("--ranks", o->ranks, "with --estimate: the estimate for an MPI run of N ranks, each as fast as this process")
+  cmd->add_option("--ranks", o->ranks,
+                  "with --estimate: also the estimate for MPI runs of N ranks, each as fast as this process "
+                  "(several: --ranks 8 32)")
       ->check(CLI::Range(1, 100000));
   cmd->add_option("--estimate-json", o->estimate_json, "with --estimate: also write the estimate as JSON to this file");
   auto plugins = add_plugins_option(cmd);

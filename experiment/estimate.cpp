@@ -190,9 +190,8 @@ std::string duration(double s) {
 
 }  // namespace
 
-RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry, int ranks) {
+RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry) {
   RunEstimate est;
-  est.ranks = std::max(1, ranks);
   Cache cache(opt.cache_dir.empty() ? Cache::default_dir() : opt.cache_dir);
   const std::set<std::string> finished = finished_keys(opt.out_dir);
   const fs::path tmp = fs::temp_directory_path() / fmt::format("dnb-estimate-{}", ::getpid());
@@ -283,20 +282,16 @@ RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const
     est.one_process_seconds += se.total();
     est.scenes.push_back(std::move(se));
   }
-  // N ranks: every rank loads every scene; references are rendered in blocks spread over the
-  // ranks; the groups of cells are handed out one at a time, so the run cannot end before its
-  // longest group.
-  double load = 0, ref = 0, cells = 0;
   for (const auto& s : est.scenes) {
-    load += s.load_seconds;
-    ref += s.reference.seconds;
-    cells += s.inputs.seconds + s.curve.seconds + s.methods.seconds;
+    est.load_seconds += s.load_seconds;
+    est.reference_seconds += s.reference.seconds;
+    est.cell_seconds += s.inputs.seconds + s.curve.seconds + s.methods.seconds;
   }
-  est.seconds = est.ranks == 1 ? est.one_process_seconds : load + ref / est.ranks + std::max(cells / est.ranks, longest_group);
+  est.longest_group_seconds = longest_group;
   return est;
 }
 
-std::string RunEstimate::text() const {
+std::string RunEstimate::text(const std::vector<int>& ranks) const {
   std::string t = fmt::format("{:<22} {:>9} {:>19} {:>19} {:>19} {:>19} {:>10}\n", "scene", "load", "reference",
                               "inputs", "curve", "methods", "total");
   auto stage = [](const StageEstimate& s) {
@@ -310,15 +305,17 @@ std::string RunEstimate::text() const {
     t += fmt::format("{:<22} {:>9} {:>19} {:>19} {:>19} {:>19} {:>10}\n", s.scene, duration(s.load_seconds),
                      stage(s.reference), stage(s.inputs), stage(s.curve), stage(s.methods), duration(s.total()));
   }
-  t += fmt::format("predicted: {} on one process{}; the probes took {}\n", duration(one_process_seconds),
-                   ranks > 1 ? fmt::format(", {} with {} ranks as fast as this one", duration(seconds), ranks) : "",
-                   duration(probe_seconds));
+  t += fmt::format("predicted: {} on one process; the probes took {}\n", duration(one_process_seconds), duration(probe_seconds));
+  for (int n : ranks)
+    if (n > 1) t += fmt::format("predicted: {} with {} ranks, each as fast as this process\n", duration(with_ranks(n)), n);
   return t;
 }
 
-nlohmann::json RunEstimate::to_json() const {
-  nlohmann::json j = {{"ranks", ranks}, {"seconds", seconds}, {"one_process_seconds", one_process_seconds},
-                      {"probe_seconds", probe_seconds}, {"scenes", nlohmann::json::array()}};
+nlohmann::json RunEstimate::to_json(const std::vector<int>& ranks) const {
+  nlohmann::json j = {{"one_process_seconds", one_process_seconds}, {"probe_seconds", probe_seconds},
+                      {"longest_group_seconds", longest_group_seconds}, {"ranks", nlohmann::json::object()},
+                      {"scenes", nlohmann::json::array()}};
+  for (int n : ranks) j["ranks"][std::to_string(n)] = with_ranks(n);
   auto stage = [](const StageEstimate& s) { return nlohmann::json{{"seconds", s.seconds}, {"items", s.items}, {"held", s.held}}; };
   for (const auto& s : scenes) {
     nlohmann::json e = {{"scene", s.scene}, {"estimated", s.estimated}};

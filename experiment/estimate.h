@@ -1,4 +1,4 @@
-// `denoisebench run CONFIG --estimate [--ranks N]`: what a run will cost, before any of it is
+// `denoisebench run CONFIG --estimate [--ranks N ...]`: what a run will cost, before any of it is
 // done. Per rendered scene, a probe measures this machine on that scene: loading it, frame
 // renders (every AOV) and colour-only renders (references and the plain curve) at two small
 // sizes, writing and reading a frame, every method of the config and the scoring of a cell on
@@ -8,6 +8,7 @@
 // hold costs nothing (or a read). docs/estimate.md says how the model was checked.
 #pragma once
 
+#include <algorithm>
 #include <map>
 #include <string>
 #include <vector>
@@ -41,17 +42,23 @@ struct SceneEstimate {
 
 struct RunEstimate {
   std::vector<SceneEstimate> scenes;
-  int ranks = 1;
   double one_process_seconds = 0;  // the sum of every scene's stages
-  double seconds = 0;              // with `ranks` ranks (one_process_seconds for 1)
+  double load_seconds = 0, reference_seconds = 0, cell_seconds = 0;  // over the scenes
+  double longest_group_seconds = 0;  // the costliest group of cells (one input and its methods)
   double probe_seconds = 0;
-  std::string text() const;        // the table `run --estimate` prints
-  nlohmann::json to_json() const;
+  // With N MPI ranks, each as fast as this process: every rank loads every scene; the
+  // references' blocks are shared over the ranks; the groups of cells are handed out one at a
+  // time, so the run cannot end before its longest group.
+  double with_ranks(int n) const {
+    return n <= 1 ? one_process_seconds
+                  : load_seconds + reference_seconds / n + std::max(cell_seconds / n, longest_group_seconds);
+  }
+  std::string text(const std::vector<int>& ranks = {}) const;  // the table `run --estimate` prints
+  nlohmann::json to_json(const std::vector<int>& ranks = {}) const;
 };
 
-// The estimate of running `c` into options.out_dir with `ranks` MPI ranks, each as fast as this
-// process. Renders and runs methods only at probe sizes, in a temporary folder; writes nothing
-// into the results folder or the render cache.
-RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& options, const MethodRegistry& registry, int ranks);
+// The estimate of running `c` into options.out_dir. Renders and runs methods only at probe
+// sizes, in a temporary folder; writes nothing into the results folder or the render cache.
+RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& options, const MethodRegistry& registry);
 
 }  // namespace dnb::experiment

@@ -47,7 +47,7 @@ TEST(Estimate, CountsThePlanAndWhatIsHeldAndWritesNothing) {
   const ExperimentConfig c = load_config(dir.file("tiny.toml"));
   const RunOptions opt{.out_dir = dir.file("out"), .cache_dir = dir.file("cache")};
 
-  const RunEstimate cold = estimate_run(c, opt, MethodRegistry::global(), 1);
+  const RunEstimate cold = estimate_run(c, opt, MethodRegistry::global());
   ASSERT_EQ(cold.scenes.size(), 1u);
   const SceneEstimate& s = cold.scenes[0];
   EXPECT_EQ(s.reference.items, 1);
@@ -60,14 +60,17 @@ TEST(Estimate, CountsThePlanAndWhatIsHeldAndWritesNothing) {
   EXPECT_NEAR(cold.one_process_seconds, s.total(), 1e-12);
   EXPECT_EQ(files_under(dir.file("out")) + files_under(dir.file("cache")), 0u) << "the estimate wrote nothing";
 
-  // N ranks: the references and cells are shared, the loads are not.
-  const RunEstimate four = estimate_run(c, opt, MethodRegistry::global(), 4);
-  EXPECT_LT(four.seconds, four.one_process_seconds);
-  EXPECT_GE(four.seconds, four.scenes[0].load_seconds);
+  // N ranks: the references and cells are shared, the loads are not, and no run is shorter than
+  // its longest group of cells.
+  EXPECT_LT(cold.with_ranks(4), cold.one_process_seconds);
+  EXPECT_GE(cold.with_ranks(4), cold.load_seconds + cold.longest_group_seconds);
+  EXPECT_LE(cold.with_ranks(1000), cold.with_ranks(4));
+  EXPECT_GT(cold.longest_group_seconds, 0);
+  EXPECT_NE(cold.text({4}).find("with 4 ranks"), std::string::npos);
 
   // After the run, everything is held: nothing left to render or compute.
   (void)run_experiment(c, opt, MethodRegistry::global());
-  const RunEstimate warm = estimate_run(c, opt, MethodRegistry::global(), 1);
+  const RunEstimate warm = estimate_run(c, opt, MethodRegistry::global());
   const SceneEstimate& w = warm.scenes[0];
   EXPECT_EQ(w.reference.held, 1);
   EXPECT_EQ(w.inputs.held, 2);
@@ -78,7 +81,7 @@ TEST(Estimate, CountsThePlanAndWhatIsHeldAndWritesNothing) {
   // A new results folder with the same cache: the renders are held (read, not rendered), the
   // cells are not.
   const RunEstimate fresh = estimate_run(c, {.out_dir = dir.file("out2"), .cache_dir = dir.file("cache")},
-                                         MethodRegistry::global(), 1);
+                                         MethodRegistry::global());
   const SceneEstimate& f = fresh.scenes[0];
   EXPECT_EQ(f.reference.held, 1);
   EXPECT_EQ(f.reference.seconds, 0.0);
