@@ -60,6 +60,13 @@ CommandResult run_with(const std::string& command, const std::string& redirect) 
 
 CommandResult run_command(const std::string& command) { return run_with(command, " 2>&1"); }
 
+std::string blender_missing() {
+  if (const char* b = std::getenv("DENOISEBENCH_BLENDER"); b && *b) return fs::exists(b) ? "" : std::string("no ") + b;
+  if (run_command("command -v blender >/dev/null").exit_code != 0)
+    return "Blender is not installed (no 'blender' on PATH): DNB_SETUP_BLENDER=1 scripts/setup installs Debian's blender";
+  return "";
+}
+
 CommandResult run_command_stdout(const std::string& command) {
   TempDir dir;
   const std::string err = dir.file("stderr");

@@ -32,6 +32,11 @@ struct CommandResult {
 CommandResult run_denoisebench(const std::string& args);
 // Runs any shell command, capturing stdout and stderr together.
 CommandResult run_command(const std::string& command);
+
+// Why the tests that need Blender (the Cycles back-end) cannot run here, or "" when they can:
+// $DENOISEBENCH_BLENDER names one, else `blender` must be on PATH (DNB_SETUP_BLENDER=1
+// scripts/setup installs Debian's).
+std::string blender_missing();
 // The same with stdout alone in `output` and stderr in `errors`: for output that is parsed
 // (--json), which a log line on stderr must not break.
 CommandResult run_denoisebench_stdout(const std::string& args);

@@ -44,12 +44,6 @@ scene = "cornell-box"
 label = "box"
 )";
 
-std::string blender_missing() {
-  if (const char* b = std::getenv("DENOISEBENCH_BLENDER"); b && *b) return fs::exists(b) ? "" : std::string("no ") + b;
-  if (test::run_command("command -v blender >/dev/null").exit_code != 0)
-    return "Blender is not installed (no 'blender' on PATH): DNB_SETUP_BLENDER=1 scripts/setup installs Debian's blender";
-  return "";
-}
 
 std::size_t entries(const fs::path& cache) {
   std::size_t n = 0;
@@ -61,7 +55,7 @@ std::size_t entries(const fs::path& cache) {
 }
 
 TEST(RunCycles, RendersInputsReferenceCurveAndEveryMethodThenReusesTheCache) {
-  if (const std::string why = blender_missing(); !why.empty()) GTEST_SKIP() << why;
+  if (const std::string why = test::blender_missing(); !why.empty()) GTEST_SKIP() << why;
   test::TempDir dir;
   write(dir.path() / "c.toml", kCyclesConfig);
   auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + dir.file("first"));

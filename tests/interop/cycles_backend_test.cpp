@@ -115,13 +115,6 @@ center = [0.6, 0.3, 1.2]
 radius = 0.3
 )";
 
-// Why the Cycles tests cannot run here, or "" when they can.
-std::string blender_missing() {
-  if (const char* b = std::getenv("DENOISEBENCH_BLENDER"); b && *b) return fs::exists(b) ? "" : std::string("no ") + b;
-  if (test::run_command("command -v blender >/dev/null").exit_code != 0)
-    return "Blender is not installed (no 'blender' on PATH): DNB_SETUP_BLENDER=1 scripts/setup installs Debian's blender";
-  return "";
-}
 
 RendererBackend cycles() {
   return RendererBackend(find_renderers({test::source_dir() + "/renderers"}).at("cycles"));
@@ -151,7 +144,7 @@ struct ExportedScene {
 };
 
 TEST(CyclesBackend, RendersAnExportedSceneWhoseLayersAddUpToTheColourPerPixel) {
-  if (const std::string why = blender_missing(); !why.empty()) GTEST_SKIP() << why;
+  if (const std::string why = test::blender_missing(); !why.empty()) GTEST_SKIP() << why;
   ExportedScene s;
   RendererBackend b = cycles();
   const AovFrame f = b.render(request(s.gltf, 11));
@@ -187,7 +180,7 @@ TEST(CyclesBackend, RendersAnExportedSceneWhoseLayersAddUpToTheColourPerPixel) {
 }
 
 TEST(CyclesBackend, OneBlenderServesEveryRequestAndAMalformedFileFailsNamingIt) {
-  if (const std::string why = blender_missing(); !why.empty()) GTEST_SKIP() << why;
+  if (const std::string why = test::blender_missing(); !why.empty()) GTEST_SKIP() << why;
   ExportedScene s;
   const std::string log = s.dir.file("requests.log");
   ::setenv("DENOISEBENCH_CYCLES_LOG", log.c_str(), 1);
