@@ -88,7 +88,7 @@ TEST(Estimate, CountsThePlanAndWhatIsHeldAndWritesNothing) {
   EXPECT_EQ(f.inputs.held, 0);
   EXPECT_EQ(f.methods.held, 0);
   EXPECT_GT(f.methods.seconds, 0);
-  EXPECT_LT(f.inputs.seconds, s.inputs.seconds) << "a cached frame is read, which is cheaper than rendering it";
+  EXPECT_GT(f.inputs.seconds, 0) << "the input cells are computed again (their frames read from the cache)";
 }
 
 }  // namespace
