@@ -41,7 +41,8 @@ const std::vector<layer::Info>& layer::table() {
                                       {kGlossColor, 3, true, false, false, true},
                                       {kTransDirect, 3, true, false, false, true},
                                       {kTransIndirect, 3, true, false, false, true},
-                                      {kTransColor, 3, true, false, false, true}};
+                                      {kTransColor, 3, true, false, false, true},
+                                      {kMotion, 2, true, false, false, false, true}};
   return t;
 }
 
@@ -82,6 +83,7 @@ std::vector<std::string> channel_names(const std::string& name, int channels) {
   std::vector<std::string> suffixes;
   if (base == layer::kNormal && channels == 3) suffixes = {"X", "Y", "Z"};
   else if (base == layer::kDepth && channels == 1) suffixes = {"Z"};
+  else if (base == layer::kMotion && channels == 2) suffixes = {"X", "Y"};
   else if (channels == 3) suffixes = {"R", "G", "B"};
   else if (channels == 1) suffixes = {"Y"};
   else

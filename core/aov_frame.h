@@ -29,6 +29,10 @@ inline constexpr const char* kIndirectVariance = "indirect_variance";
 inline constexpr const char* kEdge = "edge";            // 1 for pixels of G, Y
 inline constexpr const char* kSamples = "samples";      // finite samples accumulated, Y
 inline constexpr const char* kTint = "tint";            // only at reflection levels
+// Frames of an animated sequence only (docs/sequences.md): screen-space motion in pixels from
+// this frame's pixel centre to where the surface seen there was in the previous frame
+// (motion.X to the right, motion.Y down the rows; Cycles' Vector pass's first two components).
+inline constexpr const char* kMotion = "motion";
 // R split as Cycles splits it (level 0 only): R = gloss_color * (gloss_direct + gloss_indirect)
 // + trans_color * (trans_direct + trans_indirect); direct: the light of an emitter (or the sky)
 // reached by the glossy or transmitted bounce itself, indirect: the rest; both demodulated by
@@ -58,11 +62,12 @@ std::string at_half(int half, const std::string& base);
 // Adding a layer is one entry here.
 struct Info {
   const char* name;  // the base name
-  int channels;      // 3 (R/G/B or X/Y/Z) or 1 (Y or Z)
+  int channels;      // 3 (R/G/B or X/Y/Z), 2 (motion.X/Y) or 1 (Y or Z)
   bool level0;       // the frame's own layer "<name>"
   bool levels;       // at every reflection level k >= 1: "refl<k>.<name>"
   bool halves;       // in both half buffers: "half<h>.<name>"
   bool importable;   // an import mapping may fill it from another renderer's passes
+  bool sequence_only = false;  // written only in the frames of an animated sequence (motion)
 };
 const std::vector<Info>& table();
 // The entry of a full layer name ("depth", "refl2.direct", "half1.color") when a frame can hold
@@ -74,6 +79,7 @@ std::string names_help();
 
 // EXR channel names of a layer with the given channel count, in channel order:
 // color -> R,G,B; normal -> normal.X/Y/Z; depth -> depth.Z; edge/samples -> edge.Y;
+// motion -> motion.X/Y;
 // any other 3-channel layer -> name.R/G/B; any other 1-channel layer -> name.Y.
 std::vector<std::string> channel_names(const std::string& layer, int channels);
 // The channel count a layer of this name has in a frame (layer::table(): 1 for depth, edge and

@@ -70,8 +70,22 @@ class Params {
   std::map<std::string, Value> values_;
 };
 
+// Where a frame stands in an animated sequence (docs/sequences.md). The harness gives a temporal
+// method (Method::temporal()) one instance per sequence, spp and seed, and its frames in index
+// order from 0; a still method gets the frames one by one as stills.
+struct SequenceFrame {
+  std::string sequence;  // which sequence (scene, spp, seed): a change means a new sequence
+  int index = 0;         // 0 .. count - 1; index 0 starts a sequence (history reset)
+  int count = 1;         // frames in the sequence
+  // The previous frame's input (its depth, normal, colour ...) for index > 0, else null.
+  const AovFrame* previous = nullptr;
+};
+
 struct MethodInput {
   const AovFrame* frame = nullptr;  // the 256-spp AOV frame (filters)
+  // Set when the frame is one of an animated sequence; a temporal method without it treats the
+  // frame as a one-frame sequence (its history reset: its spatial part alone).
+  const SequenceFrame* sequence = nullptr;
   const Scene* scene = nullptr;     // renderer-type methods render the scene themselves
   int sample_budget = 0;            // renderer-type methods: the spp budget of the input render
   int width = 0, height = 0;        // renderer-type methods: image size when there is no frame
@@ -133,12 +147,20 @@ class Method {
   // finite samples, and give the bit-identical image for the same input whatever the thread
   // count. May throw InputError (bad input) or WorkError (failure).
   virtual MethodResult execute(const MethodInput& input) = 0;
+  // A temporal method keeps history between the frames of a sequence (docs/sequences.md): it is
+  // given them in order, and starts afresh at index 0, at a new SequenceFrame::sequence, or
+  // after reset(). It must give the same image for the same frames in the same order.
+  virtual bool temporal() const { return false; }
+  virtual void reset() {}
 };
 
 struct MethodInfo {
   std::string name = {};
   std::string description = {};  // one line
   MethodKind kind = MethodKind::Filter;
+  // Keeps history between the frames of a sequence (Method::temporal()): the planner gives it a
+  // sequence's frames in order from one instance.
+  bool temporal = false;
   std::vector<ParamSpec> params = {};
   // Plug-ins (methods/plugins.h): the manifest's path, and a hash of the manifest and every file
   // of its folder (the cell key includes it, so editing a plug-in reruns its cells). Empty for

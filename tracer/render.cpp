@@ -85,6 +85,7 @@ AovFrame allocate_frame(int W, int H, int K, int threads) {
   AovFrame frame(W, H);
   std::vector<std::pair<std::string, int>> names;
   for (const layer::Info& l : layer::table()) {
+    if (l.sequence_only) continue;  // motion: render_sequence_frame adds it
     if (l.level0) names.emplace_back(l.name, l.channels);
     for (int k = 1; l.levels && k <= K; ++k) names.emplace_back(layer::at_level(k, l.name), l.channels);
     for (int h = 0; l.halves && h < 2; ++h) names.emplace_back(layer::at_half(h, l.name), l.channels);
