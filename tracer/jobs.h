@@ -2,7 +2,9 @@
 // `denoisebench render` and `denoisebench reference` only parse arguments into the request.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <utility>
 
 #include "core/aov_frame.h"
 #include "tracer/reference.h"
@@ -16,9 +18,17 @@ struct RenderJob {
   SceneLoadOptions load;
   RenderSettings settings;
   std::string output;       // FRAME.exr (its edge file FRAME.edges.exr is written beside it)
+  // An animated scene's frames [first, end) (`--frames A:B`): FRAME_0000.exr ... one per frame,
+  // each with its motion layer (docs/sequences.md). Unset: one still frame.
+  std::optional<std::pair<int, int>> frames;
 };
 // Loads the scene, renders every AOV layer with a progress line, writes the frame atomically.
+// With `frames`, every frame of the range in order (returns the last).
 AovFrame render_frame_file(const RenderJob& job);
+// FRAME.exr and frame 7 -> FRAME_0007.exr.
+std::string sequence_frame_path(const std::string& output, int frame);
+// "A:B" -> {A, B}: InputError naming `what` unless 0 <= A < B.
+std::pair<int, int> parse_frame_range(const std::string& text, const std::string& what);
 
 struct ReferenceJob {
   std::string scene;

@@ -52,6 +52,17 @@ struct RenderSettings {
 // Renders every AOV layer of docs/design.md, "AOV frame file" (plus edge sub-pixels and reflection levels).
 AovFrame render_frame(const Scene& scene, const RenderSettings& settings);
 
+// Frame `scene.frame` of an animated scene (docs/sequences.md): render_frame with the frame's
+// sample seed (tracer/animation.h's frame_seed of settings.seed), plus the motion layer
+// (motion.X/Y) against `previous`, the same scene loaded at the previous frame (null at frame 0:
+// zero motion). Its metadata records frame, frames and sequence_seed. WorkError when `previous`
+// is not the same geometry at the previous frame.
+AovFrame render_sequence_frame(const Scene& scene, const Scene* previous, const RenderSettings& settings);
+// The motion layer of `current` against `previous` at width x height (docs/sequences.md): one
+// ray through each pixel's centre at the frame's instant, its hit carried to the previous frame
+// on its triangle and projected with the previous camera. Deterministic; `threads` as render's.
+Image motion_layer(const Scene& current, const Scene& previous, int width, int height, int threads = 0);
+
 // The colour layer of a render at each of `prefixes` (rising, at most settings.spp): the image of
 // the first N samples of every pixel, bit for bit render_frame's colour layer at spp N (the samples
 // do not depend on the spp: render.cpp's top). One progressive render: pass k adds samples

@@ -133,6 +133,7 @@ struct SurfaceHit {
   float roughness_scale = 1;  // the material's roughness map at (u, v) (Material::roughness_map)
   bool front = true;          // the ray hit the triangle's front (winding) side
   unsigned geom = 0, prim = 0;
+  float b1 = 0, b2 = 0;       // barycentric coordinates of the hit in triangle prim (Embree's u, v)
   const Material* material = nullptr;
   Vec3 albedo;                // diffuse albedo at the hit: material albedo x texture (0 for mirrors)
   // Radiance emitted towards the ray's origin (0 unless an emitter seen from its emitting side).
@@ -199,6 +200,20 @@ struct Camera {
     return r;
   }
   void prepare();
+  // Film position (fx, fy) in pixels of world point p seen by this camera at time 0 (the
+  // inverse of the pinhole generate_ray); false when p is not in front of the camera.
+  bool project(Vec3 p, int width, int height, float& fx, float& fy) const {
+    return project_direction(p - eye, width, height, fx, fy);
+  }
+  // The same for a point at infinity in direction d (the sky): only the camera's rotation moves it.
+  bool project_direction(Vec3 d, int width, int height, float& fx, float& fy) const {
+    const float z = dot(d, forward_);
+    if (!(z > 0)) return false;
+    const float sx = dot(d, right_) / z, sy = dot(d, up_) / z;
+    fx = (sx / (tan_half_ * (float(width) / float(height))) + 1.0f) * 0.5f * float(width);
+    fy = (1.0f - sy / tan_half_) * 0.5f * float(height);
+    return true;
+  }
 
  private:
   Ray generate_moving_ray(float fx, float fy, int width, int height, float u1, float u2, float time) const;
@@ -265,6 +280,11 @@ class Scene {
   std::string source_file;          // the scene TOML
   std::vector<std::string> files;   // every file read (TOML, meshes, textures) for the content hash
   std::string content_hash;         // scene_content_hash, computed by load_scene
+  // Animated scenes ([animation], docs/sequences.md): the sequence's length and the frame this
+  // scene is (its keys evaluated there). A still: frames = 0, frame = 0.
+  int frames = 0;
+  int frame = 0;
+  bool animated() const { return frames > 0; }
   rt::Camera camera;
   std::vector<rt::Material> materials;
   std::vector<std::unique_ptr<rt::Texture>> textures;

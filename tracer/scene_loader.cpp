@@ -20,6 +20,7 @@
 #include "core/bounds.h"
 #include "core/config.h"
 #include "core/errors.h"
+#include "tracer/animation.h"
 #include "tracer/bsdf.h"
 #include "tracer/gltf_import.h"
 #include "tracer/obj_import.h"
@@ -100,6 +101,7 @@ class Loader {
     dir_ = fs::path(path).parent_path().string();
     ConfigTable root = file.root();
     root.get("description", std::string());
+    read_animation(root);
     const bool own_camera = root.contains("camera");
     if (own_camera) read_camera(root);
     read_environment(root);
@@ -109,6 +111,8 @@ class Loader {
     for (auto& t : root.tables("lights")) read_object(t, true);
     root.finish();
     if (scene_.meshes.empty()) throw InputError(fmt::format("{}: the scene has no geometry", path));
+    if (!scene_.animated() && opt_.frame > 0)
+      throw InputError(fmt::format("{}: frame {} asked of a still scene (no [animation] table)", path, opt_.frame));
     if (!own_camera) {
       if (!gltf_camera_)
         throw InputError(fmt::format("{}: missing [camera] table (eye, look_at, up, vfov), and no glTF object has a "
@@ -121,6 +125,10 @@ class Loader {
   // A glTF file alone: its default scene, lit by its lights, seen through its first perspective
   // camera (which it must have).
   void load_gltf(const std::string& path) {
+    if (opt_.frame > 0)
+      throw InputError(fmt::format("{}: frame {} asked of a glTF file: its animations are not read (animate it from a "
+                                   "scene TOML's keys)",
+                                   path, opt_.frame));
     scene_.source_file = path;
     dir_ = fs::path(path).parent_path().string();
     require_regular_file(path, "scene", "glTF file");
@@ -157,7 +165,132 @@ class Loader {
     if (length(cross(normalize(scene_.camera.look_at - scene_.camera.eye), normalize(scene_.camera.up))) < 1e-4f)
       throw InputError(fmt::format("{}: up is parallel to the viewing direction", c->where("up")));
     read_shutter(*c);
+    read_camera_keys(*c);
     c->finish();
+  }
+
+  // [animation] frames = N, interpolation: the scene is frame `frame_` of an N-frame sequence.
+  void read_animation(ConfigTable& root) {
+    auto a = root.table("animation");
+    if (!a) return;
+    static constexpr Bound kFrames{1, 100000, "a sequence of 1 to 100000 frames"};
+    if (!a->contains("frames"))
+      throw InputError(fmt::format("{}: missing key (the sequence's length in frames)", a->where("frames")));
+    scene_.frames = a->get("frames", 1, kFrames);
+    const std::string how = a->get("interpolation", std::string("catmull-rom"));
+    if (how == "linear") interpolation_ = Interpolation::kLinear;
+    else if (how == "catmull-rom") interpolation_ = Interpolation::kCatmullRom;
+    else throw InputError(fmt::format("{}: expected \"linear\" or \"catmull-rom\"", a->where("interpolation")));
+    a->finish();
+    frame_ = std::max(opt_.frame, 0);
+    if (frame_ >= scene_.frames)
+      throw InputError(fmt::format("{}: frame {} is past the sequence's {} frames (0 .. {})", a->where("frames"), frame_,
+                                   scene_.frames, scene_.frames - 1));
+    scene_.frame = frame_;
+  }
+
+  // The keys of `t` ([[camera.keys]], [[objects.keys]]): each a table with `frame` and some of
+  // `names` (sizes in `sizes`), a missing one taking its value from `defaults`. Empty without keys.
+  KeyTrack read_keys(ConfigTable& t, const std::vector<std::pair<const char*, int>>& names, const std::vector<double>& defaults,
+                     const std::vector<RealBound>& value_bounds) {
+    KeyTrack track;
+    auto keys = t.tables("keys");
+    if (keys.empty()) return track;
+    if (!scene_.animated())
+      throw InputError(fmt::format("{}: keys need an [animation] table (frames = N) in the scene file", t.where("keys")));
+    for (auto& k : keys) {
+      static constexpr Bound kFrame{0, 100000, "a frame index of the sequence"};
+      if (!k.contains("frame")) throw InputError(fmt::format("{}: missing key (the key's frame index)", k.where("frame")));
+      const int f = k.get("frame", 0, kFrame);
+      if (f >= scene_.frames)
+        throw InputError(fmt::format("{}: frame {} is past the sequence's {} frames", k.where("frame"), f, scene_.frames));
+      if (!track.frames.empty() && f <= track.frames.back())
+        throw InputError(fmt::format("{}: keys' frames must rise strictly ({} after {})", k.where("frame"), f,
+                                     track.frames.back()));
+      std::vector<double> v;
+      std::size_t at = 0;
+      for (std::size_t i = 0; i < names.size(); ++i) {
+        const auto [name, size] = names[i];
+        std::vector<double> d(defaults.begin() + long(at), defaults.begin() + long(at) + size);
+        std::vector<double> got = !k.contains(name) ? d : size == 1 ? std::vector<double>{k.get(name, d[0])} : k.get(name, d);
+        if (got.size() != d.size())
+          throw InputError(fmt::format("{}: expected {} numbers", k.where(name), d.size()));
+        for (double x : got) check_bound(x, value_bounds[i], k.where(name));
+        v.insert(v.end(), got.begin(), got.end());
+        at += std::size_t(size);
+      }
+      k.finish();
+      track.frames.push_back(f);
+      track.values.push_back(std::move(v));
+    }
+    return track;
+  }
+
+  // [[camera.keys]]: eye, look_at, vfov at frames; the camera at this frame (and, with a shutter,
+  // moving towards the next frame's).
+  void read_camera_keys(ConfigTable& c) {
+    Camera& cam = scene_.camera;
+    const std::vector<double> base{cam.eye.x, cam.eye.y, cam.eye.z, cam.look_at.x, cam.look_at.y, cam.look_at.z, cam.vfov_degrees};
+    const KeyTrack track = read_keys(c, {{"eye", 3}, {"look_at", 3}, {"vfov", 1}}, base,
+                                     {bounds::kCoordinate, bounds::kCoordinate, kAngle});
+    if (track.empty()) return;
+    if (cam.moving)
+      throw InputError(fmt::format("{}: an animated camera moves by its keys; eye_end and look_at_end are for a still's "
+                                   "motion blur",
+                                   c.where("keys")));
+    auto place = [&](double frame, Vec3& eye, Vec3& at, float* vfov) {
+      const std::vector<double> v = track.at(frame, interpolation_);
+      eye = {float(v[0]), float(v[1]), float(v[2])};
+      at = {float(v[3]), float(v[4]), float(v[5])};
+      if (vfov) *vfov = float(v[6]);
+      if (!(length(at - eye) > 0))
+        throw InputError(fmt::format("{}: eye and look_at coincide at frame {}", c.where("keys"), frame));
+      if (length(cross(normalize(at - eye), normalize(cam.up))) < 1e-4f)
+        throw InputError(fmt::format("{}: up is parallel to the viewing direction at frame {}", c.where("keys"), frame));
+      if (vfov && !(*vfov > 0 && *vfov < 179))
+        throw InputError(fmt::format("{}: the field of view at frame {} is not in (0, 179) degrees", c.where("keys"), frame));
+    };
+    for (int f : track.frames) {  // every key is a valid camera, whichever frame this is
+      Vec3 e, a;
+      float v;
+      place(f, e, a, &v);
+    }
+    place(frame_, cam.eye, cam.look_at, &cam.vfov_degrees);
+    cam.eye_end = cam.eye;
+    cam.look_at_end = cam.look_at;
+    if (cam.has_shutter()) {
+      place(frame_ + 1.0, cam.eye_end, cam.look_at_end, nullptr);
+      cam.moving = length(cam.eye_end - cam.eye) > 0 || length(cam.look_at_end - cam.look_at) > 0;
+    }
+  }
+
+  // [[objects.keys]]: translate, rotate, scale at frames. The object's transform at this frame,
+  // and with the camera's shutter open over an interval, at the next frame (its motion blur).
+  std::optional<std::pair<Transform, Transform>> read_object_keys(ConfigTable& t, const Transform& x, bool light) {
+    if (light && t.contains("keys"))
+      throw InputError(fmt::format("{}: lights do not move (light sampling assumes emitters that stay where they are)",
+                                   t.where("keys")));
+    const std::vector<double> base{x.translate.x, x.translate.y, x.translate.z, x.rot_deg.x, x.rot_deg.y, x.rot_deg.z, x.scale};
+    const KeyTrack track = read_keys(t, {{"translate", 3}, {"rotate", 3}, {"scale", 1}}, base,
+                                     {bounds::kCoordinate, kAngle, bounds::kLength});
+    if (track.empty()) return std::nullopt;
+    if (t.contains("translate_end") || t.contains("rotate_end") || t.contains("scale_end"))
+      throw InputError(fmt::format("{}: an animated object moves by its keys; translate_end, rotate_end and scale_end are "
+                                   "for a still's motion blur",
+                                   t.where("keys")));
+    auto at = [&](double frame) {
+      const std::vector<double> v = track.at(frame, interpolation_);
+      Transform r;
+      r.translate = {float(v[0]), float(v[1]), float(v[2])};
+      r.rot_deg = {float(v[3]), float(v[4]), float(v[5])};
+      r.scale = float(v[6]);
+      if (!(r.scale > 0))
+        throw InputError(fmt::format("{}: the scale at frame {} is not positive", t.where("keys"), frame));
+      return r;
+    };
+    for (int f : track.frames) at(f);  // every key is a valid transform, whichever frame this is
+    const Transform now = at(frame_);
+    return std::pair(now, scene_.camera.has_shutter() ? at(frame_ + 1.0) : now);
   }
 
   // Motion blur's camera keys: the shutter interval within the frame interval [0, 1], and where
@@ -368,17 +501,33 @@ class Loader {
     return end;
   }
 
-  // The meshes from `first` on belong to one moving object.
-  void apply_motion(ConfigTable& t, std::size_t first, const Transform& start, const Transform& end) {
-    const char* key = t.contains("translate_end") ? "translate_end" : t.contains("rotate_end") ? "rotate_end" : "scale_end";
-    const int steps = motion_steps(start, end);
-    for (std::size_t i = first; i < scene_.meshes.size(); ++i) {
-      Mesh& m = scene_.meshes[i];
-      for (std::uint32_t mi : m.material)
+  static bool same(const Transform& a, const Transform& b) {
+    return a.scale == b.scale && a.rot_deg.x == b.rot_deg.x && a.rot_deg.y == b.rot_deg.y && a.rot_deg.z == b.rot_deg.z &&
+           a.translate.x == b.translate.x && a.translate.y == b.translate.y && a.translate.z == b.translate.z;
+  }
+
+ public:
+  // The meshes from `first` on belong to one moving object, which must not emit.
+  void refuse_emitters(ConfigTable& t, std::size_t first, const char* key) {
+    for (std::size_t i = first; i < scene_.meshes.size(); ++i)
+      for (std::uint32_t mi : scene_.meshes[i].material)
         if (scene_.materials[mi].is_emitter())
           throw InputError(fmt::format("{}: a moving object cannot emit (material '{}'): light sampling assumes "
                                        "emitters that stay where they are",
                                        t.where(key), scene_.materials[mi].name));
+  }
+
+ private:
+  // The meshes from `first` on belong to one moving object.
+  void apply_motion(ConfigTable& t, std::size_t first, const Transform& start, const Transform& end) {
+    const char* key = t.contains("keys")            ? "keys"
+                      : t.contains("translate_end") ? "translate_end"
+                      : t.contains("rotate_end")    ? "rotate_end"
+                                                    : "scale_end";
+    const int steps = motion_steps(start, end);
+    refuse_emitters(t, first, key);
+    for (std::size_t i = first; i < scene_.meshes.size(); ++i) {
+      Mesh& m = scene_.meshes[i];
       // Each step is a copy of the mesh's corners: bounded like the triangles of one mesh.
       if (std::int64_t(steps) * std::int64_t(m.triangles()) > bounds::kMaxTriangles)
         throw InputError(fmt::format("{}: {} time steps of {} triangles are more than {} triangles' corners (fewer "
@@ -392,8 +541,23 @@ class Loader {
     std::string type = t.require_string("type");
     std::string name = t.get("name", fmt::format("{}{}", type, scene_.meshes.size()));
     Transform x = read_transform(t);
-    const std::optional<Transform> motion = light ? std::nullopt : read_motion(t, x);
+    const auto keyed = read_object_keys(t, x, light);
+    std::optional<Transform> motion = light ? std::nullopt : read_motion(t, x);
+    if (keyed) {
+      x = keyed->first;
+      if (!same(keyed->first, keyed->second)) motion = keyed->second;
+    }
     const std::size_t first_mesh = scene_.meshes.size();
+    // An animated object's emitters are refused even when it rests at this frame.
+    struct EmitterCheck {
+      Loader& l;
+      ConfigTable& t;
+      std::size_t first;
+      bool on;
+      ~EmitterCheck() noexcept(false) {
+        if (on && std::uncaught_exceptions() == 0) l.refuse_emitters(t, first, "keys");
+      }
+    } check{*this, t, first_mesh, keyed.has_value()};
     if (type == "obj" || type == "gltf") {
       if (light) throw InputError(fmt::format("{}: lights are quads or spheres", t.where("type")));
       std::string file = t.require_string("file");
@@ -517,6 +681,8 @@ class Loader {
   std::optional<SphereLight> sphere_light_;  // of the object being read
   std::optional<Camera> gltf_camera_;         // the first glTF object's camera
   std::vector<std::string> warnings_;         // what glTF files hold that the tracer leaves out
+  Interpolation interpolation_ = Interpolation::kCatmullRom;
+  int frame_ = 0;                             // the frame of an animated scene
 };
 
 }  // namespace
@@ -583,6 +749,12 @@ std::string scene_content_hash(const Scene& scene) {
       in.read(buf.data(), std::streamsize(buf.size()));
       feed(buf.data(), std::size_t(in.gcount()));
     }
+  }
+  // A frame of an animated scene is its own content (docs/sequences.md); a still's hash is the
+  // files' alone, as before sequences existed.
+  if (scene.animated()) {
+    const std::string f = fmt::format("frame={}/{}", scene.frame, scene.frames);
+    feed(f.data(), f.size());
   }
   return fmt::format("{:016x}", h);
 }

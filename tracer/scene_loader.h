@@ -20,6 +20,10 @@ struct SceneLoadOptions {
   // Folder holding the McGuire scenes (--scenes-dir, else $DENOISEBENCH_SCENES, else
   // ../shared/scenes when present). Empty: use that search order.
   std::string scenes_dir;
+  // An animated scene's frame ([animation] frames = N; docs/sequences.md): its keys evaluated
+  // there. -1: frame 0 of an animated scene, and a still scene as it is (a still refuses any
+  // other frame).
+  int frame = -1;
 };
 
 // `name_or_path`: a built-in scene name (cornell-box, conference, bedroom, sponza, ...) found in
