@@ -14,6 +14,7 @@
 #include "core/config.h"
 #include "interop/import.h"
 #include "interop/renderers.h"
+#include "tracer/scene.h"
 #include "tracer/scene_loader.h"
 #include "core/errors.h"
 #include "core/file_names.h"
@@ -232,6 +233,31 @@ SceneSpec renderer_scene(ConfigTable& t, const fs::path& config_dir, const std::
   return s;
 }
 
+// `frames = N` of a rendered [[scene]]: the scene must be animated and have N frames at least.
+int sequence_frames(ConfigTable& t, const std::string& name) {
+  static constexpr Bound kFrames{1, 100000, "a sequence of 1 to 100000 frames"};
+  const int n = t.get("frames", 1, kFrames);
+  std::shared_ptr<const Scene> scene;
+  try {
+    scene = load_scene(name);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", t.where("name"), e.what()));
+  }
+  if (!scene->animated())
+    throw InputError(fmt::format("{}: scene '{}' is a still (no [animation] table): only an animated scene runs as a "
+                                 "sequence (docs/sequences.md)",
+                                 t.where("frames"), name));
+  if (n > scene->frames)
+    throw InputError(fmt::format("{}: {} frames asked of scene '{}', which has {}", t.where("frames"), n, name, scene->frames));
+  return n;
+}
+
+}  // namespace
+
+std::string sequence_row(const std::string& name, int frame) { return fmt::format("{}.f{:02d}", name, frame); }
+
+namespace {
+
 // `scenes = [...]` (rendered), then every [[scene]]: `name = "..."` (rendered, as in `scenes`)
 // or `frame` and `reference` (read from files).
 void read_scenes(ConfigTable& root, ExperimentConfig& c) {
@@ -267,7 +293,9 @@ void read_scenes(ConfigTable& root, ExperimentConfig& c) {
     if (files) {
       c.scenes.push_back(file_scene(t, config_dir, input_format));
     } else {
-      c.scenes.push_back({t.require_string("name"), std::nullopt});
+      SceneSpec s{t.require_string("name"), std::nullopt};
+      if (t.contains("frames")) s.frames = sequence_frames(t, s.name);
+      c.scenes.push_back(std::move(s));
       t.finish();
     }
   }
@@ -382,7 +410,12 @@ RunConfig ExperimentConfig::recorded() const {
   // A config of file scenes only records the first one's size.
   bool rendered = false;
   for (const auto& s : scenes) {
-    r.scenes.push_back(s.name);
+    if (s.frames > 0) {
+      r.sequences[s.name] = s.frames;
+      for (int t = 0; t < s.frames; ++t) r.scenes.push_back(sequence_row(s.name, t));
+    } else {
+      r.scenes.push_back(s.name);
+    }
     if (s.renderer)
       r.scene_renderers[s.name] = {s.renderer->renderer, s.renderer->file.empty() ? "scene:" + s.renderer->scene : s.renderer->file};
     rendered = rendered || !s.files;

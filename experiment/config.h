@@ -87,7 +87,13 @@ struct SceneSpec {
   std::string name;                 // the row name: the scene, or a file or back-end scene's label
   std::optional<SceneFiles> files;  // set: read from files, not rendered
   std::optional<SceneRenderer> renderer = std::nullopt;  // set: rendered by this back-end, not the tracer
+  // An animated scene run as a sequence (`[[scene]] name = "..." frames = N`, docs/sequences.md):
+  // its frames 0 .. frames - 1, each a row sequence_row(name, t) with its own reference. 0: a still.
+  int frames = 0;
 };
+
+// The row (and folder) name of frame t of sequence `name`: "name.f03" (two digits at least).
+std::string sequence_row(const std::string& name, int frame);
 
 struct ExperimentConfig {
   std::string path;

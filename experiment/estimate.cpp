@@ -209,10 +209,11 @@ RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const
   for (const SceneSpec& spec : c.scenes) {
     SceneEstimate se;
     se.scene = spec.name;
-    if (spec.files || spec.renderer) {
+    if (spec.files || spec.renderer || spec.frames > 0) {
       se.estimated = false;
-      se.why_not = spec.files ? "read from files: not probed"
-                              : fmt::format("rendered by the '{}' back-end: not probed", spec.renderer->renderer);
+      se.why_not = spec.files      ? "read from files: not probed"
+                   : spec.renderer ? fmt::format("rendered by the '{}' back-end: not probed", spec.renderer->renderer)
+                                   : fmt::format("a sequence of {} frames: not probed (docs/estimate.md)", spec.frames);
       est.scenes.push_back(se);
       continue;
     }

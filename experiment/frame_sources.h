@@ -82,6 +82,10 @@ class InputFrame {
       return std::pair(std::move(f), cache.entry_dir(key) + "/frame.exr");
     };
   }
+  // Frame `frame_scene.frame` of animated scene `name` (docs/sequences.md: its seed and motion
+  // layer; experiment/sequences.h), keyed as a rendered frame is.
+  InputFrame(Cache& cache, const Scene& frame_scene, const std::string& name, RenderSettings settings, bool use_cache,
+             int reference_spp);
   // A back-end scene's frame: two independent renders of spp / 2 samples (two seeds), combined
   // into one frame with half buffers and variances as `import --second` does
   // (interop::combine_halves), kept in the render cache whole. Keyed by its cache key's digest

@@ -61,9 +61,10 @@ SceneCells scene_cells(const std::string& out_dir, const std::string& name, cons
 // The reference of a rendered scene (cached and checkpointed by tracer/reference.h) and what
 // every record of the scene says about it. Collective under MPI (the reference renders over every
 // rank); only rank 0 gets the reference and keeps it in the folder, the others its identity.
+// `name` is the row (a sequence's frame: sequence_row), `ref_spp` the reference's spp.
 SceneCells rendered_scene_cells(const ExperimentConfig& c, const RunOptions& opt, const Cache& cache, const Scene& scene,
-                                const std::string& name, Reference& ref) {
-  const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = c.reference_spp_for(name), .seed = c.reference_seed,
+                                const std::string& name, Reference& ref, int ref_spp) {
+  const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = ref_spp, .seed = c.reference_seed,
                              .max_depth = c.max_depth, .block_spp = c.reference_block_spp, .threads = c.threads};
   ReferenceOptions ro;
   ro.cache_dir = cache.dir();
@@ -149,8 +150,11 @@ CellPlan input_cell(InputFrame& frame, int spp) {
 }
 
 // `scene` is null for a scene read from files (renderer-type methods are skipped there).
+// `sequence`: the frame is frame `t` of that sequence at `settings` (a temporal method runs from
+// the sequence's state, docs/sequences.md).
 CellPlan method_cell(const ExperimentConfig& c, const MethodRegistry& registry, const MethodSpec& m, const Scene* scene,
-                     InputFrame& frame, int spp) {
+                     InputFrame& frame, int spp, SequenceRun* sequence = nullptr, int t = 0,
+                     const RenderSettings& settings = {}) {
   const MethodInfo& info = registry.info(m.method);
   CellPlan p;
   p.role = m.role();
@@ -168,11 +172,20 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodRegistry& registry, 
   if (!info.content_hash.empty()) p.identity["method_content"] = info.content_hash;
   p.contain_failures = true;
   p.stem = file_names::mapped(m.name) + "_" + std::to_string(spp);
-  p.compute = [&c, &registry, &m, &info, scene, &frame] {
-    auto method = registry.create(m.method, m.params);
-    const MethodInput in = frame_input(frame.get(), scene);
+  const bool temporal = info.temporal && sequence;
+  if (temporal) p.identity["sequence"] = {{"name", sequence->name()}, {"frame", t}, {"frames", sequence->frames()}};
+  p.compute = [&c, &registry, &m, &info, scene, &frame, sequence, t, settings, temporal] {
     MethodResult first;
-    const std::vector<double> runs = time_method(*method, in, c.repeats, c.repeat_below_seconds, first);
+    std::vector<double> runs;
+    if (temporal) {
+      first = sequence->run_temporal(m.name, [&] { return registry.create(m.method, m.params); }, t, frame.get(), scene,
+                                     settings);
+      runs = {first.stats.total_seconds};  // one run: a repeat would advance the history
+    } else {
+      auto method = registry.create(m.method, m.params);
+      const MethodInput in = frame_input(frame.get(), scene);
+      runs = time_method(*method, in, c.repeats, c.repeat_below_seconds, first);
+    }
     // Renderer-type methods render the scene themselves: their total is their own time.
     const double input_used = info.kind == MethodKind::Renderer ? 0.0 : frame.get().meta.render_seconds;
     const double filter = stats::median(runs);
@@ -200,30 +213,37 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodRegistry& registry, 
 // input and every method on it.
 std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, const RunOptions& opt,
                                                  const MethodRegistry& registry, Cache& cache, const std::string& name,
-                                                 bool with_reference) {
+                                                 bool with_reference, SequenceRun* sequence, int t) {
   auto sp = std::make_unique<ScenePlans>();
-  sp->scene = load_scene(name);
+  SceneLoadOptions load;
+  if (sequence) load.frame = t;
+  sp->scene = load_scene(name, load);
   const Scene& scene = *sp->scene;
+  const std::string row = sequence ? sequence_row(name, t) : name;
+  const int ref_spp = c.reference_spp_for(name);
   if (with_reference) {
-    sp->cells = rendered_scene_cells(c, opt, cache, scene, name, sp->ref);
+    sp->cells = rendered_scene_cells(c, opt, cache, scene, row, sp->ref, ref_spp);
   } else {
-    sp->cells.scene = name;
+    sp->cells.scene = row;
     std::tie(sp->cells.width, sp->cells.height) = std::pair(c.width, c.height);
     sp->cells.scene_hash = scene_content_hash(scene);
     sp->cells.seed = c.seed;
   }
   sp->cells.reference = &sp->ref;
-  PlanGroup& plain = sp->groups.emplace_back();
-  plain.curve = std::make_unique<PlainCurve>(c, scene, cache, opt.use_cache);
-  for (int spp : c.plain_spp)
-    plain.plans.push_back(plain_cell(c, *plain.curve, sp->cells.scene_hash, spp, c.reference_spp_for(name)));
+  // A sequence's frames have no plain path-tracing curve (the speed-up claim is the stills').
+  if (!sequence) {
+    PlanGroup& plain = sp->groups.emplace_back();
+    plain.curve = std::make_unique<PlainCurve>(c, scene, cache, opt.use_cache);
+    for (int spp : c.plain_spp) plain.plans.push_back(plain_cell(c, *plain.curve, sp->cells.scene_hash, spp, ref_spp));
+  }
   // Every input seed gives its own input and method cells (Table 1's intervals are over them).
   // With one seed the stems are the same as before seeds existed; with several, "_s<seed>" is added.
   for (int spp : c.spp)
     for (std::uint64_t seed : c.seeds) {
       PlanGroup& g = sp->groups.emplace_back();
-      g.frame = std::make_unique<InputFrame>(cache, scene, input_settings(c, spp, seed), opt.use_cache,
-                                             c.reference_spp_for(name));
+      const RenderSettings settings = input_settings(c, spp, seed);
+      g.frame = sequence ? std::make_unique<InputFrame>(cache, scene, name, settings, opt.use_cache, ref_spp)
+                         : std::make_unique<InputFrame>(cache, scene, settings, opt.use_cache, ref_spp);
       const std::string suffix = c.seeds.size() > 1 ? fmt::format("_s{}", seed) : "";
       auto seeded = [&](CellPlan p) {
         p.seed = seed;
@@ -231,7 +251,8 @@ std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, cons
         return p;
       };
       g.plans.push_back(seeded(input_cell(*g.frame, spp)));
-      for (const auto& m : c.methods) g.plans.push_back(seeded(method_cell(c, registry, m, &scene, *g.frame, spp)));
+      for (const auto& m : c.methods)
+        g.plans.push_back(seeded(method_cell(c, registry, m, &scene, *g.frame, spp, sequence, t, settings)));
     }
   return sp;
 }
@@ -379,7 +400,9 @@ std::int64_t cell_count(const ExperimentConfig& c) {
   const std::int64_t methods = std::int64_t(c.methods.size());
   std::int64_t cells = 0;
   for (const auto& s : c.scenes)
-    cells += s.files ? methods + 1 : std::int64_t(c.spp.size() * c.seeds.size()) * (methods + 1) + std::int64_t(c.plain_spp.size());
+    cells += s.files        ? methods + 1
+             : s.frames > 0 ? std::int64_t(s.frames) * std::int64_t(c.spp.size() * c.seeds.size()) * (methods + 1)
+                            : std::int64_t(c.spp.size() * c.seeds.size()) * (methods + 1) + std::int64_t(c.plain_spp.size());
   return cells;
 }
 

@@ -16,6 +16,7 @@
 #include "experiment/config.h"
 #include "experiment/frame_sources.h"
 #include "experiment/runner.h"
+#include "experiment/sequences.h"
 #include "tracer/render_cache.h"
 #include "tracer/reference.h"
 #include "tracer/scene.h"
@@ -47,9 +48,11 @@ struct ScenePlans {
 // input and every method on it. Renders (or reads from the cache) the scene's reference: under
 // MPI collectively, only rank 0 keeping it. Without `with_reference` (run --estimate: the plans'
 // cell keys only) the reference is neither rendered nor read, and the folder is not touched.
+// With `sequence`: frame `t` of that animated scene (docs/sequences.md), row sequence_row(name, t),
+// without a plain curve, its temporal methods run from the sequence's state.
 std::unique_ptr<ScenePlans> rendered_scene_plans(const ExperimentConfig& c, const RunOptions& opt,
                                                  const MethodRegistry& registry, Cache& cache, const std::string& name,
-                                                 bool with_reference = true);
+                                                 bool with_reference = true, SequenceRun* sequence = nullptr, int t = 0);
 // Every cell of a scene read from files: the input and every filter on it; a renderer-type
 // method is a skipped plan (there is no scene to render).
 std::unique_ptr<ScenePlans> file_scene_plans(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry,

@@ -321,6 +321,7 @@ json config_json(const RunConfig& c) {
             {"methods", methods}};
   if (!c.scene_files.empty()) j["scene_files"] = scene_files_json(c.scene_files);  // only configs that have them
   for (const auto& [name, r] : c.scene_renderers) j["scene_renderers"][name] = {{"renderer", r.renderer}, {"file", r.file}};
+  if (!c.sequences.empty()) j["sequences"] = c.sequences;
   if (c.seeds.size() > 1) j["seeds"] = c.seeds;  // only configs of several seeds: one-seed files read as before
   if (!c.reference_scene_spp.empty()) j["reference_scene_spp"] = c.reference_scene_spp;
   return j;
@@ -351,6 +352,12 @@ RunConfig config_from_json(const json& j, const std::string& where) {
   for (const auto& [name, r] : renderers.items()) {
     const std::string rw = where + ": scene_renderers: " + name;
     c.scene_renderers[name] = {jf::get<std::string>(r, "renderer", rw), jf::get<std::string>(r, "file", rw)};
+  }
+  const json sequences = object_or_empty(j, "sequences", where);
+  for (const auto& [name, n] : sequences.items()) {
+    if (!n.is_number_integer() || n.get<int>() < 1)
+      throw InputError(fmt::format("{}: sequences: {}: expected a frame count (a positive integer)", where, name));
+    c.sequences[name] = n.get<int>();
   }
   c.repeats = jf::get_or<int>(j, "repeats", 0, where);
   const json t2 = object_or_empty(j, "table2", where);

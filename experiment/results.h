@@ -109,6 +109,9 @@ struct RunConfig {
   std::vector<std::string> scenes;  // every scene's name, config order (file scenes by label)
   std::map<std::string, SceneFilesEntry> scene_files;  // the scenes read from files, by name
   std::map<std::string, SceneRendererEntry> scene_renderers;  // the scenes a back-end renders, by name
+  // Animated scenes run as sequences (docs/sequences.md): name -> frames. Their frames are rows
+  // of `scenes` named sequence_row(name, t) ("name.f03").
+  std::map<std::string, int> sequences;
   int repeats = 0;
   Table2Columns table2;
   std::vector<MethodEntry> methods;

@@ -62,14 +62,24 @@ ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt,
     context = CellContext{opt.out_dir, &*store, &*progress};
   }
   mpi::barrier();  // the spool folder exists before any rank writes into it
+  auto run_plans = [&](ScenePlans& sp) {
+    if (distributed)
+      run_scene_distributed(sp, opt, root ? &*context : nullptr);
+    else
+      run_scene_here(sp, *context);
+  };
   for (const auto& s : c.scenes) {
+    if (s.frames > 0) {
+      // A sequence: its frames in order, each planned (and its reference rendered) when its turn
+      // comes; the temporal methods' history carries from one to the next (docs/sequences.md).
+      SequenceRun sequence(s.name, s.frames, cache, opt.use_cache);
+      for (int t = 0; t < s.frames; ++t) run_plans(*rendered_scene_plans(c, opt, registry, cache, s.name, true, &sequence, t));
+      continue;
+    }
     const auto sp = s.files      ? file_scene_plans(c, opt, registry, s)
                     : s.renderer ? backend_scene_plans(c, opt, registry, cache, s)
                                  : rendered_scene_plans(c, opt, registry, cache, s.name);
-    if (distributed)
-      run_scene_distributed(*sp, opt, root ? &*context : nullptr);
-    else
-      run_scene_here(*sp, *context);
+    run_plans(*sp);
   }
   if (!root) return {};
   progress->finish();
