@@ -1,6 +1,6 @@
 // The variance-guided a-trous filter of SVGF (Schied, Kaplanyan, Wyman, Patney, Chaitanya,
 // Burgess, Liu, Dachsbacher, Lefohn and Salvi 2017, "Spatiotemporal Variance-Guided Filtering",
-// HPG, section 4.3), shared by `svgf` (one frame: the variance from the tracer's variance layers,
+// HPG), shared by `svgf` (one frame: the variance from the tracer's variance layers,
 // denoisers/svgf.cpp) and `svgf_temporal` (the paper's whole pipeline: the variance from temporal
 // moments, denoisers/svgf_temporal.cpp).
 //
