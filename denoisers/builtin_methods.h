@@ -16,5 +16,7 @@ MethodInfo nfor_method();       // denoisers/nfor.cpp
 MethodInfo nlmeans_method();    // denoisers/nlmeans.cpp
 MethodInfo proposed_method();   // denoisers/proposed.cpp
 MethodInfo svgf_method();       // denoisers/svgf.cpp
+MethodInfo svgf_temporal_method();  // denoisers/svgf_temporal.cpp
+MethodInfo temporal_accumulation_method();  // denoisers/temporal_accumulation.cpp
 
 }  // namespace dnb

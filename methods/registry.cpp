@@ -18,6 +18,8 @@ void register_builtin_methods(MethodRegistry& r) {
   r.add(nlmeans_method());
   r.add(proposed_method());
   r.add(svgf_method());
+  r.add(svgf_temporal_method());
+  r.add(temporal_accumulation_method());
 }
 
 // Defined here, not in denoisers/method.cpp, so that linking anything that uses the global

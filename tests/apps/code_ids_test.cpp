@@ -21,8 +21,9 @@ using test::slurp;
 using test::write;
 
 // Every compiled-in method.
-const std::set<std::string> kBuiltIn = {"am",   "am_opencv", "atrous",   "bilateral", "guided", "irradiance_cache",
-                                        "nfor", "nlmeans",   "proposed", "svgf"};
+const std::set<std::string> kBuiltIn = {"am",       "am_opencv", "atrous",        "bilateral",            "guided",
+                                        "irradiance_cache", "nfor", "nlmeans", "proposed", "svgf", "svgf_temporal",
+                                        "temporal_accumulation"};
 
 nlohmann::json ids_of(const std::string& file) { return nlohmann::json::parse(slurp(file)); }
 
