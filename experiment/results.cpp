@@ -427,6 +427,56 @@ SkippedCell SkippedCell::from_json(const json& j, const std::string& where) {
           jf::get<std::string>(j, "reason", where)};
 }
 
+std::optional<double> SequenceRecord::metric(const std::string& name) const {
+  const auto it = metrics.find(name);
+  if (it == metrics.end() || !it->second || !std::isfinite(*it->second)) return std::nullopt;
+  return it->second;
+}
+
+json SequenceRecord::to_json() const {
+  json j = {{"sequence", sequence}, {"method", method}, {"role", to_string(role)}, {"spp", spp}, {"frames", frames},
+            {"images", images}};
+  if (seed) j["seed"] = *seed;
+  json m = json::object();
+  for (const auto& [k, v] : metrics) m[k] = v ? jf::number_or_null(*v) : json(nullptr);
+  j["metrics"] = m;
+  json pf = json::object();
+  for (const auto& [k, values] : per_frame) {
+    json a = json::array();
+    for (const auto& v : values) a.push_back(v ? jf::number_or_null(*v) : json(nullptr));
+    pf[k] = a;
+  }
+  j["per_frame"] = pf;
+  return j;
+}
+
+SequenceRecord SequenceRecord::from_json(const json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected an object", where));
+  SequenceRecord r;
+  r.sequence = jf::get<std::string>(j, "sequence", where);
+  r.method = jf::get<std::string>(j, "method", where);
+  r.role = role_from_string(jf::get<std::string>(j, "role", where), where);
+  r.spp = jf::get<int>(j, "spp", where);
+  r.frames = jf::get<int>(j, "frames", where);
+  r.seed = optional_value<std::uint64_t>(j, "seed", where);
+  r.images = jf::get_or<std::vector<std::string>>(j, "images", {}, where);
+  const json metrics = jf::get<json>(j, "metrics", where);
+  if (!metrics.is_object()) throw InputError(fmt::format("{}: key 'metrics': expected an object", where));
+  for (const auto& [k, v] : metrics.items()) r.metrics[k] = optional_number(metrics, k, where + ": metrics");
+  const json pf = jf::get_or<json>(j, "per_frame", json::object(), where);
+  if (!pf.is_object()) throw InputError(fmt::format("{}: key 'per_frame': expected an object", where));
+  for (const auto& [k, values] : pf.items()) {
+    if (!values.is_array()) throw InputError(fmt::format("{}: per_frame: {}: expected an array", where, k));
+    auto& out = r.per_frame[k];
+    for (const auto& v : values) {
+      if (v.is_null()) out.emplace_back();
+      else if (v.is_number()) out.emplace_back(v.get<double>());
+      else throw InputError(fmt::format("{}: per_frame: {}: expected numbers or null", where, k));
+    }
+  }
+  return r;
+}
+
 const SkippedCell* ResultsDocument::skip(const std::string& scene, const std::string& method, int spp) const {
   for (const auto& s : skipped)
     if (s.scene == scene && s.method == method && s.spp == spp) return &s;
@@ -471,6 +521,11 @@ json ResultsDocument::to_json() const {
   json skips = json::array();
   for (const auto& k : skipped) skips.push_back(k.to_json());
   j["skipped"] = std::move(skips);
+  if (!sequences.empty()) {
+    json seqs = json::array();
+    for (const auto& s : sequences) seqs.push_back(s.to_json());
+    j["sequences"] = std::move(seqs);
+  }
   return j;
 }
 
@@ -515,6 +570,10 @@ ResultsDocument ResultsDocument::from_json(const json& j, const std::string& whe
   if (!skipped.is_array()) throw InputError(fmt::format("{}: key 'skipped': expected an array", where));
   for (std::size_t i = 0; i < skipped.size(); ++i)
     d.skipped.push_back(SkippedCell::from_json(skipped[i], fmt::format("{}: skipped[{}]", where, i)));
+  const json sequences = jf::get_or<json>(j, "sequences", json::array(), where);
+  if (!sequences.is_array()) throw InputError(fmt::format("{}: key 'sequences': expected an array", where));
+  for (std::size_t i = 0; i < sequences.size(); ++i)
+    d.sequences.push_back(SequenceRecord::from_json(sequences[i], fmt::format("{}: sequences[{}]", where, i)));
   return d;
 }
 

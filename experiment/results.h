@@ -232,6 +232,25 @@ struct SkippedCell {
   static SkippedCell from_json(const nlohmann::json& j, const std::string& where);
 };
 
+// One method's scores over a whole sequence at one spp and seed (docs/temporal-metrics.md),
+// computed by the run from the frames' images once every frame is done (experiment/sequences.h's
+// score_sequence): the still metrics' means over the frames, tmse and disocclusion_mse, and the
+// per-frame values the report plots.
+struct SequenceRecord {
+  std::string sequence, method;  // the sequence's name (rows sequence_row(sequence, t)), the column
+  Role role = Role::Method;
+  int spp = 0, frames = 0;
+  std::optional<std::uint64_t> seed;
+  std::map<std::string, std::optional<double>> metrics;  // mean over frames of each still metric, tmse, disocclusion_mse
+  // Per frame, index t: mse, tmse, disocclusion_mse (null where a frame has none: frame 0's tmse).
+  std::map<std::string, std::vector<std::optional<double>>> per_frame;
+  std::vector<std::string> images;  // each frame's image, relative to the results folder (for the video)
+
+  std::optional<double> metric(const std::string& name) const;
+  nlohmann::json to_json() const;
+  static SequenceRecord from_json(const nlohmann::json& j, const std::string& where);
+};
+
 struct ResultsDocument {
   RunConfig config;
   nlohmann::json machine = nlohmann::json::object();  // provenance, kept as written
@@ -241,6 +260,7 @@ struct ResultsDocument {
   std::vector<CellRecord> records;
   std::vector<FailedCell> failures;
   std::vector<SkippedCell> skipped;
+  std::vector<SequenceRecord> sequences;  // runs with animated scenes (config.sequences)
 
   // Queries the tables and gates are written in.
   std::vector<std::string> scenes() const;  // the config's, else in record order

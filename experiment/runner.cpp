@@ -13,6 +13,7 @@
 #include "experiment/execute.h"
 #include "experiment/planner.h"
 #include "experiment/provenance.h"
+#include "experiment/sequences.h"
 #include "experiment/store.h"
 #include "tracer/render_cache.h"
 #include "distributed/mpi_context.h"
@@ -74,6 +75,7 @@ ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt,
       // comes; the temporal methods' history carries from one to the next (docs/sequences.md).
       SequenceRun sequence(s.name, s.frames, cache, opt.use_cache);
       for (int t = 0; t < s.frames; ++t) run_plans(*rendered_scene_plans(c, opt, registry, cache, s.name, true, &sequence, t));
+      if (root) store->set_sequence(s.name, score_sequence(store->document(), opt.out_dir, s.name, s.frames));
       continue;
     }
     const auto sp = s.files      ? file_scene_plans(c, opt, registry, s)

@@ -17,6 +17,7 @@
 
 #include "core/aov_frame.h"
 #include "denoisers/method.h"
+#include "experiment/results.h"
 #include "tracer/render.h"
 #include "tracer/render_cache.h"
 #include "tracer/scene.h"
@@ -61,5 +62,14 @@ class SequenceRun {
   bool use_cache_;
   std::map<std::tuple<std::string, int, std::uint64_t>, State> states_;
 };
+
+// The sequence's scores from the results folder: for every column (input and methods) and input
+// spp and seed whose record exists on every frame, the mean of each still metric over the
+// frames, and tmse and disocclusion_mse (metrics/temporal.h) from the frames' images, references
+// and the motion, depth and normal of the frames' inputs (the largest spp's, first seed's: one
+// set of surfaces for every column). Columns missing a frame (a failed cell) are left out, with a
+// warning naming the frame.
+std::vector<SequenceRecord> score_sequence(const ResultsDocument& doc, const std::string& out_dir, const std::string& name,
+                                           int frames);
 
 }  // namespace dnb::experiment

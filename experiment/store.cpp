@@ -80,6 +80,12 @@ void ResultsStore::skip(SkippedCell skipped) {
   write();
 }
 
+void ResultsStore::set_sequence(const std::string& name, std::vector<SequenceRecord> records) {
+  std::erase_if(doc_.sequences, [&](const SequenceRecord& r) { return r.sequence == name; });
+  for (auto& r : records) doc_.sequences.push_back(std::move(r));
+  write();
+}
+
 void ResultsStore::write() {
   doc_.written = std::int64_t(std::time(nullptr));
   json_file::write(dir_ + "/results.json", doc_.to_json());

@@ -37,6 +37,8 @@ class ResultsStore {
   void fail(FailedCell failure);
   // A cell of this run's config that cannot be computed (results.json's skipped); every file rewritten.
   void skip(SkippedCell skipped);
+  // A sequence's scores (computed once all its frames are done), replacing any it had; every file rewritten.
+  void set_sequence(const std::string& name, std::vector<SequenceRecord> records);
   void write();
   const ResultsDocument& document() const { return doc_; }
 
