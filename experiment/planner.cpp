@@ -173,7 +173,9 @@ CellPlan method_cell(const ExperimentConfig& c, const MethodRegistry& registry, 
   p.contain_failures = true;
   p.stem = file_names::mapped(m.name) + "_" + std::to_string(spp);
   const bool temporal = info.temporal && sequence;
-  if (temporal) p.identity["sequence"] = {{"name", sequence->name()}, {"frame", t}, {"frames", sequence->frames()}};
+  // The frame's place in its sequence (its history is frames 0 .. t), not the sequence's length:
+  // a run that extends a sequence reuses the frames it has.
+  if (temporal) p.identity["sequence"] = {{"name", sequence->name()}, {"frame", t}};
   p.compute = [&c, &registry, &m, &info, scene, &frame, sequence, t, settings, temporal] {
     MethodResult first;
     std::vector<double> runs;

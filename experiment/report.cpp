@@ -161,6 +161,11 @@ std::vector<NamedTable> all_tables(const ResultsDocument& res) {
     const BestMark b = table1_best(t1, m);
     t.push_back({"table1_" + m, std::move(t1), m == "mse", b});
   }
+  if (!res.sequences.empty()) {
+    Table st = sequence_table(res);
+    const std::size_t cols = st.header.size() - 1;  // the input column is not marked
+    t.push_back({"table1_sequences", std::move(st), true, {.on = true, .lower_is_better = true, .first = 3, .last = cols}});
+  }
   t.push_back({"table2_time", table2(res), true});
   Table ft = filter_time_table(res);
   const std::size_t ft_cols = ft.header.size();

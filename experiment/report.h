@@ -57,6 +57,10 @@ Table table1(const ResultsDocument& results, const std::string& metric);
 int significantly_best(const std::vector<std::map<std::uint64_t, double>>& cells, bool lower_is_better,
                        double alpha = 0.05);
 Table table2(const ResultsDocument& results);
+// Table 1 of the sequences (docs/temporal-metrics.md): a row per (sequence, spp, metric) for the
+// mean still mse, tmse and disocclusion_mse, columns the methods then the input; empty without
+// sequences.
+Table sequence_table(const ResultsDocument& results);
 // Every method's and variant's filter time per scene (Table 2 gives the CPU and OpenCL filter's
 // only), with the input's render time.
 Table filter_time_table(const ResultsDocument& results);

@@ -434,6 +434,48 @@ Table ranking_table(const ResultsDocument& here, const ResultsDocument& other, c
   return t;
 }
 
+Table sequence_table(const ResultsDocument& res) {
+  Table t;
+  t.title = "Table 1, sequences: the still mse's mean over the frames, tmse and disocclusion_mse";
+  std::vector<std::string> methods;  // record order, input last
+  for (const auto& s : res.sequences)
+    if (s.method != "input" && std::find(methods.begin(), methods.end(), s.method) == methods.end())
+      methods.push_back(s.method);
+  t.header = {"sequence", "spp", "metric"};
+  for (const auto& m : methods) t.header.push_back(m);
+  t.header.push_back("input");
+  std::vector<std::pair<std::string, int>> rows;  // (sequence, spp), first-seen order
+  for (const auto& s : res.sequences)
+    if (std::find(rows.begin(), rows.end(), std::pair(s.sequence, s.spp)) == rows.end()) rows.emplace_back(s.sequence, s.spp);
+  bool several = false;
+  for (const auto& [sequence, spp] : rows)
+    for (const char* metric : {"mse", "tmse", "disocclusion_mse"}) {
+      auto values = [&](const std::string& method) {
+        std::map<std::uint64_t, double> out;
+        for (const auto& s : res.sequences)
+          if (s.sequence == sequence && s.spp == spp && s.method == method)
+            if (auto v = s.metric(metric)) out[s.seed.value_or(0)] = *v;
+        return out;
+      };
+      std::vector<std::string> row{sequence, std::to_string(spp), metric};
+      std::vector<std::map<std::uint64_t, double>> vals;
+      for (const auto& m : methods) {
+        vals.push_back(values(m));
+        several = several || vals.back().size() > 1;
+        row.push_back(format_interval(vals.back()));
+      }
+      if (const int best = significantly_best(vals, true); best >= 0) row[std::size_t(best) + 3] += " *";
+      row.push_back(format_interval(values("input")));
+      t.rows.push_back(std::move(row));
+    }
+  t.note = "docs/temporal-metrics.md: mse is the 8-bit mse's mean over the frames; tmse the mean square of the output's "
+           "frame-to-frame change less the reference's, over the pixels with history (flicker; true motion does not "
+           "count); disocclusion_mse the 8-bit mse over the pixels without history (ghosting, lag). Lower is better. "
+           "From results.json's sequences.";
+  if (several) t.note += " Several input seeds: mean ± the half width of its 95% t-interval; *: significantly best (paired t-test).";
+  return t;
+}
+
 Table table2(const ResultsDocument& res) {
   Table t;
   const int spp = res.table_spp();
