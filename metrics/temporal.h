@@ -81,8 +81,10 @@ class Reprojection {
 
   int width() const { return w_; }
   int height() const { return h_; }
-  bool valid(std::size_t pixel) const { return taps_[pixel].weight[0] + taps_[pixel].weight[1] +
-                                               taps_[pixel].weight[2] + taps_[pixel].weight[3] > 0; }
+  bool valid(std::size_t pixel) const {
+    const float* w = taps_[pixel].weight;
+    return w[0] + w[1] + w[2] + w[3] > 0;
+  }
   // 1 channel: 1 where a pixel has history, 0 where not.
   Image mask() const;
   // Pixels without history.
