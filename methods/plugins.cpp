@@ -173,7 +173,19 @@ class PluginMethod : public Method {
   PluginMethod(std::shared_ptr<const PluginManifest> m, Params params, std::shared_ptr<Worker> worker)
       : m_(std::move(m)), params_(std::move(params)), worker_(std::move(worker)) {}
 
-  std::vector<std::string> required_layers() const override { return m_->layers; }
+  // A temporal plug-in's `motion` is optional: a still frame (or a one-frame sequence) has none.
+  std::vector<std::string> required_layers() const override {
+    std::vector<std::string> out;
+    for (const auto& l : m_->layers)
+      if (!m_->temporal || l != layer::kMotion) out.push_back(l);
+    return out;
+  }
+  std::vector<std::string> optional_layers() const override {
+    if (m_->temporal && std::find(m_->layers.begin(), m_->layers.end(), layer::kMotion) != m_->layers.end())
+      return {layer::kMotion};
+    return {};
+  }
+  bool temporal() const override { return m_->temporal; }
 
   MethodResult execute(const MethodInput& input) override {
     if (!input.frame) throw InputError(fmt::format("plug-in '{}' needs a frame", m_->name));
@@ -183,7 +195,10 @@ class PluginMethod : public Method {
     MethodResult r;
     {
       ScopedPhase p(r.stats, "write_input");
-      write_frame(f, in, {.compress = false, .edges = false, .layers = m_->layers, .durable = false});
+      std::vector<std::string> layers;  // the declared ones the frame has (motion only in sequences)
+      for (const auto& l : m_->layers)
+        if (f.has(l)) layers.push_back(l);
+      write_frame(f, in, {.compress = false, .edges = false, .layers = layers, .durable = false});
       std::error_code ec;
       fs::remove(out, ec);
     }
@@ -192,7 +207,13 @@ class PluginMethod : public Method {
       // start-up is setup_seconds, apart).
       std::vector<std::string> tail;
       if (worker_) {
-        r.stats.own_seconds = worker_->request({{"input", in}, {"output", out}, {"params", typed_params()}});
+        json req = {{"input", in}, {"output", out}, {"params", typed_params()}};
+        // Where the frame stands in its sequence (docs/plugins.md, "Sequences"): a temporal
+        // worker keeps its history per sequence id and starts afresh at index 0.
+        if (input.sequence)
+          req["sequence"] = {{"id", input.sequence->sequence}, {"index", input.sequence->index},
+                             {"count", input.sequence->count}};
+        r.stats.own_seconds = worker_->request(req);
         r.stats.setup_seconds = worker_->setup_seconds();
         r.stats.info = worker_->info();
       } else {
@@ -297,6 +318,15 @@ PluginManifest manifest_from(const ConfigFile& file, const std::string& path, co
   for (const auto& l : m.layers)
     if (!layer::find(l))
       throw InputError(fmt::format("{}: unknown layer '{}' (a frame's layers: {})", pl->where("layers"), l, layer::names_help()));
+  m.temporal = pl->get("temporal", false);
+  if (m.temporal && m.protocol != PluginProtocol::Worker)
+    throw InputError(fmt::format("{}: a temporal plug-in keeps history between frames, which needs protocol = \"worker\" "
+                                 "(one process for the run; docs/plugins.md, \"Sequences\")",
+                                 pl->where("temporal")));
+  if (std::find(m.layers.begin(), m.layers.end(), layer::kMotion) != m.layers.end() && !m.temporal)
+    throw InputError(fmt::format("{}: layer 'motion' is in the frames of sequences only, which a plug-in reads as one when "
+                                 "`temporal = true`",
+                                 pl->where("layers")));
   m.timeout_seconds = pl->get("timeout_seconds", m.timeout_seconds);
   if (!(m.timeout_seconds > 0 && m.timeout_seconds <= 86400))
     throw InputError(fmt::format("{}: expected seconds in (0, 86400]", pl->where("timeout_seconds")));
@@ -367,6 +397,7 @@ std::vector<std::string> register_plugins(const std::vector<std::string>& dirs) 
       info.name = m.name;
       info.description = m.description;
       info.kind = MethodKind::Filter;
+      info.temporal = m.temporal;
       info.params = m.params;
       info.origin = m.path;
       info.content_hash = plugin_content_hash(m);

@@ -35,6 +35,10 @@ struct PluginManifest {
   std::vector<std::string> command;  // argv with relative paths resolved
   PluginProtocol protocol = PluginProtocol::Frame;
   std::vector<std::string> layers;
+  // `temporal = true` (worker protocol only): the plug-in keeps history between the frames of a
+  // sequence (Method::temporal()); its requests carry "sequence" {id, index, count}, and `motion`
+  // among its layers is passed where the frame has it.
+  bool temporal = false;
   double timeout_seconds = 600;
   std::vector<ParamSpec> params;
 };

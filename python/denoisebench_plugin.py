@@ -42,6 +42,10 @@ class Frame:
     def __init__(self, layers, meta):
         self.layers = layers
         self.meta = meta
+        # Worker protocol, frames of a sequence: {"id": ..., "index": t, "count": n}; None for a
+        # still. A temporal plug-in (manifest `temporal = true`) keeps its history per id and
+        # starts afresh at index 0 (docs/plugins.md, "Sequences").
+        self.sequence = None
         first = next(iter(layers.values()))
         self.height, self.width = first.shape[0], first.shape[1]
 
@@ -157,6 +161,7 @@ def _run_worker(fn, setup, info):
         try:
             req = json.loads(line)
             frame = read_frame(req["input"])
+            frame.sequence = req.get("sequence")
             params = req.get("params", {})
             out = fn(frame, params, state) if setup else fn(frame, params)
             write_rgb(req["output"], out)

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/errors.h"
 #include "core/exr_io.h"
 #include "test_util.h"
 
@@ -446,6 +447,67 @@ TEST(Plugins, BadManifestsExit2NamingTheFileAndKey) {
   auto missing = test::run_command("'" + binary().string() + "' list methods --plugins /no/such/folder");
   EXPECT_EQ(missing.exit_code, 2);
   EXPECT_THAT(missing.output, HasSubstr("'/no/such/folder' does not exist"));
+}
+
+// A temporal worker plug-in (`temporal = true`, docs/plugins.md "Sequences") gets each sequence's
+// frames in order with their motion layer, its requests saying which sequence and frame, and its
+// process keeps its state between them: t_temporal_counter's output is (frames of the sequence it
+// has seen, the index, whether motion was passed) and it refuses a frame out of turn. Two seeds
+// are two sequences, interleaved frame by frame. On a still it gets no sequence and no motion.
+TEST(Plugins, ATemporalWorkerGetsEachSequencesFramesInOrderWithMotion) {
+  test::TempDir dir;
+  write(dir.path() / "slide.toml",
+        "[animation]\nframes = 3\n[camera]\neye = [0, 0, 4]\nlook_at = [0, 0, 0]\n[[camera.keys]]\nframe = 0\n"
+        "[[camera.keys]]\nframe = 2\neye = [0.3, 0, 4]\nlook_at = [0.3, 0, 0]\n[materials.m]\nalbedo = [0.5, 0.5, 0.5]\n"
+        "[[objects]]\ntype = \"quad\"\nmaterial = \"m\"\nsize = [8, 8]\nrotate = [90, 0, 0]\n[sky]\ncolor = [1, 1, 1]\n");
+  write(dir.path() / "c.toml", "name = \"seq\"\nwidth = 16\nheight = 12\nseeds = [1, 2]\nspp = [2]\nmethods = "
+                               "[\"t_temporal_counter\"]\nplugins = [\"" + test_plugins() + "\"]\n[[scene]]\nname = \"" +
+                                   dir.file("slide.toml") + "\"\nframes = 3\n[reference]\nspp = 8\nblock_spp = 8\n"
+                                   "[timing]\nrepeats = 2\n");
+  auto r = run_in(dir, "run " + dir.file("c.toml") + " -o " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json res = json::parse(slurp(dir.file("out/results.json")));
+  EXPECT_TRUE(res["failures"].empty()) << res["failures"].dump();
+  int seen = 0;
+  for (const auto& rec : res["records"]) {
+    if (rec["method"] != "t_temporal_counter") continue;
+    const std::string scene = rec["scene"];
+    const int t = scene.back() - '0';  // "...slide.toml.f0N"
+    const Image img = read_rgb(dir.file("out/" + rec["files"]["image"].get<std::string>()));
+    EXPECT_EQ(img.at(3, 3, 0), float(t + 1)) << scene << ": the worker's history holds frames 0 .. t of its sequence";
+    EXPECT_EQ(img.at(3, 3, 1), float(t)) << scene;
+    EXPECT_EQ(img.at(3, 3, 2), 1.0f) << scene << ": the motion layer was passed";
+    EXPECT_EQ(rec["times"]["filter_runs"].size(), 1u) << "a temporal method runs once per frame (a repeat would advance it)";
+    ++seen;
+  }
+  EXPECT_EQ(seen, 6);  // 3 frames x 2 seeds
+  // A still: no sequence, no motion, its history reset.
+  auto still = run_in(dir, "render cornell-box --spp 1 --size 16x12 -o " + dir.file("still.exr"));
+  ASSERT_EQ(still.exit_code, 0) << still.output;
+  auto d = test::run_command("'" + binary().string() + "' denoise t_temporal_counter " + dir.file("still.exr") + " -o " +
+                             dir.file("still_out.exr") + " --plugins '" + test_plugins() + "' 2>&1");
+  ASSERT_EQ(d.exit_code, 0) << d.output;
+  const Image s = read_rgb(dir.file("still_out.exr"));
+  EXPECT_EQ(s.at(1, 1, 0), 1.0f);
+  EXPECT_EQ(s.at(1, 1, 2), 0.0f);
+}
+
+TEST(Plugins, ATemporalPluginNeedsTheWorkerProtocolAndMotionATemporalPlugin) {
+  test::TempDir dir;
+  write(dir.path() / "x" / "p.py", "");
+  auto listed = [&](const std::string& extra) {
+    write(dir.path() / "x" / "m.toml", "[plugin]\nname = \"x\"\ncommand = [\"/usr/bin/python3\", \"p.py\"]\n" + extra);
+    return run_in(dir, "list methods --plugins " + dir.file("x"));
+  };
+  auto frame = listed("protocol = \"frame\"\ntemporal = true\nlayers = [\"color\"]\n");
+  EXPECT_EQ(frame.exit_code, 2);
+  EXPECT_THAT(frame.output, HasSubstr("m.toml:5"));  // the key's line
+  EXPECT_THAT(frame.output, HasSubstr("protocol = \"worker\""));
+  auto motion = listed("protocol = \"worker\"\nlayers = [\"color\", \"motion\"]\n");
+  EXPECT_EQ(motion.exit_code, 2);
+  EXPECT_THAT(motion.output, HasSubstr("temporal = true"));
+  auto ok = listed("protocol = \"worker\"\ntemporal = true\nlayers = [\"color\", \"motion\"]\n");
+  EXPECT_EQ(ok.exit_code, 0) << ok.output;
 }
 
 }  // namespace
