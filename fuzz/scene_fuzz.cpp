@@ -53,6 +53,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   run_guarded([&] {
     auto scene = dnb::load_scene(scene_path);
     (void)dnb::scene_content_hash(*scene);
+    // An animated scene's keys are evaluated per frame: its middle and last frames too.
+    if (scene->animated())
+      for (int frame : {scene->frames / 2, scene->frames - 1}) {
+        dnb::SceneLoadOptions o;
+        o.frame = frame;
+        (void)dnb::scene_content_hash(*dnb::load_scene(scene_path, o));
+      }
   });
   return 0;
 }
