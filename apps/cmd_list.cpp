@@ -13,8 +13,10 @@ namespace dnb::app {
 
 static int list_methods() {
   for (const MethodInfo* m : MethodRegistry::global().all()) {
-    if (m->origin.empty()) fmt::print("{}  ({})\n    {}\n", m->name, to_string(m->kind), m->description);
-    else fmt::print("{}  ({}, plug-in: {})\n    {}\n", m->name, to_string(m->kind), m->origin, m->description);
+    // "temporal": it keeps history over a sequence's frames (docs/sequences.md).
+    const std::string kind = std::string(to_string(m->kind)) + (m->temporal ? ", temporal" : "");
+    if (m->origin.empty()) fmt::print("{}  ({})\n    {}\n", m->name, kind, m->description);
+    else fmt::print("{}  ({}, plug-in: {})\n    {}\n", m->name, kind, m->origin, m->description);
     try {
       auto instance = MethodRegistry::global().create(m->name);
       auto layers = instance->required_layers();

@@ -138,6 +138,7 @@ TEST(ListCommand, MethodsShowEveryParameterWithTypeDefaultAndDoc) {
   auto r = test::run_denoisebench("list methods");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("bilateral  (filter)"));
+  EXPECT_THAT(r.output, HasSubstr("svgf_temporal  (filter, temporal)"));  // keeps history over a sequence
   EXPECT_THAT(r.output, HasSubstr("layers: color"));
   EXPECT_THAT(r.output, HasSubstr("sigma_space        float   default "));
   EXPECT_THAT(r.output, HasSubstr("a finite number in [0.1, 100]"));
