@@ -290,7 +290,7 @@ def main():
                 if exe:
                     rel, labels, lay = encode(dir_, res, name, spp, seed, frames, exe, encoder)
                     log(f"{rel}: {frames} frames, {lay.width}x{lay.height}, {encoder}: {', '.join(labels)}")
-                    parts.append(f'<figure class="video"><video src="{rel}" controls loop muted playsinline '
+                    parts.append(f'<figure class="video"><video src="{rel}" preload="metadata" controls loop muted playsinline '
                                  f'width="{lay.width}" height="{lay.height}"></video><figcaption>{html.escape(", ".join(labels))}'
                                  f' (seed {seed}; <a href="{rel}">{rel}</a>)</figcaption></figure>')
                 else:
