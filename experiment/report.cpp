@@ -128,6 +128,27 @@ void write_viewer(const std::string& dir) {
   fs::copy_file(reports_dir() + "/viewer.js", dir + "/web/viewer/viewer.js", fs::copy_options::overwrite_existing);
 }
 
+// reports/video.py, for a run with sequences: an MP4 per sequence and input spp (videos/; with
+// `videos` false, or without ffmpeg, none, the log and the page saying why) and the page's
+// Sequences section (web/sequences.html, returned) linking them and the per-frame plots. Exit 2
+// is bad input (an image results.json names is missing), as viewer.py's.
+std::string write_sequences(const std::string& dir, const ResultsDocument& res, bool videos) {
+  if (res.sequences.empty()) return "";
+  const std::string script = reports_dir() + "/video.py";
+  std::vector<std::string> argv = {"/usr/bin/python3", script, dir};
+  if (!videos) argv.push_back("--no-video");
+  Subprocess p({.argv = argv, .on_log_line = [](const std::string& l) {
+                  if (l.rfind("warning: ", 0) == 0) spdlog::warn("video.py: {}", l.substr(9));
+                  else spdlog::info("video.py: {}", l);
+                }});
+  const std::optional<ExitStatus> st = p.wait(3600);
+  if (!st) p.kill_group();
+  auto last = [&] { return p.log_tail().empty() ? std::string("(no message)") : p.log_tail().back(); };
+  if (st && st->exited && st->code == 2) throw InputError(last());
+  if (!st || !st->ok()) throw WorkError(fmt::format("'{}' {}: {}", script, st ? st->describe() : "timed out", last()));
+  return read_text_file(dir + "/web/sequences.html");
+}
+
 std::vector<std::string> run_plots(const std::string& dir) {
   const std::string script = reports_dir() + "/plots.py";
   const std::string cmd = fmt::format("/usr/bin/python3 '{}' '{}'", script, dir);
@@ -182,7 +203,7 @@ std::vector<NamedTable> all_tables(const ResultsDocument& res) {
 }
 
 void write_page(const std::string& dir, const ResultsDocument& res, const std::vector<NamedTable>& tables,
-                const std::vector<std::string>& plots, bool viewer) {
+                const std::vector<std::string>& plots, bool viewer, const std::string& sequences_html) {
   std::string tables_html, other_html, plots_html;
   for (const auto& t : tables) (t.on_top ? tables_html : other_html) += html_table(t.table, t.best);
   for (const auto& p : plots) {
@@ -202,6 +223,8 @@ void write_page(const std::string& dir, const ResultsDocument& res, const std::v
   replace("tables", tables_html);
   replace("other_tables", other_html);
   replace("plots", plots_html);
+  replace("sequences", sequences_html);
+  replace("sequences_nav", sequences_html.empty() ? "" : "<li><a href=\"#sequences\">sequences</a></li>");
   replace("viewer", viewer ? "<script src=\"web/viewer/manifest.js\"></script>\n<script src=\"web/viewer/viewer.js\"></script>"
                            : "<p>(written without images: <code>report --no-images</code>)</p>");
   write_text_atomic(dir + "/index.html", page);
@@ -233,7 +256,8 @@ void write_report(const std::string& dir, const ReportOptions& opt) {
   const std::vector<std::string> plots = opt.plots ? run_plots(dir) : std::vector<std::string>{};
 
   if (opt.images) write_viewer(dir);
-  write_page(dir, res, tables, plots, opt.images);
+  const std::string sequences_html = write_sequences(dir, res, opt.images);
+  write_page(dir, res, tables, plots, opt.images, sequences_html);
   spdlog::info("report: {}/index.html", dir);
 }
 

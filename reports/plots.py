@@ -13,6 +13,9 @@ dashed, hollow markers), legends outside the data:
                                       input's render time marked apart, as a line)
   plots/error_time_<scene>.*          the metric against total time (input render + filter),
                                       with plain path tracing's renders and fitted power law
+  plots/sequence_<seq>_<spp>spp_mse.*  per animated sequence (results.json's `sequences`) and
+  plots/sequence_<seq>_<spp>spp_tmse.* input spp: each column's per-frame mse / tmse (the mean over
+                                      the seeds) against the frame index
   plots/colours.json                  each plot's series and the colour matplotlib drew them in
                                       (for the test that a method keeps its colour)
 
@@ -31,6 +34,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only, no display
 import matplotlib.colors as mcolors  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -82,6 +86,53 @@ class Plots:
     def finish(self):
         with open(os.path.join(self.dir, "colours.json"), "w") as f:
             json.dump(self.colours, f, indent=1, sort_keys=True)
+
+
+def sequence_plots(res, plots, style):
+    """Per (sequence, spp): each column's per-frame mse and tmse, the mean over its seeds.
+
+    From results.json's `sequences` only (experiment/results.h SequenceRecord: `per_frame` holds
+    one value per frame, null where a frame has none, as frame 0's tmse); a frame where no seed
+    has a value is left out of the line rather than drawn as 0.
+    """
+    seqs = res.get("sequences") or []
+    order = {"input": 0, "method": 1, "ablation": 2}
+    for name in dict.fromkeys(r["sequence"] for r in seqs):
+        for spp in sorted({r["spp"] for r in seqs if r["sequence"] == name}):
+            rs = [r for r in seqs if r["sequence"] == name and r["spp"] == spp]
+            columns = sorted(dict.fromkeys(r["method"] for r in rs),
+                             key=lambda m: min(order.get(r.get("role"), 3) for r in rs if r["method"] == m))
+            frames = max(r.get("frames") or 0 for r in rs)
+            nseeds = len({r.get("seed") for r in rs})
+            for metric, what in (("mse", "mse per frame"),
+                                 ("tmse", "tmse per frame (flicker beyond the reference's change)")):
+                fig, ax = plt.subplots(figsize=(7.0, 4.4))
+                series, ys = {}, []
+                for m in columns:
+                    per_seed = [r.get("per_frame", {}).get(metric) or [] for r in rs if r["method"] == m]
+                    xs, vs = [], []
+                    for t in range(frames):
+                        v = [p[t] for p in per_seed if t < len(p) and p[t] is not None and math.isfinite(p[t])]
+                        if v:
+                            xs.append(t)
+                            vs.append(sum(v) / len(v))
+                    if not xs:
+                        continue
+                    st = style.get(m) or method_style.style(m)
+                    line = ax.plot(xs, vs, color=st["colour"], marker=st["marker"], linestyle=st["linestyle"],
+                                   markersize=5, markerfacecolor=st["colour"] if st["filled"] else "white",
+                                   markeredgecolor=st["colour"], label=m if m != "input" else f"input ({spp} spp)")
+                    series[m] = line[0].get_color()
+                    ys += vs
+                if spans_decades(ys):
+                    ax.set_yscale("log")
+                ax.set_xlabel("frame")
+                ax.set_ylabel(metric)
+                ax.set_xlim(-0.5, frames - 0.5)
+                ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+                ax.set_title(f"{name}: {what}, {spp} spp input" + (f" (mean over {nseeds} seeds)" if nseeds > 1 else ""))
+                ax.grid(True, alpha=0.3)
+                plots.save(fig, ax, f"sequence_{safe(name)}_{spp}spp_{metric}", series)
 
 
 def main():
@@ -240,6 +291,11 @@ def main():
         ax.set_title(f"{s}: {metric} against total time")
         ax.grid(True, which="both", alpha=0.3)
         plots.save(fig, ax, f"error_time_{safe(s)}", series)
+    for r in res.get("sequences") or []:
+        m = r["method"]
+        if m not in style:
+            style[m] = method_style.style(m, parents.get(m))
+    sequence_plots(res, plots, style)
     plots.finish()
 
 

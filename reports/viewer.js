@@ -3,7 +3,9 @@
 // handle, a second view beside it, zoom (wheel) and pan (drag) shared by every view of the
 // scene, a pixel loupe with both sides' linear values, keyboard shortcuts as in tev and JERI,
 // exposure and tone mapping applied to the linear radiance, colour bars for the error maps, and
-// the crops with each method's error there.
+// the crops with each method's error there. A sequence's frames (rows name.f00, name.f01, ...)
+// share one viewer with a frame slider: another frame shows the same two images (by method and
+// kind) of that frame, with the zoom, split and exposure kept.
 //
 // Written here rather than vendored: the maintained comparison components (img-comparison-slider,
 // JERI) show 8-bit images or fetch EXRs over XHR, which a page opened from file:// may not do;
@@ -141,9 +143,12 @@ var DNB = (function () {
   // ---------------------------------------------------------------------------------------------
   // One scene
 
-  function Scene(data, host) {
+  // `frames`: a sequence's scenes in frame order (data is frames[0]), or undefined for a still.
+  function Scene(data, host, frames, seqName) {
     var sc = this;
     sc.data = data;
+    sc.frames = frames || null;
+    sc.frame = 0;
     sc.byId = {};
     data.images.forEach(function (e) { sc.byId[e.id] = e; });
     sc.exposure = 0;
@@ -154,24 +159,38 @@ var DNB = (function () {
     sc.showWorse = true;
     sc.sides = {left: data.left, right: data.right, second: firstError(data) || data.right};
 
-    var sec = el("section", {"class": "scene", id: "scene-" + data.name.replace(/[^A-Za-z0-9_-]/g, "_"), tabindex: "0",
-                             "data-scene": data.name});
-    sec.appendChild(el("h3", {}, data.name + " (" + data.width + "x" + data.height + ", " + data.spp + " spp input" +
-                                 (data.seed !== null ? ", seed " + data.seed : "") + ")"));
+    var title = sc.frames ? seqName : data.name;
+    sc.title = title;
+    var sec = el("section", {"class": "scene", id: "scene-" + title.replace(/[^A-Za-z0-9_-]/g, "_"), tabindex: "0",
+                             "data-scene": sc.frames ? data.name : title});
+    if (sc.frames) sec.setAttribute("data-sequence", seqName);
+    sc.section = sec;
+    sc.heading = el("h3");
+    sec.appendChild(sc.heading);
     var controls = el("div", {"class": "controls"});
+    if (sc.frames) {  // the frame slider: the same two images of another frame
+      var frLab = el("label", {"class": "frame-control"}, "frame ");
+      var prev = el("button", {type: "button", "class": "frame-prev", title: "previous frame (,)"}, "\u25C0");
+      sc.frameInput = el("input", {"class": "frame", type: "range", min: "0", max: String(sc.frames.length - 1), step: "1",
+                                   value: "0", "aria-label": "frame of " + seqName});
+      var next = el("button", {type: "button", "class": "frame-next", title: "next frame (.)"}, "\u25B6");
+      sc.frameOut = el("output", {"class": "frame-number"});
+      prev.addEventListener("click", function () { sc.setFrame(sc.frame - 1); });
+      next.addEventListener("click", function () { sc.setFrame(sc.frame + 1); });
+      sc.frameInput.addEventListener("input", function () { sc.setFrame(Number(sc.frameInput.value)); });
+      frLab.appendChild(prev);
+      frLab.appendChild(sc.frameInput);
+      frLab.appendChild(next);
+      frLab.appendChild(sc.frameOut);
+      controls.appendChild(frLab);
+    }
     sc.select = {};
     [["left", "left"], ["right", "right"], ["second", "second view"]].forEach(function (p) {
       var lab = el("label", {}, p[1] + " ");
-      var s = el("select", {"class": "pick-" + p[0], "aria-label": p[1] + " image of " + data.name});
-      data.images.forEach(function (e) {
-        var m = e.metrics || {}, extra = "";
-        if (e.kind === "radiance" && m.mse !== undefined) extra = " (mse " + fmt(m.mse) + ")";
-        else if (e.kind !== "radiance" && m[e.kind] !== undefined) extra = " (mean " + fmt(m[e.kind]) + ")";
-        s.appendChild(el("option", {value: e.id, "data-method": e.method, "data-kind": e.kind}, e.label + extra));
-      });
-      s.value = sc.sides[p[0]];
-      s.addEventListener("change", function () { sc.set(p[0], s.value); });
+      var s = el("select", {"class": "pick-" + p[0], "aria-label": p[1] + " image of " + title});
       sc.select[p[0]] = s;
+      fillSelect(sc, p[0]);
+      s.addEventListener("change", function () { sc.set(p[0], s.value); });
       lab.appendChild(s);
       controls.appendChild(lab);
     });
@@ -213,22 +232,85 @@ var DNB = (function () {
     sec.appendChild(controls);
     sec.appendChild(el("p", {"class": "keys"}, "Wheel: zoom; drag: pan; drag the handle: move the split. Keys (pointer over the " +
       "scene): 1-9 right image, shift+1-9 left image, up/down next/previous right image, shift+up/down left, x swap, " +
-      "e / shift+e exposure up/down, t tone map, r fit."));
+      "e / shift+e exposure up/down, t tone map, r fit." + (sc.frames ? " Comma / period: previous / next frame." : "")));
 
     var views = el("div", {"class": "views"});
     sc.views = [makeView(sc, "split", views), makeView(sc, "second", views)];
+    sc.setHeading();
     sec.appendChild(views);
     sc.bars = el("div", {"class": "colourbars"});
     sec.appendChild(sc.bars);
     sc.loupe = el("div", {"class": "loupe", hidden: ""});
     sec.appendChild(sc.loupe);
-    sec.appendChild(cropTable(sc));
+    sc.cropBox = cropTable(sc);
+    sec.appendChild(sc.cropBox);
     sec.addEventListener("pointerenter", function () { active = sc; });
     sec.addEventListener("focusin", function () { active = sc; });
     host.appendChild(sec);
-    sc.section = sec;
     sc.ensure();
   }
+
+  // A selector's options: the scene's (frame's) images, each with its record's number.
+  function fillSelect(sc, side) {
+    var s = sc.select[side];
+    s.textContent = "";
+    sc.data.images.forEach(function (e) {
+      var m = e.metrics || {}, extra = "";
+      if (e.kind === "radiance" && m.mse !== undefined) extra = " (mse " + fmt(m.mse) + ")";
+      else if (e.kind !== "radiance" && m[e.kind] !== undefined) extra = " (mean " + fmt(m[e.kind]) + ")";
+      s.appendChild(el("option", {value: e.id, "data-method": e.method, "data-kind": e.kind}, e.label + extra));
+    });
+    s.value = sc.sides[side];
+  }
+
+  Scene.prototype.setHeading = function () {
+    var d = this.data;
+    this.heading.textContent = this.title + (this.frames ? ", frame " + d.frame + " (" + (this.frame + 1) + " of " +
+      this.frames.length + ": " + d.name + ")" : "") + " (" + d.width + "x" + d.height + ", " + d.spp + " spp input" +
+      (d.seed !== null ? ", seed " + d.seed : "") + ")";
+    if (this.frames) {
+      this.frameInput.value = String(this.frame);
+      this.frameOut.textContent = d.frame + " / " + (this.frames.length - 1);
+      this.section.dataset.frame = String(d.frame);
+      this.section.dataset.scene = d.name;
+    }
+  };
+
+  // Frame t of the sequence: each side shows the image of the same method and kind in that frame
+  // (the frame's default where it has none); zoom, pan, split, exposure and tone map stay.
+  Scene.prototype.setFrame = function (t) {
+    if (!this.frames) return;
+    t = Math.max(0, Math.min(this.frames.length - 1, t));
+    if (t === this.frame) return;
+    var sc = this, old = sc.entries(), data = sc.frames[t];
+    function same(entry, fallback) {
+      for (var i = 0; entry && i < data.images.length; i++)
+        if (data.images[i].method === entry.method && data.images[i].kind === entry.kind) return data.images[i].id;
+      return fallback;
+    }
+    sc.sides = {left: same(old.left, data.left), right: same(old.right, data.right),
+                second: same(old.second, firstError(data) || data.right)};
+    sc.frame = t;
+    sc.data = data;
+    sc.byId = {};
+    data.images.forEach(function (e) { sc.byId[e.id] = e; });
+    ["left", "right", "second"].forEach(function (side) { fillSelect(sc, side); });
+    var crops = cropTable(sc);
+    sc.section.replaceChild(crops, sc.cropBox);
+    sc.cropBox = crops;
+    sc._barsKey = null;
+    sc.setHeading();
+    sc.ensure();
+    // The next frame's two images, so that stepping on does not wait for them.
+    var nd = sc.frames[t + 1];
+    if (nd) {
+      nd.images.forEach(function (e) {
+        [sc.byId[sc.sides.left], sc.byId[sc.sides.right]].forEach(function (x) {
+          if (x && e.method === x.method && e.kind === x.kind) DNB.load(e).catch(function () {});
+        });
+      });
+    }
+  };
 
   function firstError(data) {
     for (var i = 0; i < data.images.length; i++) if (data.images[i].kind !== "radiance" && data.images[i].method === idMethod(data, data.left))
@@ -573,18 +655,30 @@ var DNB = (function () {
     else if (ev.key === "E") sc.setExposure(sc.exposure - 0.5);
     else if (ev.key === "t") { sc.tonemap = sc.tonemap === "clamp" ? "filmic" : "clamp"; sc.tmSelect.value = sc.tonemap; sc.draw(); }
     else if (ev.key === "r") sc.fit();
+    else if (ev.key === "," && sc.frames) sc.setFrame(sc.frame - 1);
+    else if (ev.key === "." && sc.frames) sc.setFrame(sc.frame + 1);
     else return;
     ev.preventDefault();
   });
 
   var host = document.getElementById("scenes");
   var nav = document.getElementById("scene-index");
-  M.scenes.forEach(function (d) {
-    var sc = new Scene(d, host);
+  // A sequence's frames are one viewer (manifest.sequences: each with its scenes in frame order).
+  var frameOf = {};  // scene position in M.scenes -> its sequence, for the sequence's first frame only
+  var inSequence = {};
+  (M.sequences || []).forEach(function (q) {
+    if (!q.scenes.length) return;
+    frameOf[q.scenes[0]] = q;
+    q.scenes.forEach(function (i) { inSequence[i] = true; });
+  });
+  M.scenes.forEach(function (d, i) {
+    if (inSequence[i] && !frameOf[i]) return;
+    var q = frameOf[i];
+    var sc = q ? new Scene(d, host, q.scenes.map(function (k) { return M.scenes[k]; }), q.name) : new Scene(d, host);
     scenes.push(sc);
     if (nav) {
       var li = el("li");
-      li.appendChild(el("a", {href: "#" + sc.section.id}, d.name));
+      li.appendChild(el("a", {href: "#" + sc.section.id}, q ? q.name + " (" + q.scenes.length + " frames)" : d.name));
       nav.appendChild(li);
     }
   });

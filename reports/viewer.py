@@ -9,10 +9,17 @@ fetch files; the page decodes them and applies exposure and tone mapping to the 
 
   web/viewer/manifest.js      DNB_MANIFEST: scenes, images (label, kind, file, metrics from
                               results.json, the tiles where a method is worse than its input), crops with per-method means of the error maps,
-                              colour maps, each method's colour (reports/method_style.py)
+                              colour maps, each method's colour (reports/method_style.py), and the
+                              sequences: {name, frames, rows, scenes} per sequence of the config,
+                              `scenes` the positions in `scenes` of its frame rows in frame order
+                              (each such scene has `sequence` and `frame`); viewer.js shows them as
+                              one viewer with a frame slider
   web/viewer/s<i>/<j>.js      DNB.image("<i>/<j>", width, height, channels, "deflate", "<base64>"):
                               the half floats zlib-compressed (about a third smaller for noisy
                               renders; the page inflates them with DecompressionStream)
+
+A sequence's frames share their error maps' colour scales (the widest of its frames' relMSE
+decades), so that scrubbing through the frames does not change what a colour means.
 
 Crops: the 1/6-size window where Table 2's CPU method's FLIP error is largest, and the one (not
 overlapping it) where its relMSE is largest.
@@ -245,18 +252,39 @@ def main():
     seed = seeds[0] if seeds else None
     scenes = cfg.get("scenes") or list(dict.fromkeys(r["scene"] for r in recs))
     pick = cfg.get("table2", {}).get("filter_cpu", "proposed")
+    # Frame rows of the config's sequences (experiment/config.cpp sequence_row: name.fNN).
+    row_of = {f"{name}.f{t:02d}": (name, t) for name, n in (cfg.get("sequences") or {}).items() for t in range(int(n))}
     try:
         out = []
         for i, s in enumerate(scenes):
             sc = build_scene(dir_, res, i, s, spp, seed, pick)
             if sc:
+                if s in row_of:
+                    sc["sequence"], sc["frame"] = row_of[s]
                 out.append(sc)
     except BadInput as e:
         print(f"error: {e}", file=sys.stderr)
         sys.exit(2)
+    sequences = []
+    for name, n in (cfg.get("sequences") or {}).items():
+        at = sorted((sc["frame"], k) for k, sc in enumerate(out) if sc.get("sequence") == name)
+        if not at:
+            continue
+        frames = [out[k] for _, k in at]
+        for kind in ("relmse",):  # one colour scale over the frames
+            sc_ = [f["scales"][kind] for f in frames if kind in f["scales"]]
+            if sc_:
+                lo, hi = min(x["min"] for x in sc_), max(x["max"] for x in sc_)
+                lo = max(lo, hi / 1e6)
+                for f in frames:
+                    if kind in f["scales"]:
+                        f["scales"][kind] = dict(f["scales"][kind], min=lo, max=hi)
+        sequences.append({"name": name, "frames": int(n), "rows": [out[k]["name"] for _, k in at],
+                          "scenes": [k for _, k in at]})
     parents = method_style.parents(recs)
     manifest = {
         "scenes": out,
+        "sequences": sequences,
         "colormaps": {"magma": colour_map("magma"), "viridis": colour_map("viridis")},
         "styles": {m: method_style.style(m, p)["colour"] for m, p in list(parents.items()) + [("reference", None)]},
     }

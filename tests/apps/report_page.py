@@ -19,7 +19,11 @@ does not hold (exit 1), against results.json rather than the page's own data:
   - number keys flip the right image; the loupe shows both sides' values;
   - at 800 and 1400 px wide no table is wider than the viewport unless inside a scroll box,
     and the page itself does not scroll sideways (screenshots written with --shots);
-  - no console error or warning, no uncaught exception, no failed request, in the whole run.
+  - no console error or warning, no uncaught exception, no failed request, in the whole run;
+  - a sequence (results.json's config.sequences) is one viewer, not one per frame: its frame
+    slider, the next-frame button and the comma key go to another frame, whose selectors list
+    that frame's images (against results.json), and the two chosen images stay the same method
+    and kind while the pixels and the heading change to that frame's.
 """
 import argparse
 import base64
@@ -141,6 +145,13 @@ def expected_images(results_dir):
             if r["files"].get(k):
                 lst.append((r["method"], kind))
     return {s: sorted(v) for s, v in out.items()}
+
+
+def sequence_rows(results_dir):
+    """(sequence name -> its frame rows in order) from results.json's config (name.fNN)."""
+    with open(os.path.join(results_dir, "results.json")) as f:
+        cfg = json.load(f)["config"]
+    return {n: [f"{n}.f{t:02d}" for t in range(int(k))] for n, k in (cfg.get("sequences") or {}).items()}
 
 
 def worse_tile_counts(results_dir):
@@ -328,6 +339,73 @@ def check_viewer(ch, expected):
                 fail(f"{name}: hiding the worse-than-input tiles of {worse} did not change the view")
 
 
+def check_sequences(ch, expected, sequences):
+    """Each sequence's viewer: the frame slider, the buttons and the keys step through its frames,
+    keeping the chosen two images (method and kind) and showing that frame's."""
+    got = ch.eval("""Array.prototype.map.call(document.querySelectorAll('section.scene'), function (s, i) {
+      return {i: i, sequence: s.dataset.sequence || null, scene: s.dataset.scene, slider: !!s.querySelector('input.frame')}; })""")
+    on_page = {g["sequence"]: g for g in got if g["sequence"]}
+    for name, rows in sequences.items():
+        g = on_page.get(name)
+        if not g:
+            fail(f"sequence {name}: no viewer section with data-sequence (sections: {got})")
+            continue
+        i = g["i"]
+        if not g["slider"]:
+            fail(f"sequence {name}: no frame slider")
+            continue
+
+        def state():
+            return ch.eval(f"""(function () {{ var s = document.querySelectorAll('section.scene')[{i}];
+              function pick(side) {{ var o = s.querySelector('select.pick-' + side).selectedOptions[0];
+                return [o.dataset.method, o.dataset.kind]; }}
+              return {{scene: s.dataset.scene, frame: s.dataset.frame, left: pick('left'), right: pick('right'),
+                       heading: s.querySelector('h3').textContent, slider: s.querySelector('input.frame').value}}; }})()""")
+
+        methods = [m for m, k in expected.get(rows[0], []) if k == "radiance" and m not in ("input", "reference")]
+        left = methods[-1] if methods else "input"
+        if not choose(ch, i, "left", left, "radiance") or not choose(ch, i, "right", "reference", "radiance"):
+            fail(f"sequence {name}: cannot choose {left} and the reference")
+            continue
+        ch.eval(f"document.querySelectorAll('section.scene')[{i}].querySelector('button.fit').click()")
+        wait_ready(ch, name)
+        s0, d0 = state(), split_digests(ch, i)
+        if s0["scene"] != rows[0]:
+            fail(f"sequence {name}: opens on {s0['scene']}, not its first frame {rows[0]}")
+        steps = [("slider", len(rows) - 1,
+                  f"(function () {{ var e = document.querySelectorAll('section.scene')[{i}].querySelector('input.frame');"
+                  f" e.value = '{len(rows) - 1}'; e.dispatchEvent(new Event('input')); }})()")]
+        if len(rows) > 2:
+            steps.append(("comma key", len(rows) - 2, None))
+            steps.append(("next button", len(rows) - 1,
+                          f"document.querySelectorAll('section.scene')[{i}].querySelector('button.frame-next').click()"))
+        before = (s0, d0)
+        for how, t, expr in steps:
+            if expr:
+                ch.eval(expr)
+            else:
+                ch.eval(f"document.querySelectorAll('section.scene')[{i}].focus()")
+                ch.send("Input.dispatchKeyEvent", {"type": "keyDown", "key": ",", "code": "Comma", "text": ",",
+                                                   "windowsVirtualKeyCode": 188})
+                ch.send("Input.dispatchKeyEvent", {"type": "keyUp", "key": ",", "code": "Comma", "windowsVirtualKeyCode": 188})
+            ch.eval("window.__t.settled()")
+            wait_ready(ch, f"{name} frame {t}")
+            s1, d1 = state(), split_digests(ch, i)
+            if s1["scene"] != rows[t] or s1["frame"] != str(t) or s1["slider"] != str(t):
+                fail(f"sequence {name}: the {how} should show frame {t} ({rows[t]}), the viewer shows {s1}")
+            if (s1["left"], s1["right"]) != ([left, "radiance"], ["reference", "radiance"]):
+                fail(f"sequence {name}: the {how} changed the chosen images to {s1['left']} / {s1['right']}")
+            if s1["heading"] == before[0]["heading"]:
+                fail(f"sequence {name}: the heading did not change with the {how}: {s1['heading']}")
+            if d1[0] == before[1][0] or d1[1] == before[1][1]:
+                fail(f"sequence {name}: the {how} left a side of the split view's pixels as they were ({before[1]} -> {d1})")
+            got_sel = ch.eval(f"""Array.prototype.map.call(document.querySelectorAll('section.scene')[{i}]
+              .querySelectorAll('select.pick-left option'), function (o) {{ return [o.dataset.method, o.dataset.kind]; }})""")
+            if sorted(tuple(x) for x in got_sel) != [tuple(w) for w in expected.get(rows[t], [])]:
+                fail(f"sequence {name}, frame {t}: the selector lists {sorted(got_sel)}, results.json has {expected.get(rows[t])}")
+            before = (s1, d1)
+
+
 def check_widths(ch, width, shots):
     ch.send("Emulation.setDeviceMetricsOverride", {"width": width, "height": 900, "deviceScaleFactor": 1, "mobile": False})
     ch.eval("window.scrollTo(0, 0)")
@@ -373,6 +451,8 @@ def check_events(events):
         elif m == "Log.entryAdded" and p.get("entry", {}).get("level") in ("error", "warning"):
             fail("log " + p["entry"]["level"] + ": " + p["entry"].get("text", "") + " " + p["entry"].get("url", ""))
         elif m == "Network.loadingFailed":
+            if p.get("type") == "Media" and p.get("canceled"):
+                continue  # a <video> reads what it needs of the file and cancels the rest: not a failure
             fail("failed request: " + json.dumps(p)[:400])
 
 
@@ -384,6 +464,10 @@ def main():
     a = ap.parse_args()
     results_dir = os.path.abspath(a.results_dir)
     expected = expected_images(results_dir)
+    sequences = sequence_rows(results_dir)
+    # A sequence is one section on the page, opening on its first frame.
+    later = {r for rows in sequences.values() for r in rows[1:]}
+    sections = {k: v for k, v in expected.items() if k not in later}
     WORSE.update(worse_tile_counts(results_dir))
     if a.shots:
         os.makedirs(a.shots, exist_ok=True)
@@ -407,8 +491,9 @@ def main():
                 ch.send("Input.dispatchMouseEvent", {"type": "mouseMoved", "x": v["x"] + v["w"] * 0.3, "y": v["y"] + v["h"] * 0.6})
                 ch.eval("window.__t.settled()")
                 shot(ch, os.path.join(a.shots, "scene_1400_loupe.png"))
-            check_selectors(ch, expected)
-            check_viewer(ch, expected)
+            check_selectors(ch, sections)
+            check_viewer(ch, sections)
+            check_sequences(ch, expected, sequences)
         for w in (800, 1400):
             check_widths(ch, w, a.shots)
         ch.eval("window.__t.settled()")
