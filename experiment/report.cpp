@@ -155,7 +155,9 @@ std::vector<std::string> run_plots(const std::string& dir) {
   if (std::system(cmd.c_str()) != 0) throw WorkError(fmt::format("plots failed: `{}`", cmd));
   std::vector<std::string> plots;
   for (const auto& e : fs::directory_iterator(dir + "/plots"))
-    if (e.path().extension() == ".png") plots.push_back("plots/" + e.path().filename().string());
+    // The per-frame plots of sequences are shown in the page's Sequences section instead.
+    if (e.path().extension() == ".png" && !e.path().filename().string().starts_with("sequence_"))
+      plots.push_back("plots/" + e.path().filename().string());
   std::sort(plots.begin(), plots.end());
   return plots;
 }

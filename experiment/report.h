@@ -12,7 +12,10 @@
 //                                  extrapolated: "beyond the measured range" instead)
 //   ablation.md                    the ablation variants against the full method
 //   ratios.md                      Table 2's CPU method's error over every other method's
-//   plots/*.{png,pdf}              by reports/plots.py (matplotlib)
+//   plots/*.{png,pdf}              by reports/plots.py (matplotlib); sequence_*: a sequence's
+//                                  per-frame mse and tmse (docs/sequences.md)
+//   videos/<sequence>_<spp>spp.mp4 by reports/video.py (ffmpeg): input, methods and reference
+//                                  side by side; web/sequences.html its part of the page
 //   web/viewer/**, index.html      the static page: reports/viewer.py writes every image of each
 //                                  scene as linear half floats, reports/viewer.js shows them
 //

@@ -28,6 +28,8 @@ KNOWN = {
     "nfor": ("#AA4499", "P"),            # Tol muted purple
     "oidn": ("#999933", "X"),            # Tol muted olive
     "kpcn": ("#CC6677", "d"),            # Tol muted rose
+    "svgf_temporal": ("#8C6D1F", "H"),   # a darker sand than svgf's: its temporal sibling
+    "temporal_accumulation": ("#117733", "8"),  # Tol muted green
 }
 # For methods the table does not know (plug-ins): by a hash of the name.
 SPARE_COLOURS = ["#44AA99", "#117733", "#88CCEE", "#F0E442", "#661100", "#6699CC"]

@@ -145,6 +145,10 @@ def main():
     records = res["records"]
     cfg = res.get("config", {})
     scenes = cfg.get("scenes") or list(dict.fromkeys(r["scene"] for r in records))
+    # A sequence's frames are plotted per frame by sequence_plots, not as stills (16 frames would
+    # be 16 still plots each).
+    frame_rows = {f"{name}.f{t:02d}" for name, n in (cfg.get("sequences") or {}).items() for t in range(n)}
+    scenes = [s for s in scenes if s not in frame_rows]
     spp = (cfg.get("spp") or [r["spp"] for r in records if r.get("role") != "plain"])[0]
     methods = []
     for r in records:
@@ -169,28 +173,29 @@ def main():
                         capsize=3, label=label, **kw)
         return c[0].get_color()
 
-    # Bars: scenes on the x axis, one bar per method (input included for scale).
-    cols = ["input"] + methods
-    fig, ax = plt.subplots(figsize=(max(7.0, 1.2 + 0.25 * len(cols) * len(scenes)), 4.2))
-    width = 0.8 / len(cols)
-    x = np.arange(len(scenes))
-    series, allv = {}, []
-    for i, m in enumerate(cols):
-        mc = [mean_ci([metric_of(r) for r in seeds_of(s, m, spp)]) for s in scenes]
-        st = style[m]
-        bars = ax.bar(x + (i - (len(cols) - 1) / 2) * width, [v for v, _ in mc], width,
-                      yerr=[e for _, e in mc] if any(e > 0 for _, e in mc) else None, capsize=2,
-                      color=st["colour"] if st["filled"] else "white", edgecolor=st["colour"],
-                      hatch=None if st["filled"] else "////", linewidth=1.0, label=m)
-        series[m] = bars.patches[0].get_edgecolor()
-        allv += [v for v, _ in mc]
-    ax.set_xticks(x)
-    ax.set_xticklabels(scenes)
-    ax.set_ylabel(metric)
-    if spans_decades(allv):
-        ax.set_yscale("log")
-    ax.set_title(f"{metric} per scene and method, {spp} spp input")
-    plots.save(fig, ax, f"{metric}_bars", series)
+    if scenes:  # a config of sequences only has no still scene
+        # Bars: scenes on the x axis, one bar per method (input included for scale).
+        cols = ["input"] + methods
+        fig, ax = plt.subplots(figsize=(max(7.0, 1.2 + 0.25 * len(cols) * len(scenes)), 4.2))
+        width = 0.8 / len(cols)
+        x = np.arange(len(scenes))
+        series, allv = {}, []
+        for i, m in enumerate(cols):
+            mc = [mean_ci([metric_of(r) for r in seeds_of(s, m, spp)]) for s in scenes]
+            st = style[m]
+            bars = ax.bar(x + (i - (len(cols) - 1) / 2) * width, [v for v, _ in mc], width,
+                          yerr=[e for _, e in mc] if any(e > 0 for _, e in mc) else None, capsize=2,
+                          color=st["colour"] if st["filled"] else "white", edgecolor=st["colour"],
+                          hatch=None if st["filled"] else "////", linewidth=1.0, label=m)
+            series[m] = bars.patches[0].get_edgecolor()
+            allv += [v for v, _ in mc]
+        ax.set_xticks(x)
+        ax.set_xticklabels(scenes)
+        ax.set_ylabel(metric)
+        if spans_decades(allv):
+            ax.set_yscale("log")
+        ax.set_title(f"{metric} per scene and method, {spp} spp input")
+        plots.save(fig, ax, f"{metric}_bars", series)
 
     for s in scenes:
         # Error against spp: every method at every input spp it has, with intervals over the seeds.
