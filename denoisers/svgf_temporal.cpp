@@ -1,8 +1,9 @@
 // svgf_temporal: the whole of SVGF (Schied, Kaplanyan, Wyman, Patney, Chaitanya, Burgess, Liu,
 // Dachsbacher, Lefohn and Salvi 2017, "Spatiotemporal Variance-Guided Filtering: Real-Time
 // Reconstruction for Path-Traced Global Illumination", HPG) over the frames of a sequence, with
-// the paper's parameters. Per frame, on the demodulated illumination (D and I, which the tracer
-// writes divided by the albedo; each filtered apart, as in the paper, with `separate`):
+// the paper's parameters (TAA, its last step, off by default). Per frame, on the demodulated
+// illumination (D and I, which the tracer writes divided by the albedo; each filtered apart, as
+// in the paper, with `separate`):
 //
 // 1. Temporal accumulation. The history is reprojected with the motion layer
 //    (metrics/temporal.h: bilinear, taps whose depth or normal disagree dropped; the metrics'
@@ -19,21 +20,48 @@
 // 3. The variance-guided a-trous passes (denoisers/svgf_atrous.h, shared with `svgf`),
 //    `iterations` of them, taps 1, 2, 4, ... apart.
 // 4. Remodulation F = (D' + I') * T + R + E (R and E pass through from the current frame, as in
-//    `svgf`), then temporal antialiasing (TAA, Karis 2014, the paper's last step) as the TAA pass
-//    of the reference implementation (Falcor) does it: where the disocclusion test keeps the
-//    history, the previous output fetched with the Catmull-Rom bicubic filter, clamped in YCgCo
-//    to the 3x3 neighbourhood's mean +- taa_box_sigma standard deviations of this frame's output,
-//    blended with a = taa_alpha. The frames here are not jittered, so TAA acts as temporal
-//    stabilisation only.
+//    `svgf`), then, with `taa` (off by default: see "On moving content"), temporal antialiasing
+//    (TAA, Karis 2014, the paper's last step) as the TAA pass of the reference implementation
+//    (Falcor) does it: where the disocclusion test keeps the history, the previous output
+//    fetched with the Catmull-Rom bicubic filter, clamped in YCgCo to the 3x3 neighbourhood's
+//    mean +- taa_box_sigma standard deviations of this frame's output, blended with
+//    a = taa_alpha.
 //
 // A frame without history (a still, frame 0 of a sequence, a disoccluded pixel) is filtered from
 // its own light alone: step 2's spatial estimate and step 3, as the paper's first frame is.
 //
-// Differences from the paper: bilinear reprojection without the reference code's 3x3 fallback
-// search for a disoccluded pixel's history (a pixel the test rejects starts afresh); normals and
-// depths compared by the metrics' thresholds rather than the reference code's screen-space
-// derivatives; no mesh-id test (the frames have no ids). The spatial-only `svgf` row reads the
-// tracer's variance layers instead of step 2 and has swept defaults; this row has the paper's.
+// Differences from the paper: TAA off by default (below, "On moving content"); bilinear
+// reprojection without the reference code's 3x3 fallback search for a disoccluded pixel's
+// history (a pixel the test rejects starts afresh); normals and depths compared by the metrics'
+// thresholds rather than the reference code's screen-space derivatives; no mesh-id test (the
+// frames have no ids). The spatial-only `svgf` row reads the tracer's variance layers instead of
+// step 2 and has swept defaults; this row has the paper's.
+//
+// On moving content (docs/method-defaults.md, "svgf_temporal", has the measurements). Every
+// history here (step 1's colour, step 2's moments, TAA's output) is fetched at c + motion(c),
+// which under a moving camera is a sub-pixel position different at every pixel, and a history
+// that is fed back is fetched again every frame: whatever the fetch blurs compounds over the
+// frames (Yang et al. 2009, "Amortized supersampling", analyse this blur). What that does here:
+// - TAA. Its history is 1 - taa_alpha = 90% of each output and holds the remodulated colour,
+//   textures included. TAA antialiases by accumulating sub-pixel jittered frames; the paper
+//   runs it on real-time frames whose geometry edges alias. The frames here are rendered with
+//   many samples per pixel (already antialiased) and not jittered, so a new frame brings no
+//   detail the history lost, and TAA only blurs: with a bilinear history fetch (this row's
+//   first version) the 16-spp mse of configs/sequence.toml grew from 17.7 at frame 0 to ~50 by
+//   frame 8 (the spatial svgf: ~22); with the Catmull-Rom fetch and the YCgCo box the mean over
+//   the frames is still 34.1 against 19.2 without TAA (4 spp: 41.0 against 37.0; TAA does lower
+//   the 4-spp tmse, 22.8 against 39.5). Hence taa = false by default; taa = true gives the
+//   paper's whole pipeline.
+// - The colour history (step 1) is the first a-trous pass's output, fetched bilinearly: filtered
+//   again each frame and resampled, it blurs the illumination (not the textures, which the
+//   current frame's albedo restores) and lags where the light moves over a surface that does not
+//   (a rolling ball's shadow on the rug: the surface's motion vectors do not follow a shadow, nor
+//   a glossy highlight; A-SVGF, Schied et al. 2018, exists for this). On the sequence at 16 spp
+//   that costs about 5 of the 19.2 (alpha = 1, the colour without history and only the moments
+//   accumulated, gives 14.2), mostly near the moving objects and their shadows; at 4 spp its
+//   noise reduction about pays for it (37.0 against 36.5) and it steadies the frames (tmse 39.5
+//   against 45.6). It is the paper's design and stays; its cost peaks with the ball's speed and
+//   does not grow with the history's length.
 //
 // Deterministic: every pixel of every step reads only the previous step's buffers, sums run in a
 // fixed tap order, TBB splits rows only: the output does not depend on the thread count.
@@ -380,7 +408,9 @@ MethodInfo svgf_temporal_method() {
        1e4},
       {"separate", ParamType::Bool, "true", "filter D and I apart, each with its own history (paper: true)"},
       {"variance_prefilter", ParamType::Bool, "true", "3x3 Gaussian of the variance before each pass (paper: true)"},
-      {"taa", ParamType::Bool, "true", "temporal antialiasing of the output (paper: true)"},
+      {"taa", ParamType::Bool, "false",
+       "temporal antialiasing of the output (paper: true; off here: the frames are antialiased and not jittered, so "
+       "TAA only blurs them, see the file's header)"},
       {"taa_alpha", ParamType::Float, "0.1", "TAA blend weight of the new frame (Karis 2014: 0.1)", 0.01, 1.0},
       {"taa_box_sigma", ParamType::Float, "1",
        "TAA history clamp: the 3x3 neighbourhood's mean +- this many standard deviations, in YCgCo (Falcor's TAA: 1)",
@@ -390,7 +420,7 @@ MethodInfo svgf_temporal_method() {
   return {
       .name = "svgf_temporal",
       .description = "SVGF (Schied et al. 2017) over a sequence: reprojected history, temporal variance, "
-                     "variance-guided a-trous, TAA",
+                     "variance-guided a-trous, optional TAA",
       .kind = MethodKind::Filter,
       .temporal = true,
       .params = std::move(params),
