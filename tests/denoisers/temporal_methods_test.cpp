@@ -10,6 +10,7 @@
 #include <map>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/errors.h"
@@ -401,19 +402,23 @@ TEST(TemporalAccumulation, DisoccludedPixelsStartAfresh) {
 TEST(TemporalMethods, BitIdenticalWhateverTheThreadCount) {
   std::vector<AovFrame> frames;
   for (int t = 0; t < 4; ++t) frames.push_back(panning_frame(64, 40, 1.5f, t, 0.3f, 700 + t));
-  for (const char* name : kTemporal) {
+  // svgf_temporal's TAA step (off by default) as well.
+  const std::vector<std::pair<std::string, std::map<std::string, std::string>>> runs = {
+      {kTemporal[0], {}}, {kTemporal[1], {}}, {"svgf_temporal", {{"taa", "true"}}}};
+  for (const auto& [name, settings] : runs) {
     std::vector<Image> many, one;
     const int threads = test::run_on_threads(4, [&] {
-      auto m = create(name);
+      auto m = create(name, settings);
       many = run_sequence(*m, frames, "pan");
     });
     ASSERT_GT(threads, 1) << "the many-thread run had one thread: the comparison would be 1 against 1";
     EXPECT_EQ(test::run_on_threads(1, [&] {
-      auto m = create(name);
+      auto m = create(name, settings);
       one = run_sequence(*m, frames, "pan");
     }),
               1);
-    for (std::size_t t = 0; t < frames.size(); ++t) EXPECT_TRUE(many[t] == one[t]) << name << " frame " << t;
+    for (std::size_t t = 0; t < frames.size(); ++t)
+      EXPECT_TRUE(many[t] == one[t]) << name << (settings.empty() ? "" : " (taa)") << " frame " << t;
   }
 }
 
