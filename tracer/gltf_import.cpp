@@ -983,6 +983,13 @@ class Importer {
       throw InputError(fmt::format("{}: {}: the camera's node matrix collapses its view direction", file_, np));
     Camera cam;
     cam.eye = x_.point(eye);
+    // As a scene file's eye is bounded (core/bounds.h); Embree refuses rays from far beyond
+    // (an assertion, not an error).
+    const float far = float(bounds::kCoordinate.max);
+    if (!(std::fabs(cam.eye.x) <= far && std::fabs(cam.eye.y) <= far && std::fabs(cam.eye.z) <= far))
+      throw InputError(fmt::format("{}: {}: the camera is at ({:g}, {:g}, {:g}){}: expected coordinates within [{:g}, {:g}] ({})",
+                                   file_, np, cam.eye.x, cam.eye.y, cam.eye.z,
+                                   time_ > 0 ? fmt::format(" at {:g} s", time_) : std::string(), -far, far, bounds::kCoordinate.why));
     cam.look_at = x_.point(eye + normalize(fwd));
     cam.up = x_.rotate(normalize(up));
     cam.vfov_degrees = float(c.perspective.yfov * 180 / kPi);

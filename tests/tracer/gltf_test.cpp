@@ -406,6 +406,8 @@ TEST(Gltf, MalformedFilesAreRefusedNamingTheFileAndThePointer) {
        "is reached twice"},
       {"quaternion", edit([](Gltf& g) { g.doc["nodes"][1]["rotation"] = {0, 0, 0, 0.5}; }), "/nodes/1/rotation: a quaternion of length 0.5"},
       {"camera", edit([](Gltf& g) { g.doc["cameras"][0]["perspective"].erase("yfov"); }), "/cameras/0/perspective/yfov: missing"},
+      {"far-camera", edit([](Gltf& g) { g.doc["nodes"][1]["translation"] = {0, 2, -9e27}; }),
+       "/nodes/1: the camera is at (0, 2, -9e+27): expected coordinates within [-1e+06, 1e+06]"},
       {"no-camera", edit([](Gltf& g) { g.doc["nodes"][1].erase("camera"); }), "no perspective camera"},
       {"missing-file", edit([](Gltf& g) { g.doc["images"] = {{{"uri", "nowhere.png"}}}; }), "/images/0/uri: the image file"},
   };
