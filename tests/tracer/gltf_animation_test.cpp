@@ -323,6 +323,33 @@ TEST(GltfAnimation, AGltfSequenceRendersFrameFilesWhoseMotionReprojectsThePrevio
   EXPECT_NE(past.output.find("has 4 frames"), std::string::npos) << past.output;
 }
 
+// The motion layer finds a hit's triangle by index in the previous frame: a node that an
+// animation shrinks to nothing keeps its (flattened) triangles, and a point light's sphere, sized
+// by the file's extent, keeps its size while other nodes move.
+TEST(GltfAnimation, AnAnimatedNodeKeepsItsTrianglesAndALightItsSizeInEveryFrame) {
+  test::TempDir dir;
+  Gltf g;
+  const int quad = g.mesh(test::quad_positions({-2, 0, 2, 2, 0, 2, 2, 0, -2, -2, 0, -2}), test::kQuad, -1);
+  g.doc["cameras"] = {{{"type", "perspective"}, {"perspective", {{"yfov", 0.7}, {"znear", 0.01}}}}};
+  g.root({{"camera", 0}, {"translation", {0, 2, 4}}});
+  g.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", {{{"type", "point"}, {"intensity", 3}}}}}}};
+  g.root({{"translation", {0, 3, 0}}, {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+  g.channel(0, quad, "scale", {0, 1}, {1, 1, 1, 0, 0, 0});
+  const std::string path = g.write(dir, "shrink.gltf");
+  const auto f0 = frame_of(path, 0), f12 = frame_of(path, 12), f24 = frame_of(path, 24);
+  EXPECT_EQ(f24->meshes[0].triangles(), f0->meshes[0].triangles());
+  EXPECT_EQ(f24->meshes[0].positions[0].x, 0.0f) << "scaled to nothing";
+  EXPECT_NEAR(f12->meshes[0].positions[0].x, -1, 1e-6) << "half its size";
+  ASSERT_EQ(f24->sphere_lights.size(), 1u);
+  EXPECT_EQ(f24->sphere_lights[0].radius, f0->sphere_lights[0].radius);
+  RenderSettings s;
+  s.width = 8;
+  s.height = 6;
+  s.spp = 1;
+  const AovFrame f = render_sequence_frame(*f24, f12.get(), s);
+  EXPECT_TRUE(f.has(layer::kMotion));
+}
+
 // One malformed or refused animation per kind: each an InputError that starts with the file's
 // path and says where and what.
 TEST(GltfAnimation, MalformedAnimationsAndMovingLightsAreRefusedNamingTheAnimationAndChannel) {
