@@ -22,6 +22,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 
 #include <fmt/format.h>
@@ -30,6 +31,7 @@
 #include "core/bounds.h"
 #include "core/errors.h"
 #include "tracer/bsdf.h"
+#include "tracer/gltf_animation.h"
 #include "tracer/texture.h"
 
 namespace fs = std::filesystem;
@@ -97,6 +99,7 @@ class DocCheck {
     lights();
     nodes();
     scenes();
+    animations();
   }
 
  private:
@@ -507,6 +510,47 @@ class DocCheck {
     }
   }
 
+  // Animations (docs/gltf.md, "Animations"): their structure here; the samplers' data (types,
+  // counts, rising times) once decoded, by the import.
+  void animations() {
+    const json& list = array(doc_, "", "animations");
+    const json& nodes = array(doc_, "", "nodes");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const std::string p = at("/animations", i);
+      const json& a = list[i];
+      string(a, p, "name", false);
+      const json& samplers = array(a, p, "samplers");
+      if (samplers.empty()) fail(at(p, "samplers"), "missing or empty (expected at least one sampler)");
+      for (std::size_t s = 0; s < samplers.size(); ++s) {
+        const std::string ps = at(at(p, "samplers"), s);
+        index(samplers[s], ps, "input", "accessors", true);
+        index(samplers[s], ps, "output", "accessors", true);
+        const std::string how = string(samplers[s], ps, "interpolation", false);
+        if (!how.empty() && how != "LINEAR" && how != "STEP" && how != "CUBICSPLINE")
+          fail(at(ps, "interpolation"), fmt::format("'{}': expected LINEAR, STEP or CUBICSPLINE", how));
+      }
+      const json& channels = array(a, p, "channels");
+      if (channels.empty()) fail(at(p, "channels"), "missing or empty (expected at least one channel)");
+      std::set<std::pair<std::int64_t, std::string>> targets;
+      for (std::size_t c = 0; c < channels.size(); ++c) {
+        const std::string pc = at(at(p, "channels"), c);
+        index(channels[c], pc, "sampler", (p.substr(1) + "/samplers").c_str(), true, std::int64_t(samplers.size()));
+        const json& target = object(channels[c], pc, "target", true);
+        const std::string pt = at(pc, "target");
+        const std::int64_t node = index(target, pt, "node", "nodes", false);
+        const std::string path = string(target, pt, "path", true);
+        if (path != "translation" && path != "rotation" && path != "scale") continue;  // weights, extensions: the import warns
+        if (node < 0) continue;  // no node: the channel is ignored, as glTF says
+        if (!targets.insert({node, path}).second)
+          fail(pt, fmt::format("a second channel of the animation targets node {}'s {}", node, path));
+        if (nodes[std::size_t(node)].contains("matrix"))
+          fail(at(pt, "node"), fmt::format("node {} is animated but has a matrix (an animated node has translation, "
+                                           "rotation and scale)",
+                                           node));
+      }
+    }
+  }
+
   const std::string& file_;
   const json& doc_;
   bool binary_;
@@ -598,20 +642,31 @@ Mat4 mul(const Mat4& a, const Mat4& b) {
   return r;
 }
 
-Mat4 local_matrix(const tinygltf::Node& n) {
-  if (n.matrix.size() == 16) {
+// A node's translation, rotation and scale where its animations put them at the import's time
+// (each unset where no channel targets it: the node's own).
+struct NodePose {
+  std::optional<std::array<double, 3>> translation, scale;
+  std::optional<std::array<double, 4>> rotation;  // x, y, z, w, unit length
+};
+
+Mat4 local_matrix(const tinygltf::Node& n, const NodePose* pose = nullptr) {
+  if (n.matrix.size() == 16) {  // never animated (DocCheck::animations)
     Mat4 m;
     std::copy(n.matrix.begin(), n.matrix.end(), m.begin());
     return m;
   }
+  std::vector<double> tr = n.translation, rot = n.rotation, sc = n.scale;
+  if (pose && pose->translation) tr.assign(pose->translation->begin(), pose->translation->end());
+  if (pose && pose->rotation) rot.assign(pose->rotation->begin(), pose->rotation->end());
+  if (pose && pose->scale) sc.assign(pose->scale->begin(), pose->scale->end());
   Mat4 t = kIdentity, r = kIdentity, s = kIdentity;
-  if (n.translation.size() == 3) {
-    t[12] = n.translation[0];
-    t[13] = n.translation[1];
-    t[14] = n.translation[2];
+  if (tr.size() == 3) {
+    t[12] = tr[0];
+    t[13] = tr[1];
+    t[14] = tr[2];
   }
-  if (n.rotation.size() == 4) {
-    double x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
+  if (rot.size() == 4) {
+    double x = rot[0], y = rot[1], z = rot[2], w = rot[3];
     const double len = std::sqrt(x * x + y * y + z * z + w * w);
     x /= len, y /= len, z /= len, w /= len;
     r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),     0,
@@ -619,10 +674,10 @@ Mat4 local_matrix(const tinygltf::Node& n) {
          2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y), 0,
          0,                       0,                       0,                       1};
   }
-  if (n.scale.size() == 3) {
-    s[0] = n.scale[0];
-    s[5] = n.scale[1];
-    s[10] = n.scale[2];
+  if (sc.size() == 3) {
+    s[0] = sc[0];
+    s[5] = sc[1];
+    s[10] = sc[2];
   }
   return mul(t, mul(r, s));
 }
@@ -650,8 +705,9 @@ std::array<double, 9> normal_matrix(const Mat4& m, double& det) {
 class Importer {
  public:
   Importer(Scene& scene, const fs::path& path, const Transform& x, std::optional<unsigned> forced,
-           const tinygltf::Model& model, const json& doc, GltfImport& out)
-      : scene_(scene), path_(path), file_(path.string()), x_(x), forced_(forced), model_(model), doc_(doc), out_(out) {}
+           const tinygltf::Model& model, const json& doc, GltfImport& out, double time)
+      : scene_(scene), path_(path), file_(path.string()), x_(x), forced_(forced), model_(model), doc_(doc), out_(out),
+        time_(time) {}
 
   void run() {
     std::vector<int> roots;
@@ -672,9 +728,9 @@ class Importer {
       warn("/scene", fmt::format("scene {} of {} is rendered; the others are left out", scene, model_.scenes.size()));
     else if (scene == 0 && model_.scenes.size() > 1)
       warn("/scenes", fmt::format("scene 0 of {} is rendered (no default scene); the others are left out", model_.scenes.size()));
+    animate();
     walk(roots, scene >= 0 ? fmt::format("/scenes/{}/nodes", scene) : "/nodes");
     if (scene >= 0) sky(scene);
-    if (!model_.animations.empty()) warn("/animations", "animations are not read: the scene is rendered at rest");
     if (!model_.skins.empty()) warn("/skins", "skins are not read: skinned meshes are rendered in their bind pose");
     mesh_.name = path_.stem().string();
     if (mesh_.triangles() == 0) throw InputError(fmt::format("{}: the default scene has no triangles", file_));
@@ -695,16 +751,164 @@ class Importer {
     if (warned_.insert(kind).second) warn(ptr, what);
   }
 
+  // ---- animations (docs/gltf.md, "Animations") ----
+  // All of the file's animations play together from time 0, except that an animation which
+  // targets a node property an earlier animation already drives is taken as an alternative clip
+  // and left out (with a warning). Each played channel on a node's translation, rotation or
+  // scale sets that property at time_ (tracer/gltf_animation.h); weights (morph targets) and
+  // unknown paths are left out with a warning. Sets out_.animated, out_.duration, poses_ and
+  // moved_by_.
+  void animate() {
+    std::set<std::pair<int, std::string>> driven;
+    for (std::size_t ai = 0; ai < model_.animations.size(); ++ai) {
+      const tinygltf::Animation& a = model_.animations[ai];
+      const std::string ap = fmt::format("/animations/{}", ai);
+      std::vector<std::pair<int, std::string>> mine;
+      for (const auto& ch : a.channels)
+        if (ch.target_node >= 0 && is_trs(ch.target_path)) mine.emplace_back(ch.target_node, ch.target_path);
+      if (auto clash = std::find_if(mine.begin(), mine.end(), [&](const auto& t) { return driven.count(t); }); clash != mine.end()) {
+        warn(ap, fmt::format("{} targets node {}'s {}, which an earlier animation drives: taken as an alternative clip and "
+                             "left out (the file's animations play together where they target different properties)",
+                             animation_name(ai), clash->first, clash->second));
+        continue;
+      }
+      driven.insert(mine.begin(), mine.end());
+      for (std::size_t ci = 0; ci < a.channels.size(); ++ci) {
+        const tinygltf::AnimationChannel& ch = a.channels[ci];
+        const std::string cp = fmt::format("{}/channels/{}", ap, ci);
+        if (ch.target_path == "weights") {
+          warn_once("anim-weights", cp + "/target/path", "morph target weights are not animated (morph targets are not read)");
+          continue;
+        }
+        if (!is_trs(ch.target_path)) {
+          warn_once("anim-path:" + ch.target_path, cp + "/target/path",
+                    fmt::format("animation path '{}' is not read", ch.target_path));
+          continue;
+        }
+        if (ch.target_node < 0) continue;  // glTF: a channel without a node is ignored
+        const GltfSampler sampler = read_sampler(ai, ci);
+        out_.animated = true;
+        out_.duration = std::max(out_.duration, sampler.times.back());
+        std::vector<double> v = sample_gltf(sampler, time_);
+        // Bounded as a node's own values are (DocCheck::nodes): a cubic spline's tangents can
+        // carry it far past its keys.
+        for (double c : v)
+          if (!std::isfinite(c) || std::fabs(c) > kBig)
+            throw InputError(fmt::format("{}: {}: {}: the {} at {:g} s has a component {:g} (expected a finite number within "
+                                         "[{:g}, {:g}])",
+                                         file_, cp, channel_name(ai, ci), ch.target_path, time_, c, -kBig, kBig));
+        NodePose& pose = poses_[ch.target_node];
+        if (ch.target_path == "translation") {
+          pose.translation = std::array<double, 3>{v[0], v[1], v[2]};
+        } else if (ch.target_path == "scale") {
+          pose.scale = std::array<double, 3>{v[0], v[1], v[2]};
+        } else {
+          if (!(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3] > 0.5))  // normalised, or all zero
+            throw InputError(fmt::format("{}: {}: {}: the rotation at {:g} s is not a quaternion (all its components are 0)",
+                                         file_, cp, channel_name(ai, ci), time_));
+          pose.rotation = std::array<double, 4>{v[0], v[1], v[2], v[3]};
+        }
+        moved_by_.emplace(ch.target_node, fmt::format("{} ({})", cp, channel_name(ai, ci)));
+      }
+    }
+  }
+  static bool is_trs(const std::string& path) { return path == "translation" || path == "rotation" || path == "scale"; }
+  std::string animation_name(std::size_t ai) const {
+    const std::string& name = model_.animations[ai].name;
+    return name.empty() ? fmt::format("animation {}", ai) : fmt::format("animation '{}'", name);
+  }
+  std::string channel_name(std::size_t ai, std::size_t ci) const {
+    const tinygltf::AnimationChannel& ch = model_.animations[ai].channels[ci];
+    return fmt::format("{} channel {}, node {} {}", animation_name(ai), ci, ch.target_node, ch.target_path);
+  }
+
+  // Channel ci of animation ai's sampler, its accessors decoded and checked: input times as
+  // SCALAR floats, finite, from 0 on, strictly rising; output as VEC3 floats (translation,
+  // scale) or VEC4 floats or normalised integers (rotation), one per time (three for
+  // CUBICSPLINE: in-tangent, value, out-tangent).
+  GltfSampler read_sampler(std::size_t ai, std::size_t ci) {
+    const tinygltf::Animation& a = model_.animations[ai];
+    const tinygltf::AnimationChannel& ch = a.channels[ci];
+    const tinygltf::AnimationSampler& sm = a.samplers[std::size_t(ch.sampler)];
+    const std::string where = fmt::format("{}: /animations/{}/channels/{}: {}: sampler {} (/animations/{}/samplers/{})", file_, ai,
+                                          ci, channel_name(ai, ci), ch.sampler, ai, ch.sampler);
+    GltfSampler s;
+    s.rotation = ch.target_path == "rotation";
+    s.width = s.rotation ? 4 : 3;
+    s.interpolation = sm.interpolation == "STEP"          ? GltfInterpolation::kStep
+                      : sm.interpolation == "CUBICSPLINE" ? GltfInterpolation::kCubicSpline
+                                                          : GltfInterpolation::kLinear;
+    const tinygltf::Accessor& in = model_.accessors[std::size_t(sm.input)];
+    const tinygltf::Accessor& out = model_.accessors[std::size_t(sm.output)];
+    if (in.type != TINYGLTF_TYPE_SCALAR || in.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+      throw InputError(fmt::format("{}: its input /accessors/{} holds {} of component type {}: key times are SCALAR floats "
+                                   "(5126)",
+                                   where, sm.input, type_name(in.type), in.componentType));
+    const int want = s.rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3;
+    const bool float_out = out.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT;
+    const bool normalised_out = s.rotation && out.normalized &&
+                                (out.componentType == TINYGLTF_COMPONENT_TYPE_BYTE || out.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                                 out.componentType == TINYGLTF_COMPONENT_TYPE_SHORT || out.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT);
+    if (out.type != want || !(float_out || normalised_out))
+      throw InputError(fmt::format("{}: its output /accessors/{} holds {} of component type {}{}: a {} is {} floats (5126){}",
+                                   where, sm.output, type_name(out.type), out.componentType, out.normalized ? " (normalised)" : "",
+                                   ch.target_path, type_name(want), s.rotation ? " or normalised integers" : ""));
+    // The accessors' own errors (data past the buffer, a non-finite number), naming the channel too.
+    auto floats = [&](int accessor, int n) {
+      try {
+        return read_floats(accessor, n, fmt::format("/animations/{}/samplers/{}", ai, ch.sampler));
+      } catch (const InputError& e) {
+        std::string what = e.what();
+        if (what.rfind(file_ + ": ", 0) == 0) what = what.substr(file_.size() + 2);
+        throw InputError(fmt::format("{}: {}", where, what));
+      }
+    };
+    const std::vector<float> t = floats(sm.input, 1);
+    const std::vector<float> v = floats(sm.output, s.width);
+    const std::size_t per = s.interpolation == GltfInterpolation::kCubicSpline ? 3 : 1;
+    if (v.size() != t.size() * per * std::size_t(s.width))
+      throw InputError(fmt::format("{}: its input /accessors/{} has {} key times and its output /accessors/{} {} values "
+                                   "(expected {}: {} a key for {})",
+                                   where, sm.input, t.size(), sm.output, v.size() / std::size_t(s.width), t.size() * per,
+                                   per == 3 ? "in-tangent, value and out-tangent" : "one value", sm.interpolation.empty() ? "LINEAR" : sm.interpolation));
+    for (std::size_t k = 0; k < t.size(); ++k) {
+      if (k == 0 && t[0] < 0)
+        throw InputError(fmt::format("{}: its first key time is {:g} s (/accessors/{} element 0): times start at 0 or later",
+                                     where, t[0], sm.input));
+      if (k > 0 && !(t[k] > t[k - 1]))
+        throw InputError(fmt::format("{}: key times must rise strictly: {:g} s after {:g} s (/accessors/{} elements {} and {})",
+                                     where, t[k], t[k - 1], sm.input, k - 1, k));
+    }
+    s.times.assign(t.begin(), t.end());
+    s.values.assign(v.begin(), v.end());
+    return s;
+  }
+  static const char* type_name(int type) {
+    switch (type) {
+      case TINYGLTF_TYPE_SCALAR: return "SCALAR";
+      case TINYGLTF_TYPE_VEC2: return "VEC2";
+      case TINYGLTF_TYPE_VEC3: return "VEC3";
+      case TINYGLTF_TYPE_VEC4: return "VEC4";
+      case TINYGLTF_TYPE_MAT2: return "MAT2";
+      case TINYGLTF_TYPE_MAT3: return "MAT3";
+      case TINYGLTF_TYPE_MAT4: return "MAT4";
+      default: return "elements";
+    }
+  }
+
   // Depth first over the node trees, with the world matrix of each node. A node reached twice is
   // refused (glTF's node hierarchy is a set of disjoint trees); that also ends cycles.
   void walk(const std::vector<int>& roots, const std::string& roots_ptr) {
+    // `rest`: the world matrix without the animations (the nodes' own transforms); `moved_by`:
+    // the channel that moves the node or its nearest animated ancestor (empty: it stays put).
     struct Item {
       int node;
-      Mat4 parent;
-      std::string ptr;
+      Mat4 parent, rest;
+      std::string ptr, moved_by;
     };
     std::vector<Item> stack;
-    for (std::size_t i = roots.size(); i-- > 0;) stack.push_back({roots[i], kIdentity, fmt::format("{}/{}", roots_ptr, i)});
+    for (std::size_t i = roots.size(); i-- > 0;)
+      stack.push_back({roots[i], kIdentity, kIdentity, fmt::format("{}/{}", roots_ptr, i), {}});
     std::vector<bool> seen(model_.nodes.size());
     while (!stack.empty()) {
       Item it = std::move(stack.back());
@@ -716,14 +920,25 @@ class Importer {
       seen[std::size_t(it.node)] = true;
       const tinygltf::Node& n = model_.nodes[std::size_t(it.node)];
       const std::string np = fmt::format("/nodes/{}", it.node);
-      const Mat4 world = mul(it.parent, local_matrix(n));
-      if (n.mesh >= 0) add_mesh(n.mesh, world, np);
+      const auto pose = poses_.find(it.node);
+      const Mat4 world = mul(it.parent, local_matrix(n, pose == poses_.end() ? nullptr : &pose->second));
+      const Mat4 rest = mul(it.rest, local_matrix(n));
+      if (auto m = moved_by_.find(it.node); m != moved_by_.end()) it.moved_by = m->second;
+      if (n.mesh >= 0) add_mesh(n.mesh, world, rest, np, it.moved_by);
       if (n.camera >= 0) add_camera(n.camera, world, np);
       if (!n.weights.empty()) warn_once("weights", np + "/weights", "morph target weights are not read");
-      if (auto e = n.extensions.find("KHR_lights_punctual"); e != n.extensions.end())
-        light_nodes_.push_back({e->second.Get("light").GetNumberAsInt(), world, np});
+      if (auto e = n.extensions.find("KHR_lights_punctual"); e != n.extensions.end()) {
+        const int light = e->second.Get("light").GetNumberAsInt();
+        const json& l = doc_["extensions"]["KHR_lights_punctual"]["lights"][std::size_t(light)];
+        // Spot lights are left out anyway (lights()); the others are emitters.
+        if (!it.moved_by.empty() && l["type"].get<std::string>() != "spot")
+          throw InputError(fmt::format("{}: {}/extensions/KHR_lights_punctual: light {} moves with {}: lights do not move "
+                                       "(light sampling assumes emitters that stay where they are)",
+                                       file_, np, light, it.moved_by));
+        light_nodes_.push_back({light, world, np});
+      }
       for (std::size_t c = n.children.size(); c-- > 0;)
-        stack.push_back({n.children[c], world, fmt::format("{}/children/{}", np, c)});
+        stack.push_back({n.children[c], world, rest, fmt::format("{}/children/{}", np, c), it.moved_by});
     }
   }
 
@@ -768,6 +983,13 @@ class Importer {
       throw InputError(fmt::format("{}: {}: the camera's node matrix collapses its view direction", file_, np));
     Camera cam;
     cam.eye = x_.point(eye);
+    // As a scene file's eye is bounded (core/bounds.h); Embree refuses rays from far beyond
+    // (an assertion, not an error).
+    const float far = float(bounds::kCoordinate.max);
+    if (!(std::fabs(cam.eye.x) <= far && std::fabs(cam.eye.y) <= far && std::fabs(cam.eye.z) <= far))
+      throw InputError(fmt::format("{}: {}: the camera is at ({:g}, {:g}, {:g}){}: expected coordinates within [{:g}, {:g}] ({})",
+                                   file_, np, cam.eye.x, cam.eye.y, cam.eye.z,
+                                   time_ > 0 ? fmt::format(" at {:g} s", time_) : std::string(), -far, far, bounds::kCoordinate.why));
     cam.look_at = x_.point(eye + normalize(fwd));
     cam.up = x_.rotate(normalize(up));
     cam.vfov_degrees = float(c.perspective.yfov * 180 / kPi);
@@ -840,11 +1062,17 @@ class Importer {
     return {b.data.data() + v.byteOffset + a.byteOffset, stride};
   }
 
-  void add_mesh(int index, const Mat4& world, const std::string& np) {
+  // `rest`: the node's world matrix without animations; `moved_by`: the animation channel that
+  // moves it (empty: none). An animated node's triangles are the same in every frame, so that the
+  // motion layer finds each one by its index (tracer/render_sequence.cpp): a triangle is left
+  // out only when it is degenerate in the mesh itself, and one the animation flattens at this
+  // instant stays (it is hit by no ray).
+  void add_mesh(int index, const Mat4& world, const Mat4& rest, const std::string& np, const std::string& moved_by) {
     const tinygltf::Mesh& m = model_.meshes[std::size_t(index)];
+    const bool animated = !moved_by.empty();
     double det = 0;
     const auto nm = normal_matrix(world, det);
-    if (!(std::fabs(det) > 0)) {
+    if (!(std::fabs(det) > 0) && !animated) {
       warn(np, "a node matrix of determinant 0 flattens its mesh: left out");
       return;
     }
@@ -903,6 +1131,10 @@ class Importer {
       const std::vector<std::array<std::uint32_t, 3>> tris = triangles(idx, prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode);
       const std::optional<unsigned> mat = material(prim.material);
       if (!mat) continue;  // wholly transparent (alphaMode MASK below the cutoff): nothing to hit
+      if (animated && scene_.materials[*mat].is_emitter())
+        throw InputError(fmt::format("{}: {}: mesh {} moves with {}, and its material '{}' emits: a moving object cannot "
+                                     "emit (light sampling assumes emitters that stay where they are)",
+                                     file_, np, index, moved_by, scene_.materials[*mat].name));
       if (std::int64_t(mesh_.triangles() + tris.size()) > bounds::kMaxTriangles)
         throw InputError(fmt::format("{}: {}: more than {} triangles in the file", file_, pp, bounds::kMaxTriangles));
       if (!nor.empty() && mesh_.triangles() > 0 && mesh_.normals.empty()) flat_normals_so_far();
@@ -910,21 +1142,26 @@ class Importer {
         // A mirroring node matrix (negative determinant) reverses the winding: glTF says the
         // front face stays the one the unmirrored mesh had, so two corners are swapped.
         std::array<std::uint32_t, 3> c = det < 0 ? std::array<std::uint32_t, 3>{t[0], t[2], t[1]} : t;
-        Vec3 p[3];
+        Vec3 p[3], local[3], at_rest[3];
         for (int j = 0; j < 3; ++j) {
           const double q[3] = {pos[3 * c[j]], pos[3 * c[j] + 1], pos[3 * c[j] + 2]};
           p[j] = x_.point(apply_point(world, q));
+          local[j] = Vec3(float(q[0]), float(q[1]), float(q[2]));
+          at_rest[j] = animated ? x_.point(apply_point(rest, q)) : p[j];
         }
         const Vec3 ng = cross(p[1] - p[0], p[2] - p[0]);
-        if (!(length(ng) > 0)) continue;  // degenerate
-        for (const Vec3& v : p) {
+        if (animated ? !(length(cross(local[1] - local[0], local[2] - local[0])) > 0) : !(length(ng) > 0))
+          continue;  // degenerate
+        // The extent at rest sizes the point lights' spheres (lights()): the same in every frame.
+        for (const Vec3& v : at_rest) {
           bmin_ = vmin(bmin_, v);
           bmax_ = vmax(bmax_, v);
         }
+        const Vec3 flat = length(ng) > 0 ? normalize(ng) : Vec3(0, 1, 0);  // flattened by its animation: never hit
         mesh_.positions.insert(mesh_.positions.end(), {p[0], p[1], p[2]});
         if (!nor.empty() || !mesh_.normals.empty()) {
           for (int j = 0; j < 3; ++j) {
-            Vec3 n = normalize(ng);
+            Vec3 n = flat;
             if (!nor.empty()) {
               const double* r = nm.data();
               const double a = nor[3 * c[j]], b = nor[3 * c[j] + 1], d = nor[3 * c[j] + 2];
@@ -953,7 +1190,8 @@ class Importer {
   void flat_normals_so_far() {
     for (std::size_t t = 0; t < mesh_.triangles(); ++t) {
       const Vec3* p = &mesh_.positions[3 * t];
-      const Vec3 n = normalize(cross(p[1] - p[0], p[2] - p[0]));
+      const Vec3 ng = cross(p[1] - p[0], p[2] - p[0]);
+      const Vec3 n = length(ng) > 0 ? normalize(ng) : Vec3(0, 1, 0);  // flattened by an animation: never hit
       mesh_.normals.insert(mesh_.normals.end(), {n, n, n});
     }
   }
@@ -1283,6 +1521,9 @@ class Importer {
   std::map<std::pair<int, bool>, int> textures_;
   std::vector<LightNode> light_nodes_;
   std::set<std::string> warned_;
+  double time_ = 0;                       // seconds: where the animations are evaluated
+  std::map<int, NodePose> poses_;         // per animated node, its animated properties at time_
+  std::map<int, std::string> moved_by_;   // per animated node, its first channel (for messages)
 };
 
 }  // namespace
@@ -1293,7 +1534,8 @@ bool is_gltf_path(const fs::path& path) {
   return e == ".gltf" || e == ".glb";
 }
 
-GltfImport import_gltf(Scene& scene, const fs::path& path, const Transform& x, std::optional<unsigned> material) {
+GltfImport import_gltf(Scene& scene, const fs::path& path, const Transform& x, std::optional<unsigned> material,
+                       double time) {
   const std::string file = path.string();
   GltfFile f = read_gltf_file(path);
   const json doc = parse_json(f.json_text, file, f.binary ? 20 : 0);
@@ -1315,7 +1557,7 @@ GltfImport import_gltf(Scene& scene, const fs::path& path, const Transform& x, s
   scene.files.push_back(file);
   for (const auto& b : model.buffers)
     if (!b.uri.empty() && !is_data_uri(b.uri)) scene.files.push_back((path.parent_path() / uri_decode(b.uri)).string());
-  Importer(scene, path, x, material, model, doc, out).run();
+  Importer(scene, path, x, material, model, doc, out, time).run();
   return out;
 }
 

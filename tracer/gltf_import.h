@@ -17,9 +17,15 @@
 // Lights (KHR_lights_punctual): directional -> the sun, point -> a small sphere light of the same
 // intensity; the first perspective camera -> the scene camera when the scene file has none.
 // What the tracer cannot represent (spot lights, textures on metals and glass, emissive
-// textures, vertex colours, skins, morph targets, animations, KHR_texture_transform, unknown
-// extensions, ...) is approximated or left out with a warning naming the property
-// (GltfImport::warnings): never silently.
+// textures, vertex colours, skins, morph targets, KHR_texture_transform, unknown extensions,
+// ...) is approximated or left out with a warning naming the property (GltfImport::warnings):
+// never silently.
+// Animations: the channels on nodes' translation, rotation and scale are evaluated at the time
+// import_gltf is given (tracer/gltf_animation.h), and place the meshes and the camera there; all
+// of the file's animations play together (one that targets a property an earlier animation
+// drives is an alternative clip, left out with a warning). Morph target weights and skins are not
+// animated (warnings). Lights do not move: a light on an animated node is an error, and so is an
+// emissive mesh on one.
 #pragma once
 
 #include <filesystem>
@@ -35,6 +41,10 @@ namespace dnb::rt {
 struct GltfImport {
   std::optional<Camera> camera;        // the default scene's first perspective camera (x applied)
   std::vector<std::string> warnings;   // "FILE: /POINTER: what was approximated or left out"
+  // Whether an animation of the file moves a node (a translation, rotation or scale channel it
+  // plays), and the time of its last key over those channels, in seconds.
+  bool animated = false;
+  double duration = 0;
 };
 
 // Appends the default scene (or scene 0) of the glTF file at `path` to `scene`, every vertex
@@ -44,9 +54,13 @@ struct GltfImport {
 // and image file it names are appended to scene.files. InputError "FILE: /JSON/POINTER: what is
 // wrong and what was expected" on a malformed file, a missing external file, a reference out of
 // range, data past its buffer, a non-finite vertex, a vertex index out of range, or an
-// extension the file requires that is not supported.
+// extension the file requires that is not supported; and for animations, a malformed sampler
+// (accessor types, counts, key times that do not rise: naming the animation and the channel), an
+// animated node with a matrix, a light or an emissive mesh that an animation moves.
+// `time`: the instant in seconds at which the animations place the nodes (0: a still's; before
+// a channel's first key it holds its first value, after its last key its last).
 GltfImport import_gltf(Scene& scene, const std::filesystem::path& path, const Transform& x,
-                       std::optional<unsigned> material);
+                       std::optional<unsigned> material, double time = 0);
 
 // Whether `path` names a glTF file by its extension (.gltf or .glb, any case).
 bool is_gltf_path(const std::filesystem::path& path);

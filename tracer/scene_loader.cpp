@@ -8,6 +8,7 @@
 #include "tracer/scene_loader.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -36,6 +37,11 @@ using namespace rt;
 namespace {
 
 using Arr3 = std::array<double, 3>;
+
+// A sequence's length is bounded ([animation] frames); glTF animations run on a clock of kGltfFps
+// frames per second unless a scene's [animation] fps says otherwise (docs/sequences.md).
+constexpr int kMaxFrames = 100000;
+constexpr double kGltfFps = 24;
 Vec3 vec3(const Arr3& a) { return {float(a[0]), float(a[1]), float(a[2])}; }
 
 // Where the built-in scene files live: $DENOISEBENCH_SOURCE_DIR/configs/scenes when set (tests), else
@@ -123,17 +129,33 @@ class Loader {
   }
 
   // A glTF file alone: its default scene, lit by its lights, seen through its first perspective
-  // camera (which it must have).
+  // camera (which it must have). With node animations it is an animated scene of
+  // floor(duration x 24) + 1 frames at kGltfFps (docs/sequences.md, "glTF animations"), frame t
+  // its animations at t / 24 s; without, a still.
   void load_gltf(const std::string& path) {
-    if (opt_.frame > 0)
-      throw InputError(fmt::format("{}: frame {} asked of a glTF file: its animations are not read (animate it from a "
-                                   "scene TOML's keys)",
-                                   path, opt_.frame));
     scene_.source_file = path;
     dir_ = fs::path(path).parent_path().string();
     require_regular_file(path, "scene", "glTF file");
-    const GltfImport g = import_gltf(scene_, path, Transform{}, std::nullopt);
+    const int frame = std::max(opt_.frame, 0);
+    const GltfImport g = import_gltf(scene_, path, Transform{}, std::nullopt, frame / kGltfFps);
     warnings_.insert(warnings_.end(), g.warnings.begin(), g.warnings.end());
+    if (!g.animated && frame > 0)
+      throw InputError(fmt::format("{}: frame {} asked of a still glTF file (no animation moves its nodes)", path, frame));
+    if (g.animated) {
+      // Key times are 32-bit floats: a duration within 1e-4 of a frame's time reaches that frame.
+      const double last = std::floor(g.duration * kGltfFps + 1e-4);
+      if (last >= kMaxFrames) {
+        warnings_.push_back(fmt::format("{}: /animations: they last {:g} s, more than {} frames at {:g} fps: the sequence "
+                                        "is cut at {} frames",
+                                        path, g.duration, kMaxFrames, kGltfFps, kMaxFrames));
+      }
+      scene_.frames = int(std::min<double>(last, kMaxFrames - 1)) + 1;
+      if (frame >= scene_.frames)
+        throw InputError(fmt::format("{}: frame {} is past the sequence's {} frames (0 .. {}: its animations last {:g} s, at "
+                                     "{:g} frames per second)",
+                                     path, frame, scene_.frames, scene_.frames - 1, g.duration, kGltfFps));
+      scene_.frame = frame;
+    }
     if (!g.camera)
       throw InputError(fmt::format("{}: no perspective camera in the default scene (render it from a scene TOML with a "
                                    "[camera] and an object of type \"gltf\")",
@@ -173,7 +195,7 @@ class Loader {
   void read_animation(ConfigTable& root) {
     auto a = root.table("animation");
     if (!a) return;
-    static constexpr Bound kFrames{1, 100000, "a sequence of 1 to 100000 frames"};
+    static constexpr Bound kFrames{1, kMaxFrames, "a sequence of 1 to 100000 frames"};
     if (!a->contains("frames"))
       throw InputError(fmt::format("{}: missing key (the sequence's length in frames)", a->where("frames")));
     scene_.frames = a->get("frames", 1, kFrames);
@@ -181,6 +203,8 @@ class Loader {
     if (how == "linear") interpolation_ = Interpolation::kLinear;
     else if (how == "catmull-rom") interpolation_ = Interpolation::kCatmullRom;
     else throw InputError(fmt::format("{}: expected \"linear\" or \"catmull-rom\"", a->where("interpolation")));
+    static constexpr RealBound kFps{0, 1000, "frames per second (of the glTF animations' clock), in (0, 1000]", true};
+    fps_ = a->get("fps", kGltfFps, kFps);
     a->finish();
     frame_ = std::max(opt_.frame, 0);
     if (frame_ >= scene_.frames)
@@ -668,8 +692,17 @@ class Loader {
     require_regular_file(path.string(), t.where("file"), "glTF file");
     if (!is_gltf_path(path))
       throw InputError(fmt::format("{}: '{}': expected a .gltf or .glb file", t.where("file"), path.string()));
-    GltfImport g = import_gltf(scene_, path, x, override_material(t, override_mat));
+    // Frame t of a sequence is at t / fps seconds of the file's animations; a still at 0 s.
+    GltfImport g = import_gltf(scene_, path, x, override_material(t, override_mat), scene_.animated() ? frame_ / fps_ : 0.0);
     warnings_.insert(warnings_.end(), g.warnings.begin(), g.warnings.end());
+    if (g.animated && !scene_.animated())
+      warnings_.push_back(fmt::format("{}: {}: the scene is a still: the file's animations are at 0 s (an [animation] "
+                                      "table renders them as a sequence)",
+                                      t.where("file"), path.string()));
+    else if (g.animated && scene_.camera.has_shutter())
+      warnings_.push_back(fmt::format("{}: {}: the shutter blurs the object's scene keys, not the file's animations (each "
+                                      "frame shows them at its instant)",
+                                      t.where("file"), path.string()));
     if (!gltf_camera_ && g.camera) gltf_camera_ = g.camera;
   }
 
@@ -683,6 +716,7 @@ class Loader {
   std::vector<std::string> warnings_;         // what glTF files hold that the tracer leaves out
   Interpolation interpolation_ = Interpolation::kCatmullRom;
   int frame_ = 0;                             // the frame of an animated scene
+  double fps_ = kGltfFps;                     // [animation] fps: frame t is at t / fps s of glTF animations
 };
 
 }  // namespace

@@ -24,92 +24,23 @@
 #include "tracer/scene.h"
 #include "tracer/scene_loader.h"
 #include "frame_checks.h"
+#include "gltf_builder.h"
 #include "tracer_scenes.h"
 
 namespace dnb {
 namespace {
 
 using json = nlohmann::json;
+using test::base64;
+using test::Gltf;
+using test::kQuad;
+using test::quad_positions;
+using test::read_bytes;
+using test::write_checker_png;
 using rt::MaterialType;
 using rt::Vec3;
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Data URIs carry base64; OpenImageIO's encoder is the one the exporter uses too.
-std::string base64(const std::string& in) { return OIIO::Strutil::base64_encode(in); }
-
-std::string read_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-// A glTF document under construction: accessors over one buffer, embedded as a data URI (or
-// written beside the file, or into a .glb) by text()/write().
-struct Gltf {
-  json doc = {{"asset", {{"version", "2.0"}}}, {"scene", 0}, {"scenes", {{{"nodes", json::array()}}}}};
-  std::string bin;
-
-  int view(const std::string& bytes) {
-    while (bin.size() % 4) bin += '\0';
-    doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", bytes.size()}});
-    bin += bytes;
-    return int(doc["bufferViews"].size() - 1);
-  }
-  int floats(const std::vector<float>& v, const char* type) {
-    const int n = std::string(type) == "VEC3" ? 3 : 2;
-    doc["accessors"].push_back({{"bufferView", view(std::string(reinterpret_cast<const char*>(v.data()), v.size() * 4))},
-                                {"componentType", 5126}, {"count", v.size() / n}, {"type", type}});
-    return int(doc["accessors"].size() - 1);
-  }
-  int indices(const std::vector<std::uint32_t>& v) {
-    doc["accessors"].push_back({{"bufferView", view(std::string(reinterpret_cast<const char*>(v.data()), v.size() * 4))},
-                                {"componentType", 5125}, {"count", v.size()}, {"type", "SCALAR"}});
-    return int(doc["accessors"].size() - 1);
-  }
-  // A mesh of one primitive (positions, optional uvs, indices, material) and a node showing it.
-  int mesh(const std::vector<float>& pos, const std::vector<std::uint32_t>& idx, int material,
-           const std::vector<float>& uv = {}, json node = json::object()) {
-    json prim = {{"attributes", {{"POSITION", floats(pos, "VEC3")}}}, {"indices", indices(idx)}};
-    if (material >= 0) prim["material"] = material;
-    if (!uv.empty()) prim["attributes"]["TEXCOORD_0"] = floats(uv, "VEC2");
-    doc["meshes"].push_back({{"primitives", {prim}}});
-    node["mesh"] = doc["meshes"].size() - 1;
-    return root(node);
-  }
-  int root(const json& node) {
-    doc["nodes"].push_back(node);
-    const int n = int(doc["nodes"].size() - 1);
-    doc["scenes"][0]["nodes"].push_back(n);
-    return n;
-  }
-  int material(const json& m) {
-    doc["materials"].push_back(m);
-    return int(doc["materials"].size() - 1);
-  }
-  std::string text() const {
-    json d = doc;
-    if (!bin.empty())
-      d["buffers"] = {{{"byteLength", bin.size()}, {"uri", "data:application/octet-stream;base64," + base64(bin)}}};
-    return d.dump(1);
-  }
-  std::string write(const test::TempDir& dir, const std::string& name) const { return test::write_text(dir.file(name), text()); }
-  std::string write_glb(const test::TempDir& dir, const std::string& name) const {
-    json d = doc;
-    d["buffers"] = {{{"byteLength", bin.size()}}};
-    std::string js = d.dump();
-    while (js.size() % 4) js += ' ';
-    std::string b = bin;
-    while (b.size() % 4) b += '\0';
-    auto u32 = [](std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
-    const std::string out = "glTF" + u32(2) + u32(std::uint32_t(12 + 8 + js.size() + 8 + b.size())) + u32(std::uint32_t(js.size())) +
-                            "JSON" + js + u32(std::uint32_t(b.size())) + std::string("BIN\0", 4) + b;
-    std::ofstream(dir.file(name), std::ios::binary) << out;
-    return dir.file(name);
-  }
-};
-
-std::vector<float> quad_positions(const float (&p)[12]) { return std::vector<float>(p, p + 12); }
-const std::vector<std::uint32_t> kQuad = {0, 1, 2, 0, 2, 3};
 
 // ---- The same room in glTF and in TOML ----
 //
@@ -122,20 +53,6 @@ const std::vector<std::uint32_t> kQuad = {0, 1, 2, 0, 2, 3};
 const float kFloor[12] = {-2, 0, 2, 2, 0, 2, 2, 0, -2, -2, 0, -2};
 const float kWall[12] = {-2, 0, -2, 2, 0, -2, 2, 3, -2, -2, 3, -2};
 const float kLamp[12] = {-0.5f, 2.5f, -0.5f, 0.5f, 2.5f, -0.5f, 0.5f, 2.5f, 0.5f, -0.5f, 2.5f, 0.5f};
-
-std::string write_checker_png(const test::TempDir& dir) {
-  // 4 x 4 texels of 8-bit sRGB: 200 and 40 alternating.
-  std::vector<unsigned char> px(4 * 4 * 3);
-  for (int y = 0; y < 4; ++y)
-    for (int x = 0; x < 4; ++x)
-      for (int c = 0; c < 3; ++c) px[std::size_t((y * 4 + x) * 3 + c)] = ((x + y) & 1) ? 40 : (c == 0 ? 220 : 200);
-  const std::string path = dir.file("checker.png");
-  auto out = OIIO::ImageOutput::create(path);
-  out->open(path, OIIO::ImageSpec(4, 4, 3, OIIO::TypeDesc::UINT8));
-  out->write_image(OIIO::TypeDesc::UINT8, px.data());
-  out->close();
-  return path;
-}
 
 Gltf room(const std::string& png_bytes) {
   Gltf g;
@@ -435,18 +352,18 @@ TEST(Gltf, WhatIsLeftOutIsListedByRender) {
   Gltf g;
   g.doc["extensionsUsed"] = {"KHR_lights_punctual", "KHR_materials_clearcoat", "KHR_texture_transform"};
   g.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", {{{"type", "spot"}, {"spot", json::object()}}}}}}};
-  g.mesh(quad_positions(kFloor), kQuad, -1);
+  const int quad = g.mesh(quad_positions(kFloor), kQuad, -1);
   g.doc["cameras"] = {{{"type", "perspective"}, {"perspective", {{"yfov", 0.7}, {"znear", 0.01}}}}};
   g.root({{"camera", 0}, {"translation", {0, 2, 4}}});
   g.root({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
-  g.doc["animations"] = json::array({json::object()});
+  g.channel(0, quad, "weights", {0, 1}, {0, 1});
   const std::string path = g.write(dir, "w.gltf");
   auto r = test::run_denoisebench("render " + path + " --spp 1 --size 8x6 -o " + dir.file("w.exr"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* said : {"/extensionsUsed/1: extension KHR_materials_clearcoat is not read",
                            "/extensionsUsed/2: extension KHR_texture_transform is not read",
                            "/extensions/KHR_lights_punctual/lights/0: spot lights are left out",
-                           "/animations: animations are not read"})
+                           "/animations/0/channels/0/target/path: morph target weights are not animated"})
     EXPECT_NE(r.output.find(said), std::string::npos) << said << " in:\n" << r.output;
 }
 
@@ -489,6 +406,8 @@ TEST(Gltf, MalformedFilesAreRefusedNamingTheFileAndThePointer) {
        "is reached twice"},
       {"quaternion", edit([](Gltf& g) { g.doc["nodes"][1]["rotation"] = {0, 0, 0, 0.5}; }), "/nodes/1/rotation: a quaternion of length 0.5"},
       {"camera", edit([](Gltf& g) { g.doc["cameras"][0]["perspective"].erase("yfov"); }), "/cameras/0/perspective/yfov: missing"},
+      {"far-camera", edit([](Gltf& g) { g.doc["nodes"][1]["translation"] = {0, 2, -9e27}; }),
+       "/nodes/1: the camera is at (0, 2, -9e+27): expected coordinates within [-1e+06, 1e+06]"},
       {"no-camera", edit([](Gltf& g) { g.doc["nodes"][1].erase("camera"); }), "no perspective camera"},
       {"missing-file", edit([](Gltf& g) { g.doc["images"] = {{{"uri", "nowhere.png"}}}; }), "/images/0/uri: the image file"},
   };

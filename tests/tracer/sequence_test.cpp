@@ -9,6 +9,7 @@
 
 #include "core/errors.h"
 #include "core/exr_io.h"
+#include "reprojection.h"
 #include "test_util.h"
 #include "tracer/animation.h"
 #include "tracer/render.h"
@@ -111,15 +112,6 @@ TEST(Sequence, AShutterBlursEachFrameTowardsTheNext) {
   EXPECT_FALSE(last->camera.moving);
 }
 
-// Bilinear fetch of `img` channel c at film position (fx, fy) (pixel centres at + 0.5).
-float fetch(const Image& img, float fx, float fy, int c) {
-  const float x = fx - 0.5f, y = fy - 0.5f;
-  const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
-  const float ax = x - x0, ay = y - y0;
-  auto at = [&](int xx, int yy) { return img.at(std::clamp(xx, 0, img.width() - 1), std::clamp(yy, 0, img.height() - 1), c); };
-  return (at(x0, y0) * (1 - ax) + at(x0 + 1, y0) * ax) * (1 - ay) + (at(x0, y0 + 1) * (1 - ax) + at(x0 + 1, y0 + 1) * ax) * ay;
-}
-
 // The motion layer reprojects the previous frame onto this one: the previous albedo fetched at
 // c + motion(c) matches this frame's albedo on the wall, far better than the unwarped image.
 TEST(Sequence, MotionVectorsReprojectThePreviousFrameOntoThisOne) {
@@ -137,25 +129,12 @@ TEST(Sequence, MotionVectorsReprojectThePreviousFrameOntoThisOne) {
   const Image& mv = b.layer(layer::kMotion);
   const Image& alb0 = a.layer(layer::kAlbedo);
   const Image& alb1 = b.layer(layer::kAlbedo);
-  double warped = 0, still = 0, max_motion = 0;
-  int n = 0;
   // Rows 10..40 of 72 see only the wall (the box is near the bottom); columns away from the sides.
-  for (int y = 10; y < 40; ++y)
-    for (int x = 12; x < 84; ++x) {
-      const float mx = mv.at(x, y, 0), my = mv.at(x, y, 1);
-      max_motion = std::max(max_motion, double(std::hypot(mx, my)));
-      for (int c = 0; c < 3; ++c) {
-        const double w = fetch(alb0, x + 0.5f + mx, y + 0.5f + my, c) - alb1.at(x, y, c);
-        const double u = alb0.at(x, y, c) - alb1.at(x, y, c);
-        warped += w * w;
-        still += u * u;
-      }
-      ++n;
-    }
-  EXPECT_GT(max_motion, 2.0) << "the camera moves several pixels per frame";
+  const test::Reprojection r = test::reprojection(alb0, alb1, mv, 12, 84, 10, 40);
+  EXPECT_GT(r.max_motion, 2.0) << "the camera moves several pixels per frame";
   // Residual: bilinear resampling of a checker's edges (a sub-pixel shift blurs them) and the
   // spp's anti-aliasing noise. Measured: about 1/15 of the unwarped error; 1/5 is the bound.
-  EXPECT_LT(warped, still / 5) << "warped " << warped / n << " unwarped " << still / n;
+  EXPECT_LT(r.warped, r.still / 5) << "warped " << r.warped / r.pixels << " unwarped " << r.still / r.pixels;
   // The sign: the camera moved right, so the wall moved left on screen and a point's previous
   // position is to the right of its current one: motion.X > 0.
   EXPECT_GT(mv.at(48, 20, 0), 0.5f);
