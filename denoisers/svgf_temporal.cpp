@@ -144,7 +144,7 @@ struct Component {
   Image colour, moments;
 };
 
-class SvgfTemporal final : public Method {
+class SvgfTemporal final : public TemporalIlluminationMethod {
  public:
   explicit SvgfTemporal(const Params& p)
       : alpha_(float(p.f("alpha"))),
@@ -160,17 +160,8 @@ class SvgfTemporal final : public Method {
               .variance_prefilter = p.b("variance_prefilter")},
         test_(surface_test(p)) {}
 
-  std::vector<std::string> required_layers() const override {
-    auto l = illumination_layers();
-    l.emplace_back(layer::kNormal);
-    l.emplace_back(layer::kDepth);
-    return l;
-  }
-  // A still frame has no motion layer; a sequence frame after the first must (SequenceCursor).
-  std::vector<std::string> optional_layers() const override { return {layer::kMotion}; }
-  bool temporal() const override { return true; }
   void reset() override {
-    cursor_.reset();
+    TemporalIlluminationMethod::reset();
     components_.clear();
     length_ = Image();
     output_ = Image();
@@ -384,7 +375,6 @@ class SvgfTemporal final : public Method {
   float taa_alpha_, taa_box_sigma_;
   svgf::PassSettings pass_;
   metrics::SurfaceTest test_;
-  SequenceCursor cursor_;
   // The last frame's: per component its history, the history length n, the output (TAA's
   // history) and the depth and normal.
   std::vector<Component> components_;

@@ -31,21 +31,12 @@
 namespace dnb {
 namespace {
 
-class TemporalAccumulation final : public Method {
+class TemporalAccumulation final : public TemporalIlluminationMethod {
  public:
   explicit TemporalAccumulation(const Params& p) : alpha_(float(p.f("alpha"))), test_(surface_test(p)) {}
 
-  std::vector<std::string> required_layers() const override {
-    auto l = illumination_layers();
-    l.emplace_back(layer::kNormal);
-    l.emplace_back(layer::kDepth);
-    return l;
-  }
-  // A still frame has no motion layer; a sequence frame after the first must (SequenceCursor).
-  std::vector<std::string> optional_layers() const override { return {layer::kMotion}; }
-  bool temporal() const override { return true; }
   void reset() override {
-    cursor_.reset();
+    TemporalIlluminationMethod::reset();
     history_ = Image();
     length_ = Image();
   }
@@ -88,7 +79,6 @@ class TemporalAccumulation final : public Method {
  private:
   float alpha_;
   metrics::SurfaceTest test_;
-  SequenceCursor cursor_;
   Image history_, length_;  // the accumulated illumination L and the history length n of the last frame
   PreviousGuides guides_;
 };

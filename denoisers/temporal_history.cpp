@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include "core/errors.h"
+#include "denoisers/illumination.h"
 
 namespace dnb {
 
@@ -48,6 +49,13 @@ metrics::Reprojection reproject_history(const AovFrame& f, const PreviousGuides&
                                         const metrics::SurfaceTest& test) {
   return metrics::Reprojection(f.layer(layer::kMotion), f.layer(layer::kDepth), f.layer(layer::kNormal), previous.depth,
                                previous.normal, test);
+}
+
+std::vector<std::string> TemporalIlluminationMethod::required_layers() const {
+  auto l = illumination_layers();
+  l.emplace_back(layer::kNormal);
+  l.emplace_back(layer::kDepth);
+  return l;
 }
 
 }  // namespace dnb

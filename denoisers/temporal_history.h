@@ -35,6 +35,21 @@ class SequenceCursor {
   int index_ = -1;
 };
 
+// What the built-in temporal methods are alike in: they read the demodulated illumination with
+// normal and depth (denoisers/illumination.h), the motion layer where the frame has it (a still
+// has none; a sequence frame after the first must: SequenceCursor), and follow their frames with
+// a SequenceCursor, which reset() rewinds (a derived class's reset() calls this one).
+class TemporalIlluminationMethod : public Method {
+ public:
+  std::vector<std::string> required_layers() const override;
+  std::vector<std::string> optional_layers() const override { return {layer::kMotion}; }
+  bool temporal() const override { return true; }
+  void reset() override { cursor_.reset(); }
+
+ protected:
+  SequenceCursor cursor_;
+};
+
 // The disocclusion test's parameters (max_relative_depth, min_normal_cosine), their defaults
 // metrics::SurfaceTest's; and the test they make.
 std::vector<ParamSpec> surface_test_params();

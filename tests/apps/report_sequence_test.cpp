@@ -21,53 +21,6 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using test::slurp;
 
-// A checkered wall, the camera sliding sideways, a box sliding in front of the wall (as
-// tests/tracer/sequence_test.cpp's pan scene), over 3 frames.
-const char* kScene = R"([animation]
-frames = 3
-interpolation = "linear"
-[camera]
-eye = [0, 0, 4]
-look_at = [0, 0, 0]
-vfov = 40
-[[camera.keys]]
-frame = 0
-eye = [0, 0, 4]
-look_at = [0, 0, 0]
-[[camera.keys]]
-frame = 2
-eye = [0.6, 0.1, 3.7]
-look_at = [0.6, 0.1, 0]
-[textures.t]
-type = "checker"
-scale = 24
-color_a = [0.9, 0.9, 0.9]
-color_b = [0.1, 0.2, 0.3]
-[materials.wall]
-texture = "t"
-albedo = [1, 1, 1]
-[materials.box]
-albedo = [0.7, 0.2, 0.1]
-[[objects]]
-type = "quad"
-material = "wall"
-size = [8, 8]
-rotate = [90, 0, 0]
-[[objects]]
-type = "box"
-material = "box"
-size = [0.4, 0.4, 0.4]
-translate = [-1, -1.1, 0.5]
-[[objects.keys]]
-frame = 0
-translate = [-1, -1.1, 0.5]
-[[objects.keys]]
-frame = 2
-translate = [-0.4, -1.1, 0.5]
-rotate = [0, 40, 0]
-[sky]
-color = [0.8, 0.8, 0.8]
-)";
 
 // The scene is named by its file's path relative to the run's folder: the sequence is
 // "slide.toml", its rows slide.toml.f00 .. f02.
@@ -96,7 +49,8 @@ class ReportSequence : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = std::make_unique<test::TempDir>();
-    test::write(dir_->path() / "slide.toml", kScene);
+    // Four frames (the camera and a box sliding over a checkered wall), of which the config runs three.
+    test::write(dir_->path() / "slide.toml", slurp(test::source_dir() + "/tests/data/slide-sequence.toml"));
     test::write(dir_->path() / "seq.toml", kConfig);
     const std::string cd = "cd '" + dir_->path().string() + "' && DENOISEBENCH_CACHE='" + dir_->file("cache") + "' '" +
                            test::binary().string() + "' ";

@@ -71,60 +71,11 @@ void register_recorder() {
   MethodRegistry::global().add(info);
 }
 
-// Four frames: the camera slides right while a box slides across a textured wall.
-const char* kScene = R"([animation]
-frames = 4
-interpolation = "linear"
-[camera]
-eye = [0, 0, 4]
-look_at = [0, 0, 0]
-vfov = 40
-[[camera.keys]]
-frame = 0
-eye = [0, 0, 4]
-look_at = [0, 0, 0]
-[[camera.keys]]
-frame = 3
-eye = [0.5, 0, 4]
-look_at = [0.5, 0, 0]
-[textures.t]
-type = "checker"
-scale = 12
-color_a = [0.9, 0.9, 0.9]
-color_b = [0.1, 0.2, 0.3]
-[materials.wall]
-texture = "t"
-albedo = [1, 1, 1]
-[materials.box]
-albedo = [0.7, 0.2, 0.1]
-[[objects]]
-type = "quad"
-material = "wall"
-size = [8, 8]
-rotate = [90, 0, 0]
-[[objects]]
-type = "box"
-material = "box"
-size = [0.6, 0.6, 0.6]
-translate = [-0.6, 0, 0.5]
-[[objects.keys]]
-frame = 0
-translate = [-0.6, 0, 0.5]
-[[objects.keys]]
-frame = 3
-translate = [0.6, 0, 0.5]
-[[lights]]
-type = "quad"
-size = [2, 2]
-rotate = [180, 0, 0]
-translate = [0, 3, 2]
-emission = [6, 6, 6]
-[sky]
-color = [0.3, 0.3, 0.3]
-)";
 
+// tests/data/slide-sequence.toml copied into the test's folder (four frames: the camera slides
+// right while a box slides across a textured wall).
 std::string scene_file(const test::TempDir& dir) {
-  test::write(dir.file("slide.toml"), kScene);
+  test::write(dir.file("slide.toml"), test::slurp(test::source_dir() + "/tests/data/slide-sequence.toml"));
   return dir.file("slide.toml");
 }
 
