@@ -29,6 +29,8 @@
 namespace dnb {
 namespace {
 
+using test::frame_of;
+
 using json = nlohmann::json;
 using rt::GltfInterpolation;
 using rt::GltfSampler;
@@ -149,12 +151,6 @@ void expect_near(const Vec3& a, const Vec3& b, const std::string& what) {
   EXPECT_NEAR(a.x, b.x, 1e-5) << what;
   EXPECT_NEAR(a.y, b.y, 1e-5) << what;
   EXPECT_NEAR(a.z, b.z, 1e-5) << what;
-}
-
-std::shared_ptr<const Scene> frame_of(const std::string& path, int frame) {
-  SceneLoadOptions o;
-  o.frame = frame;
-  return load_scene(path, o);
 }
 
 TEST(GltfAnimation, NodesAndTheCameraAreWhereTheirChannelsPutThemAtEachFramesTime) {

@@ -20,6 +20,8 @@
 namespace dnb {
 namespace {
 
+using test::frame_of;
+
 using rt::Interpolation;
 using rt::KeyTrack;
 
@@ -65,12 +67,6 @@ std::string pan_scene(const std::string& interpolation = "linear") {
          "[[objects.keys]]\nframe = 0\ntranslate = [-1, -1.1, 0.5]\n"
          "[[objects.keys]]\nframe = 3\ntranslate = [-0.4, -1.1, 0.5]\nrotate = [0, 40, 0]\n"
          "[sky]\ncolor = [0.8, 0.8, 0.8]\n";
-}
-
-std::shared_ptr<const Scene> frame_of(const std::string& path, int frame) {
-  SceneLoadOptions o;
-  o.frame = frame;
-  return load_scene(path, o);
 }
 
 TEST(Sequence, KeysPlaceTheCameraAndObjectsAtEachFrame) {

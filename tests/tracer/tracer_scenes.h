@@ -39,6 +39,13 @@ inline std::string lit_plane_scene(double side, double h, double le) {
          std::to_string(le) + ", " + std::to_string(le) + ", " + std::to_string(le) + "]\n";
 }
 
+// Frame `frame` of the animated scene at `path` (docs/sequences.md).
+inline std::shared_ptr<const Scene> frame_of(const std::string& path, int frame) {
+  SceneLoadOptions o;
+  o.frame = frame;
+  return load_scene(path, o);
+}
+
 // A scene file of `text` is refused by load_scene with an InputError naming the file's line
 // ("bad.toml:") and saying `says` (the key, or the reason).
 inline void expect_scene_refused(const std::string& text, const std::string& says) {
