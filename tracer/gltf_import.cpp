@@ -614,6 +614,11 @@ json parse_json(const std::string& text, const std::string& file, std::size_t ba
     if (auto p = why.find("syntax error"); p != std::string::npos) why = why.substr(p);
     throw InputError(fmt::format("{}:{}:{}: not valid JSON{}: {}", file, line, col,
                                  base ? fmt::format(" (the GLB's JSON chunk at byte {})", base) : "", why));
+  } catch (const json::exception& e) {
+    // A number the parser cannot hold (out_of_range 406: "0.3e26834"), found by fuzzing: bad
+    // input too, not a crash.
+    throw InputError(fmt::format("{}: not valid glTF JSON{}: {}", file,
+                                 base ? fmt::format(" (the GLB's JSON chunk at byte {})", base) : "", e.what()));
   }
 }
 

@@ -390,6 +390,9 @@ TEST(Gltf, MalformedFilesAreRefusedNamingTheFileAndThePointer) {
   };
   const std::vector<Case> cases = {
       {"syntax", [](Gltf g) { std::string t = g.text(); return t.substr(0, t.size() / 2); }, ": not valid JSON"},
+      // A number too large for a double (the fuzzer's find: nlohmann's out_of_range, not a parse error).
+      {"overflow", [](Gltf g) { std::string t = g.text(); return t.replace(t.find("\"2.0\""), 5, "0.3e26834"); },
+       ": not valid glTF JSON"},
       {"version", edit([](Gltf& g) { g.doc["asset"]["version"] = "1.0"; }), "/asset/version: '1.0': expected a glTF 2.x file"},
       {"missing", edit([](Gltf& g) { g.doc["accessors"][0].erase("count"); }), "/accessors/0/count: missing"},
       {"type", edit([](Gltf& g) { g.doc["accessors"][0]["componentType"] = "float"; }), "/accessors/0/componentType: expected an integer"},
