@@ -188,6 +188,73 @@ std::string duration(double s) {
   return fmt::format("{}h{:02d}m", int(s) / 3600, (int(s) % 3600) / 60);
 }
 
+// What one rendered scene's (or one sequence frame's) plans add to its estimate: the reference,
+// the input frames and the method cells that are not finished, priced with the scene's probe `m`.
+// A sequence frame's input is keyed as the run keys it (experiment/sequences.h) and its temporal
+// methods run once (a repeat would advance their history).
+void add_scene_plans(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry, Cache& cache,
+                     const std::set<std::string>& finished, SceneModel& m, double pixels, const std::string& base_name,
+                     bool sequence, ScenePlans& plans, SceneEstimate& se, double& longest_group) {
+  ScenePlans* sp = &plans;
+  const Scene& scene = *sp->scene;
+  // The reference.
+  const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = c.reference_spp_for(base_name),
+                             .seed = c.reference_seed, .max_depth = c.max_depth, .block_spp = c.reference_block_spp,
+                             .threads = c.threads};
+  se.reference.items += 1;
+  if (opt.use_cache && cache_holds(cache, reference_cache_key(scene, rs))) se.reference.held += 1;
+  else se.reference.seconds += m.color.at(pixels * rs.spp);
+  // Groups: the plain curve, then one per input frame.
+  for (PlanGroup& g : sp->groups) {
+    double group = 0;
+    std::vector<const CellPlan*> open;
+    for (const CellPlan& p : g.plans)
+      if (!p.skip_reason && !finished.count(cell_key(p))) open.push_back(&p);
+    if (!g.frame) {  // the curve
+      se.curve.items = int(g.plans.size());
+      se.curve.held = int(g.plans.size() - open.size());
+      if (!open.empty()) {
+        const int top = *std::max_element(c.plain_spp.begin(), c.plain_spp.end());
+        std::vector<int> prefixes(c.plain_spp.begin(), c.plain_spp.end());
+        std::sort(prefixes.begin(), prefixes.end());
+        prefixes.erase(std::unique(prefixes.begin(), prefixes.end()), prefixes.end());
+        const bool held = opt.use_cache && cache_holds(cache, curve_cache_key(scene, input_settings(c, top, c.seed), prefixes));
+        group += held ? 0 : m.color.at(pixels * top);
+        group += double(open.size()) * m.score.at(pixels);
+      }
+      se.curve.seconds += group;
+    } else {
+      const CellPlan& input = g.plans.front();
+      se.inputs.items += 1;
+      const bool input_open = !finished.count(cell_key(input));
+      if (!input_open) se.inputs.held += 1;
+      if (!open.empty()) {
+        // The frame: rendered and stored, or read from the cache.
+        const RenderSettings rset = input_settings(c, input.spp, input.seed.value_or(c.seed));
+        const bool held =
+            opt.use_cache && cache_holds(cache, sequence ? sequence_frame_key(scene, rset) : frame_cache_key(scene, rset));
+        const double frame = held ? m.read.at(pixels) : m.frame.at(pixels * input.spp) + m.write.at(pixels);
+        double in = frame + (input_open ? m.score.at(pixels) : 0.0);
+        se.inputs.seconds += in;
+        group += in;
+      }
+      for (const CellPlan* p : open) {
+        if (p->role == Role::Input) continue;
+        const double run = m.method[p->method].at(pixels);
+        const bool temporal = sequence && registry.contains(p->base_method) && registry.info(p->base_method).temporal;
+        const int runs = !temporal && run < c.repeat_below_seconds && c.repeats > 0 ? 1 + c.repeats : 1;
+        const double cell = m.method_create[p->method] + run * runs + m.score.at(pixels);
+        se.method_cell_seconds[p->method] = cell;
+        se.methods.seconds += cell;
+        group += cell;
+      }
+      se.methods.items += int(g.plans.size()) - 1;
+      se.methods.held += int(g.plans.size() - 1) - int(std::count_if(open.begin(), open.end(), [](const CellPlan* p) { return p->role != Role::Input; }));
+    }
+    longest_group = std::max(longest_group, group);
+  }
+}
+
 }  // namespace
 
 RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const MethodRegistry& registry) {
@@ -209,76 +276,33 @@ RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const
   for (const SceneSpec& spec : c.scenes) {
     SceneEstimate se;
     se.scene = spec.name;
-    if (spec.files || spec.renderer || spec.frames > 0) {
+    if (spec.files || spec.renderer) {
       se.estimated = false;
-      se.why_not = spec.files      ? "read from files: not probed"
-                   : spec.renderer ? fmt::format("rendered by the '{}' back-end: not probed", spec.renderer->renderer)
-                                   : fmt::format("a sequence of {} frames: not probed (docs/estimate.md)", spec.frames);
+      se.why_not = spec.files ? "read from files: not probed"
+                              : fmt::format("rendered by the '{}' back-end: not probed", spec.renderer->renderer);
       est.scenes.push_back(se);
       continue;
     }
-    // The plans as the run makes them (their cell keys say which cells are finished), without
-    // the reference; loading the scene is timed as the run's load.
-    std::unique_ptr<ScenePlans> sp;
-    se.load_seconds = timed([&] { sp = rendered_scene_plans(c, opt, registry, cache, spec.name, false); });
-    const Scene& scene = *sp->scene;
+    // A sequence: every frame's plans (their keys say which cells are finished), priced with the
+    // probe of its first frame; a still: its one plan.
+    const bool sequence = spec.frames > 0;
+    std::optional<SequenceRun> run;
+    if (sequence) run.emplace(spec.name, spec.frames, cache, opt.use_cache);
     SceneModel m;
-    se.probe_seconds = timed([&] { m = probe_scene(c, scene, registry, tmp.string(), first ? &*first : nullptr); });
-    if (!first) first = m;
-    est.probe_seconds += se.probe_seconds;
-    // The reference.
-    const ReferenceSettings rs{.width = c.width, .height = c.height, .spp = c.reference_spp_for(spec.name),
-                               .seed = c.reference_seed, .max_depth = c.max_depth, .block_spp = c.reference_block_spp,
-                               .threads = c.threads};
-    se.reference.items = 1;
-    if (opt.use_cache && cache_holds(cache, reference_cache_key(scene, rs))) se.reference.held = 1;
-    else se.reference.seconds = m.color.at(pixels * rs.spp);
-    // Groups: the plain curve, then one per input frame.
-    for (PlanGroup& g : sp->groups) {
-      double group = 0;
-      std::vector<const CellPlan*> open;
-      for (const CellPlan& p : g.plans)
-        if (!p.skip_reason && !finished.count(cell_key(p))) open.push_back(&p);
-      if (!g.frame) {  // the curve
-        se.curve.items = int(g.plans.size());
-        se.curve.held = int(g.plans.size() - open.size());
-        if (!open.empty()) {
-          const int top = *std::max_element(c.plain_spp.begin(), c.plain_spp.end());
-          std::vector<int> prefixes(c.plain_spp.begin(), c.plain_spp.end());
-          std::sort(prefixes.begin(), prefixes.end());
-          prefixes.erase(std::unique(prefixes.begin(), prefixes.end()), prefixes.end());
-          const bool held = opt.use_cache && cache_holds(cache, curve_cache_key(scene, input_settings(c, top, c.seed), prefixes));
-          group += held ? 0 : m.color.at(pixels * top);
-          group += double(open.size()) * m.score.at(pixels);
-        }
-        se.curve.seconds += group;
-      } else {
-        const CellPlan& input = g.plans.front();
-        se.inputs.items += 1;
-        const bool input_open = !finished.count(cell_key(input));
-        if (!input_open) se.inputs.held += 1;
-        if (!open.empty()) {
-          // The frame: rendered and stored, or read from the cache.
-          const RenderSettings rset = input_settings(c, input.spp, input.seed.value_or(c.seed));
-          const bool held = opt.use_cache && cache_holds(cache, frame_cache_key(scene, rset));
-          const double frame = held ? m.read.at(pixels) : m.frame.at(pixels * input.spp) + m.write.at(pixels);
-          double in = frame + (input_open ? m.score.at(pixels) : 0.0);
-          se.inputs.seconds += in;
-          group += in;
-        }
-        for (const CellPlan* p : open) {
-          if (p->role == Role::Input) continue;
-          const double run = m.method[p->method].at(pixels);
-          const int runs = run < c.repeat_below_seconds && c.repeats > 0 ? 1 + c.repeats : 1;
-          const double cell = m.method_create[p->method] + run * runs + m.score.at(pixels);
-          se.method_cell_seconds[p->method] = cell;
-          se.methods.seconds += cell;
-          group += cell;
-        }
-        se.methods.items += int(g.plans.size()) - 1;
-        se.methods.held += int(g.plans.size() - 1) - int(std::count_if(open.begin(), open.end(), [](const CellPlan* p) { return p->role != Role::Input; }));
+    for (int t = 0; t < std::max(spec.frames, 1); ++t) {
+      // The plans as the run makes them, without the reference; loading the scene is timed as
+      // the run's load.
+      std::unique_ptr<ScenePlans> sp;
+      se.load_seconds += timed([&] {
+        sp = rendered_scene_plans(c, opt, registry, cache, spec.name, false, run ? &*run : nullptr, t);
+      });
+      const Scene& scene = *sp->scene;
+      if (t == 0) {
+        se.probe_seconds = timed([&] { m = probe_scene(c, scene, registry, tmp.string(), first ? &*first : nullptr); });
+        if (!first) first = m;
+        est.probe_seconds += se.probe_seconds;
       }
-      longest_group = std::max(longest_group, group);
+      add_scene_plans(c, opt, registry, cache, finished, m, pixels, spec.name, sequence, *sp, se, longest_group);
     }
     est.one_process_seconds += se.total();
     est.scenes.push_back(std::move(se));

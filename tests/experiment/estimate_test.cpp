@@ -91,5 +91,35 @@ TEST(Estimate, CountsThePlanAndWhatIsHeldAndWritesNothing) {
   EXPECT_GT(f.inputs.seconds, 0) << "the input cells are computed again (their frames read from the cache)";
 }
 
+// A sequence (docs/sequences.md) is priced frame by frame with its first frame's probe: a
+// reference and an input per frame (and spp and seed), no plain curve, every method on every
+// frame; after the run all of it is held (its frames keyed as the run keys them).
+TEST(Estimate, ASequenceCountsEveryFrameAndWhatIsHeld) {
+  test::TempDir dir;
+  test::write(dir.file("slide.toml"), test::slurp(test::source_dir() + "/tests/data/slide-sequence.toml"));
+  test::write(dir.file("seq.toml"), "name = \"seq\"\nwidth = 32\nheight = 24\nseeds = [1]\nspp = [2]\nmethods = "
+                                    "[\"atrous\", \"temporal_accumulation\"]\n[[scene]]\nname = \"" + dir.file("slide.toml") +
+                                        "\"\nframes = 3\n[reference]\nspp = 16\nblock_spp = 8\n[timing]\nrepeats = 1\n");
+  const ExperimentConfig c = load_config(dir.file("seq.toml"));
+  const RunOptions opt{.out_dir = dir.file("out"), .cache_dir = dir.file("cache")};
+  const RunEstimate cold = estimate_run(c, opt, MethodRegistry::global());
+  ASSERT_EQ(cold.scenes.size(), 1u);
+  const SceneEstimate& s = cold.scenes[0];
+  EXPECT_TRUE(s.estimated) << s.why_not;
+  EXPECT_EQ(s.reference.items, 3);
+  EXPECT_EQ(s.inputs.items, 3);
+  EXPECT_EQ(s.curve.items, 0);
+  EXPECT_EQ(s.methods.items, 6);
+  EXPECT_GT(s.reference.seconds, 0);
+  EXPECT_EQ(files_under(dir.file("out")) + files_under(dir.file("cache")), 0u) << "the estimate wrote nothing";
+  (void)run_experiment(c, opt, MethodRegistry::global());
+  const RunEstimate warm = estimate_run(c, opt, MethodRegistry::global());
+  const SceneEstimate& w = warm.scenes[0];
+  EXPECT_EQ(w.reference.held, 3);
+  EXPECT_EQ(w.inputs.held, 3);
+  EXPECT_EQ(w.methods.held, 6);
+  EXPECT_EQ(w.reference.seconds + w.inputs.seconds + w.methods.seconds, 0.0);
+}
+
 }  // namespace
 }  // namespace dnb::experiment
