@@ -7,6 +7,10 @@
 #include <filesystem>
 #include <string>
 
+#include <cstdlib>
+
+#include <OpenImageIO/imageio.h>
+
 #include "core/errors.h"
 #include "core/exr_io.h"
 #include "reprojection.h"
@@ -217,6 +221,50 @@ TEST(Sequence, RenderFramesWritesOneFileAFrameAndRefusesStills) {
   auto still = test::run_in(dir, "render cornell-box --frames 0:2 --size 8x8 --spp 1 -o " + dir.file("still.exr"));
   EXPECT_EQ(still.exit_code, 2);
   EXPECT_NE(still.output.find("still"), std::string::npos) << still.output;
+}
+
+// The motion layer against Cycles' Vector pass (docs/sequences.md): the same camera motion over a
+// plane (tests/data/cycles_vector.py renders it with Blender) gives motion.X = Vector.X and
+// motion.Y = -Vector.Y. The motion is a pure translation over a plane facing the camera, the same
+// at every pixel, so one pixel compares. Skipped, saying why, without Blender.
+TEST(Sequence, MotionMatchesCyclesVectorPass) {
+  if (const std::string why = test::blender_missing(); !why.empty()) GTEST_SKIP() << why;
+  test::TempDir dir;
+  const std::string exr = dir.file("cycles.exr");
+  const char* env = std::getenv("DENOISEBENCH_BLENDER");
+  const std::string blender = env && *env ? env : "blender";
+  auto r = test::run_command("'" + blender + "' -b --python '" + test::source_dir() + "/tests/data/cycles_vector.py' -- '" +
+                             exr + "' 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto in = OIIO::ImageInput::open(exr);
+  ASSERT_TRUE(in) << OIIO::geterror();
+  const OIIO::ImageSpec spec = in->spec();
+  std::vector<float> px(std::size_t(spec.width) * spec.height * spec.nchannels);
+  ASSERT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, px.data()));
+  auto channel = [&](const std::string& name) {  // by name: OIIO reorders channels
+    const int c = spec.channelindex("ViewLayer.Vector." + name);
+    EXPECT_GE(c, 0) << name;
+    return px[(std::size_t(24) * spec.width + 32) * spec.nchannels + std::size_t(std::max(c, 0))];
+  };
+  const float vx = channel("X"), vy = channel("Y");
+  // The same in the tracer: Blender's 36 mm sensor across the 64 pixels with a 50 mm lens is a
+  // vertical field of view of 2 atan(18 / 50 * 48 / 64) = 30.2 degrees.
+  const std::string scene = test::write_text(dir.file("plane.toml"),
+                                             "[animation]\nframes = 2\ninterpolation = \"linear\"\n"
+                                             "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nvfov = " +
+                                                 std::to_string(2 * std::atan(18.0 / 50 * 48 / 64) * 180 / rt::kPi) +
+                                                 "\n[[camera.keys]]\nframe = 0\n[[camera.keys]]\nframe = 1\n"
+                                                 "eye = [1, 0.5, 5]\nlook_at = [1, 0.5, 0]\n"
+                                                 "[materials.m]\nalbedo = [0.5, 0.5, 0.5]\n"
+                                                 "[[objects]]\ntype = \"quad\"\nmaterial = \"m\"\nsize = [20, 20]\n"
+                                                 "rotate = [90, 0, 0]\n");
+  const Image m = motion_layer(*frame_of(scene, 1), *frame_of(scene, 0), 64, 48);
+  // Cycles: the surface was 17.8 pixels right and 8.9 up in frame 1 (1 and 0.5 units at 17.78
+  // pixels a unit); the tracer says the same with y down. 0.01 pixels: float rounding of both.
+  EXPECT_NEAR(vx, 17.78f, 0.05f);
+  EXPECT_NEAR(vy, 8.89f, 0.05f);
+  EXPECT_NEAR(m.at(32, 24, 0), vx, 0.01f);
+  EXPECT_NEAR(m.at(32, 24, 1), -vy, 0.01f);
 }
 
 }  // namespace
