@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <ctime>
+#include <functional>
 #include <optional>
 #include <filesystem>
 
@@ -112,40 +113,41 @@ std::string provenance_html(const ResultsDocument& res) {
 // ---------------------------------------------------------------------------------------------
 // The scenes' image viewer
 
-// reports/viewer.py writes the viewer's data (web/viewer/manifest.js and one script per image:
-// linear half floats); reports/viewer.js, copied beside it, draws the viewer from them. The
-// script exits 2 when results.json names an image that is missing or unreadable, naming the
-// file and the key: bad input, as a malformed results.json is.
-void write_viewer(const std::string& dir) {
-  const std::string script = reports_dir() + "/viewer.py";
-  Subprocess p({.argv = {"/usr/bin/python3", script, dir}, .on_log_line = [](const std::string& l) { spdlog::info("viewer.py: {}", l); }});
-  const std::optional<ExitStatus> st = p.wait(1800);
+// Runs a Python script of reports/ on the folder (its lines logged by `log`). The scripts exit 2
+// when results.json names an image that is missing or unreadable, naming the file and the key:
+// bad input (InputError), as a malformed results.json is; any other failure is a WorkError.
+void run_report_script(const std::string& name, std::vector<std::string> args, double timeout_seconds,
+                       std::function<void(const std::string&)> log) {
+  const std::string script = reports_dir() + "/" + name;
+  std::vector<std::string> argv = {"/usr/bin/python3", script};
+  argv.insert(argv.end(), args.begin(), args.end());
+  Subprocess p({.argv = argv, .on_log_line = std::move(log)});
+  const std::optional<ExitStatus> st = p.wait(timeout_seconds);
   if (!st) p.kill_group();
   auto last = [&] { return p.log_tail().empty() ? std::string("(no message)") : p.log_tail().back(); };
   if (st && st->exited && st->code == 2) throw InputError(last());
   if (!st || !st->ok()) throw WorkError(fmt::format("'{}' {}: {}", script, st ? st->describe() : "timed out", last()));
+}
+
+// reports/viewer.py writes the viewer's data (web/viewer/manifest.js and one script per image:
+// linear half floats); reports/viewer.js, copied beside it, draws the viewer from them.
+void write_viewer(const std::string& dir) {
+  run_report_script("viewer.py", {dir}, 1800, [](const std::string& l) { spdlog::info("viewer.py: {}", l); });
   create_folder(dir + "/web/viewer");
   fs::copy_file(reports_dir() + "/viewer.js", dir + "/web/viewer/viewer.js", fs::copy_options::overwrite_existing);
 }
 
 // reports/video.py, for a run with sequences: an MP4 per sequence and input spp (videos/; with
 // `videos` false, or without ffmpeg, none, the log and the page saying why) and the page's
-// Sequences section (web/sequences.html, returned) linking them and the per-frame plots. Exit 2
-// is bad input (an image results.json names is missing), as viewer.py's.
+// Sequences section (web/sequences.html, returned) linking them and the per-frame plots.
 std::string write_sequences(const std::string& dir, const ResultsDocument& res, bool videos) {
   if (res.sequences.empty()) return "";
-  const std::string script = reports_dir() + "/video.py";
-  std::vector<std::string> argv = {"/usr/bin/python3", script, dir};
-  if (!videos) argv.push_back("--no-video");
-  Subprocess p({.argv = argv, .on_log_line = [](const std::string& l) {
-                  if (l.rfind("warning: ", 0) == 0) spdlog::warn("video.py: {}", l.substr(9));
-                  else spdlog::info("video.py: {}", l);
-                }});
-  const std::optional<ExitStatus> st = p.wait(3600);
-  if (!st) p.kill_group();
-  auto last = [&] { return p.log_tail().empty() ? std::string("(no message)") : p.log_tail().back(); };
-  if (st && st->exited && st->code == 2) throw InputError(last());
-  if (!st || !st->ok()) throw WorkError(fmt::format("'{}' {}: {}", script, st ? st->describe() : "timed out", last()));
+  std::vector<std::string> args = {dir};
+  if (!videos) args.push_back("--no-video");
+  run_report_script("video.py", args, 3600, [](const std::string& l) {
+    if (l.rfind("warning: ", 0) == 0) spdlog::warn("video.py: {}", l.substr(9));
+    else spdlog::info("video.py: {}", l);
+  });
   return read_text_file(dir + "/web/sequences.html");
 }
 

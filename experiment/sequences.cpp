@@ -20,22 +20,21 @@ CacheKey sequence_frame_key(const Scene& scene, const RenderSettings& settings) 
   return key;
 }
 
-AovFrame sequence_input(Cache& cache, const std::string& name, int frame, const RenderSettings& settings, bool use_cache,
-                        bool* hit) {
-  SceneLoadOptions o;
-  o.frame = frame;
-  const auto scene = load_scene(name, o);
-  const CacheKey key = sequence_frame_key(*scene, settings);
+AovFrame sequence_input(Cache& cache, const Scene& scene, const std::string& name, const RenderSettings& settings,
+                        bool use_cache, bool* hit) {
+  const CacheKey key = sequence_frame_key(scene, settings);
   if (!use_cache) cache.remove(key);
   return cached_frame(
       cache, key,
       [&] {
+        // The previous frame's geometry and camera, for the motion layer: loaded only to render.
         std::shared_ptr<const Scene> previous;
-        if (frame > 0) {
-          o.frame = frame - 1;
+        if (scene.frame > 0) {
+          SceneLoadOptions o;
+          o.frame = scene.frame - 1;
           previous = load_scene(name, o);
         }
-        return render_sequence_frame(*scene, previous.get(), settings);
+        return render_sequence_frame(scene, previous.get(), settings);
       },
       hit);
 }
@@ -45,8 +44,8 @@ InputFrame::InputFrame(Cache& cache, const Scene& frame_scene, const std::string
     : use_cache_(use_cache) {
   const CacheKey key = sequence_frame_key(frame_scene, settings);
   identity_ = {{"input", key.digest()}, {"ref", reference_spp}};
-  load_ = [this, &cache, name, t = frame_scene.frame, settings, key](bool* hit) {
-    AovFrame f = sequence_input(cache, name, t, settings, use_cache_, hit);
+  load_ = [this, &cache, &frame_scene, name, settings, key](bool* hit) {
+    AovFrame f = sequence_input(cache, frame_scene, name, settings, use_cache_, hit);
     return std::pair(std::move(f), cache.entry_dir(key) + "/frame.exr");
   };
 }
@@ -89,8 +88,10 @@ MethodResult SequenceRun::run_temporal(const std::string& column, const std::fun
     for (int k = 0; k < t; ++k) {
       SceneLoadOptions o;
       o.frame = k;
-      const auto scene_k = scene ? load_scene(name_, o) : nullptr;
-      step(s, k, sequence_input(cache_, name_, k, settings, true), scene_k.get(), settings.seed, settings.spp);
+      const auto scene_k = load_scene(name_, o);
+      // A renderer-type method gets the frame's scene, as in the run (`scene` set), a filter none.
+      step(s, k, sequence_input(cache_, *scene_k, name_, settings, true), scene ? scene_k.get() : nullptr, settings.seed,
+           settings.spp);
     }
   }
   return step(s, t, frame, scene, settings.seed, settings.spp);

@@ -28,10 +28,11 @@ namespace dnb::experiment {
 // frame's own key plus the motion layer's kind: a still render of the same frame differs).
 CacheKey sequence_frame_key(const Scene& scene, const RenderSettings& settings);
 
-// Frame `frame` of scene `name` (animated) as a run's input: through the render cache, rendered
-// with its previous frame for the motion layer. `hit` says whether the cache had it.
-AovFrame sequence_input(Cache& cache, const std::string& name, int frame, const RenderSettings& settings, bool use_cache,
-                        bool* hit = nullptr);
+// Frame `scene.frame` of animated scene `name` (`scene`: that frame, loaded) as a run's input:
+// through the render cache, rendered with its previous frame (loaded from `name` only when it
+// must be rendered) for the motion layer. `hit` says whether the cache had it.
+AovFrame sequence_input(Cache& cache, const Scene& scene, const std::string& name, const RenderSettings& settings,
+                        bool use_cache, bool* hit = nullptr);
 
 // One sequence of a run: its name and length, and its temporal methods' state.
 class SequenceRun {

@@ -530,7 +530,6 @@ class Loader {
            a.translate.x == b.translate.x && a.translate.y == b.translate.y && a.translate.z == b.translate.z;
   }
 
- public:
   // The meshes from `first` on belong to one moving object, which must not emit.
   void refuse_emitters(ConfigTable& t, std::size_t first, const char* key) {
     for (std::size_t i = first; i < scene_.meshes.size(); ++i)
@@ -541,7 +540,6 @@ class Loader {
                                        t.where(key), scene_.materials[mi].name));
   }
 
- private:
   // The meshes from `first` on belong to one moving object.
   void apply_motion(ConfigTable& t, std::size_t first, const Transform& start, const Transform& end) {
     const char* key = t.contains("keys")            ? "keys"
@@ -572,16 +570,12 @@ class Loader {
       if (!same(keyed->first, keyed->second)) motion = keyed->second;
     }
     const std::size_t first_mesh = scene_.meshes.size();
-    // An animated object's emitters are refused even when it rests at this frame.
-    struct EmitterCheck {
-      Loader& l;
-      ConfigTable& t;
-      std::size_t first;
-      bool on;
-      ~EmitterCheck() noexcept(false) {
-        if (on && std::uncaught_exceptions() == 0) l.refuse_emitters(t, first, "keys");
-      }
-    } check{*this, t, first_mesh, keyed.has_value()};
+    // The object's meshes are built: its motion over the frame, if any, and an animated object's
+    // emitters refused even when it rests at this frame.
+    auto moved = [&] {
+      if (motion) apply_motion(t, first_mesh, x, *motion);
+      else if (keyed) refuse_emitters(t, first_mesh, "keys");
+    };
     if (type == "obj" || type == "gltf") {
       if (light) throw InputError(fmt::format("{}: lights are quads or spheres", t.where("type")));
       std::string file = t.require_string("file");
@@ -589,7 +583,7 @@ class Loader {
       t.finish();
       if (type == "obj") load_obj(t, file, override_mat, x);
       else load_gltf_object(t, file, override_mat, x);
-      if (motion) apply_motion(t, first_mesh, x, *motion);
+      moved();
       return;
     }
     auto uvs = t.get("uv_scale", std::vector<double>{1, 1});
@@ -655,7 +649,7 @@ class Loader {
     if (sphere_light_ && repeat == 1) scene_.sphere_lights.push_back(*sphere_light_);
     sphere_light_.reset();
     scene_.meshes.push_back(std::move(b.mesh));
-    if (motion) apply_motion(t, first_mesh, x, *motion);
+    moved();
   }
 
   fs::path resolve_mesh_path(ConfigTable& t, const std::string& file) {

@@ -288,12 +288,7 @@ TEST(GltfAnimation, AGltfSequenceRendersFrameFilesWhoseMotionReprojectsThePrevio
   const std::string path = panning_wall(test::read_bytes(test::write_checker_png(dir))).write(dir, "pan.gltf");
   const auto f0 = frame_of(path, 0), f1 = frame_of(path, 1);
   ASSERT_EQ(f0->frames, 4);
-  RenderSettings s;
-  s.width = 96;
-  s.height = 72;
-  s.spp = 64;  // the albedo is noise-free but anti-aliased over the pixel: 64 samples settle it
-  s.reflection_levels = 0;
-  s.edge_subpixels = false;
+  const RenderSettings s = test::reprojection_settings();
   const AovFrame a = render_sequence_frame(*f0, nullptr, s), b = render_sequence_frame(*f1, f0.get(), s);
   // The wall fills the view; columns and rows away from the sides (what the motion uncovers).
   const test::Reprojection r =

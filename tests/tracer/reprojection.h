@@ -7,8 +7,21 @@
 #include <cmath>
 
 #include "core/image.h"
+#include "tracer/render.h"
 
 namespace dnb::test {
+
+// The frames the reprojection checks render: 96x72, no reflection levels or edge data, and 64
+// samples, since the albedo they compare is noise-free but anti-aliased over the pixel.
+inline RenderSettings reprojection_settings() {
+  RenderSettings s;
+  s.width = 96;
+  s.height = 72;
+  s.spp = 64;
+  s.reflection_levels = 0;
+  s.edge_subpixels = false;
+  return s;
+}
 
 // Bilinear fetch of `img` channel c at film position (fx, fy) (pixel centres at + 0.5).
 inline float fetch(const Image& img, float fx, float fy, int c) {

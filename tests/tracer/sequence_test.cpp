@@ -118,12 +118,7 @@ TEST(Sequence, MotionVectorsReprojectThePreviousFrameOntoThisOne) {
   test::TempDir dir;
   const std::string path = test::write_text(dir.file("pan.toml"), pan_scene("catmull-rom"));
   const auto f1 = frame_of(path, 1), f2 = frame_of(path, 2);
-  RenderSettings s;
-  s.width = 96;
-  s.height = 72;
-  s.spp = 64;  // the albedo is noise-free but anti-aliased over the pixel: 64 samples settle it
-  s.reflection_levels = 0;
-  s.edge_subpixels = false;
+  const RenderSettings s = test::reprojection_settings();
   const AovFrame a = render_sequence_frame(*f1, nullptr, s), b = render_sequence_frame(*f2, f1.get(), s);
   ASSERT_TRUE(b.has(layer::kMotion));
   const Image& mv = b.layer(layer::kMotion);
