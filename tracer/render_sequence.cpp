@@ -29,6 +29,17 @@ void check_same_geometry(const Scene& current, const Scene& previous) {
                                   current.meshes[i].triangles()));
 }
 
+// The barycentric coordinates (b1, b2) of point p in triangle (c0, c1, c2): p = c0 + b1 (c1 - c0)
+// + b2 (c2 - c0), solved in the triangle's plane. Computed here, from the hit point, rather than
+// carried in every SurfaceHit of the render's hot path for this one use.
+void barycentrics(const Vec3* c, Vec3 p, float& b1, float& b2) {
+  const Vec3 e1 = c[1] - c[0], e2 = c[2] - c[0], d = p - c[0];
+  const float d11 = dot(e1, e1), d12 = dot(e1, e2), d22 = dot(e2, e2), dp1 = dot(d, e1), dp2 = dot(d, e2);
+  const float det = d11 * d22 - d12 * d12;
+  b1 = det != 0 ? (d22 * dp1 - d12 * dp2) / det : 0.0f;
+  b2 = det != 0 ? (d11 * dp2 - d12 * dp1) / det : 0.0f;
+}
+
 }  // namespace
 
 Image motion_layer(const Scene& current, const Scene& previous, int width, int height, int threads) {
@@ -46,9 +57,11 @@ Image motion_layer(const Scene& current, const Scene& previous, int width, int h
         if (current.intersect(ray, hit)) {
           // The same point of the same triangle in the previous frame's geometry (step 0: its
           // instant), then through the previous camera.
-          const Mesh& m = previous.meshes[hit.geom];
-          const Vec3* c = &m.positions[3 * std::size_t(hit.prim)];
-          const Vec3 p = c[0] * (1.0f - hit.b1 - hit.b2) + c[1] * hit.b1 + c[2] * hit.b2;
+          const std::size_t corner = 3 * std::size_t(hit.prim);
+          float b1, b2;
+          barycentrics(&current.meshes[hit.geom].positions[corner], hit.p, b1, b2);
+          const Vec3* c = &previous.meshes[hit.geom].positions[corner];
+          const Vec3 p = c[0] * (1.0f - b1 - b2) + c[1] * b1 + c[2] * b2;
           seen = previous.camera.project(p, width, height, qx, qy);
         } else {
           seen = previous.camera.project_direction(ray.dir, width, height, qx, qy);

@@ -277,8 +277,6 @@ void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const
   hit.t = rh.ray.tfar;
   hit.geom = rh.hit.geomID;
   hit.prim = prim;
-  hit.b1 = b1;
-  hit.b2 = b2;
   hit.p = ray.origin + ray.dir * hit.t;
   Vec3 ng = normalize(Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
   hit.front = dot(ng, ray.dir) < 0;

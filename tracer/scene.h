@@ -133,7 +133,6 @@ struct SurfaceHit {
   float roughness_scale = 1;  // the material's roughness map at (u, v) (Material::roughness_map)
   bool front = true;          // the ray hit the triangle's front (winding) side
   unsigned geom = 0, prim = 0;
-  float b1 = 0, b2 = 0;       // barycentric coordinates of the hit in triangle prim (Embree's u, v)
   const Material* material = nullptr;
   Vec3 albedo;                // diffuse albedo at the hit: material albedo x texture (0 for mirrors)
   // Radiance emitted towards the ray's origin (0 unless an emitter seen from its emitting side).
