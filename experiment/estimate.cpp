@@ -287,7 +287,7 @@ RunEstimate estimate_run(const ExperimentConfig& c, const RunOptions& opt, const
     // probe of its first frame; a still: its one plan.
     const bool sequence = spec.frames > 0;
     std::optional<SequenceRun> run;
-    if (sequence) run.emplace(spec.name, spec.frames, cache, opt.use_cache);
+    if (sequence) run.emplace(spec.name, spec.frames, cache);
     SceneModel m;
     for (int t = 0; t < std::max(spec.frames, 1); ++t) {
       // The plans as the run makes them, without the reference; loading the scene is timed as

@@ -73,7 +73,7 @@ ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt,
     if (s.frames > 0) {
       // A sequence: its frames in order, each planned (and its reference rendered) when its turn
       // comes; the temporal methods' history carries from one to the next (docs/sequences.md).
-      SequenceRun sequence(s.name, s.frames, cache, opt.use_cache);
+      SequenceRun sequence(s.name, s.frames, cache);
       for (int t = 0; t < s.frames; ++t) run_plans(*rendered_scene_plans(c, opt, registry, cache, s.name, true, &sequence, t));
       if (root) store->set_sequence(s.name, score_sequence(store->document(), opt.out_dir, s.name, s.frames));
       continue;

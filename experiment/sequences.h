@@ -37,8 +37,8 @@ AovFrame sequence_input(Cache& cache, const Scene& scene, const std::string& nam
 // One sequence of a run: its name and length, and its temporal methods' state.
 class SequenceRun {
  public:
-  SequenceRun(std::string name, int frames, Cache& cache, bool use_cache)
-      : name_(std::move(name)), frames_(frames), cache_(cache), use_cache_(use_cache) {}
+  // The replay reads the frames from `cache`: this run rendered them (or found them) already.
+  SequenceRun(std::string name, int frames, Cache& cache) : name_(std::move(name)), frames_(frames), cache_(cache) {}
   const std::string& name() const { return name_; }
   int frames() const { return frames_; }
 
@@ -60,7 +60,6 @@ class SequenceRun {
   std::string name_;
   int frames_;
   Cache& cache_;
-  bool use_cache_;
   std::map<std::tuple<std::string, int, std::uint64_t>, State> states_;
 };
 

@@ -448,8 +448,12 @@ Table sequence_table(const ResultsDocument& res) {
   for (const auto& s : res.sequences)
     if (std::find(rows.begin(), rows.end(), std::pair(s.sequence, s.spp)) == rows.end()) rows.emplace_back(s.sequence, s.spp);
   bool several = false;
-  for (const auto& [sequence, spp] : rows)
+  for (const auto& key : rows)
     for (const char* metric : {"mse", "tmse", "disocclusion_mse"}) {
+      // Plain names, not structured bindings: clang 14 (the fuzz and sanitizer builds) cannot
+      // capture a binding in a lambda.
+      const std::string& sequence = key.first;
+      const int spp = key.second;
       auto values = [&](const std::string& method) {
         std::map<std::uint64_t, double> out;
         for (const auto& s : res.sequences)
