@@ -21,6 +21,8 @@ static int list_methods() {
       auto instance = MethodRegistry::global().create(m->name);
       auto layers = instance->required_layers();
       fmt::print("    layers: {}\n", layers.empty() ? std::string("none") : fmt::format("{}", fmt::join(layers, ", ")));
+      if (const auto optional = instance->optional_layers(); !optional.empty())
+        fmt::print("    optional layers: {}\n", fmt::join(optional, ", "));
     } catch (const std::exception& e) {
       fmt::print("    layers: (cannot create with defaults: {})\n", e.what());
     }

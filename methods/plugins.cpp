@@ -181,9 +181,10 @@ class PluginMethod : public Method {
     return out;
   }
   std::vector<std::string> optional_layers() const override {
+    std::vector<std::string> out = m_->optional_layers;
     if (m_->temporal && std::find(m_->layers.begin(), m_->layers.end(), layer::kMotion) != m_->layers.end())
-      return {layer::kMotion};
-    return {};
+      out.push_back(layer::kMotion);
+    return out;
   }
   bool temporal() const override { return m_->temporal; }
 
@@ -197,6 +198,8 @@ class PluginMethod : public Method {
       ScopedPhase p(r.stats, "write_input");
       std::vector<std::string> layers;  // the declared ones the frame has (motion only in sequences)
       for (const auto& l : m_->layers)
+        if (f.has(l)) layers.push_back(l);
+      for (const auto& l : m_->optional_layers)
         if (f.has(l)) layers.push_back(l);
       write_frame(f, in, {.compress = false, .edges = false, .layers = layers, .durable = false});
       std::error_code ec;
@@ -318,12 +321,24 @@ PluginManifest manifest_from(const ConfigFile& file, const std::string& path, co
   for (const auto& l : m.layers)
     if (!layer::find(l))
       throw InputError(fmt::format("{}: unknown layer '{}' (a frame's layers: {})", pl->where("layers"), l, layer::names_help()));
+  m.optional_layers = pl->get("optional_layers", std::vector<std::string>{});
+  for (const auto& l : m.optional_layers) {
+    if (!layer::find(l))
+      throw InputError(
+          fmt::format("{}: unknown layer '{}' (a frame's layers: {})", pl->where("optional_layers"), l, layer::names_help()));
+    if (std::find(m.layers.begin(), m.layers.end(), l) != m.layers.end())
+      throw InputError(fmt::format("{}: '{}' is in layers too", pl->where("optional_layers"), l));
+  }
   m.temporal = pl->get("temporal", false);
   if (m.temporal && m.protocol != PluginProtocol::Worker)
     throw InputError(fmt::format("{}: a temporal plug-in keeps history between frames, which needs protocol = \"worker\" "
                                  "(one process for the run; docs/plugins.md, \"Sequences\")",
                                  pl->where("temporal")));
-  if (std::find(m.layers.begin(), m.layers.end(), layer::kMotion) != m.layers.end() && !m.temporal)
+  const auto reads = [&m](const char* l) {
+    return std::find(m.layers.begin(), m.layers.end(), l) != m.layers.end() ||
+           std::find(m.optional_layers.begin(), m.optional_layers.end(), l) != m.optional_layers.end();
+  };
+  if (reads(layer::kMotion) && !m.temporal)
     throw InputError(fmt::format("{}: layer 'motion' is in the frames of sequences only, which a plug-in reads as one when "
                                  "`temporal = true`",
                                  pl->where("layers")));

@@ -35,6 +35,9 @@ struct PluginManifest {
   std::vector<std::string> command;  // argv with relative paths resolved
   PluginProtocol protocol = PluginProtocol::Frame;
   std::vector<std::string> layers;
+  // `optional_layers`: layers passed where the frame has them and left out where it does not (a
+  // tracer frame's reflection levels, which an imported frame lacks); the program checks.
+  std::vector<std::string> optional_layers;
   // `temporal = true` (worker protocol only): the plug-in keeps history between the frames of a
   // sequence (Method::temporal()); its requests carry "sequence" {id, index, count}, and `motion`
   // among its layers is passed where the frame has it.

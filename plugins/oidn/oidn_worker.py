@@ -62,6 +62,7 @@ import re  # noqa: E402
 import numpy as np  # noqa: E402
 
 import denoisebench_plugin  # noqa: E402
+import oidn_albedo  # noqa: E402
 from denoisebench_plugin import run  # noqa: E402
 
 PACKAGE = "pyoidn"
@@ -192,13 +193,20 @@ def _rgb(frame, layer):
     return np.ascontiguousarray(frame[layer], dtype=np.float32)
 
 
+ALBEDO = ("oidn", "tracer")
+
+
 def denoise(frame, params, oidn):
     threads = int(params.get("threads", 0))
     quality = str(params.get("quality", "high"))
     if quality not in QUALITY:
         raise ValueError(f"quality '{quality}': expected one of {', '.join(QUALITY)}")
     color = _rgb(frame, "color")
-    albedo = _rgb(frame, "albedo")  # the frame's own arrays: the prefilters may overwrite them
+    mode = str(params.get("albedo", "oidn"))
+    if mode not in ALBEDO:
+        raise ValueError(f"albedo '{mode}': expected one of {', '.join(ALBEDO)}")
+    # The frame's own arrays or copies: the prefilters may overwrite them.
+    albedo = oidn_albedo.oidn_albedo(frame) if mode == "oidn" else _rgb(frame, "albedo")
     normal = _rgb(frame, "normal")
     out = np.empty_like(color)
     if params.get("clean_aux", False):

@@ -129,13 +129,57 @@ TEST(Plugins, OidnRowIsOidnItself) {
     GTEST_SKIP() << "pyoidn (with cffi) does not import in " << py << " (scripts/setup installs both)";
   test::TempDir dir;
   const std::string in = dir.file("in.exr"), out = dir.file("out.exr");
-  for (const auto& args : {"render cornell-box --spp 16 --size 64x48 --seed 3 -o " + in, "denoise oidn " + in + " -o " + out}) {
+  const std::string out_tracer = dir.file("out_tracer.exr");
+  for (const auto& args : {"render cornell-box --spp 16 --size 64x48 --seed 3 -o " + in, "denoise oidn " + in + " -o " + out,
+                           "denoise oidn " + in + " -o " + out_tracer + " --set albedo=tracer"}) {
     auto r = test::run_denoisebench(args);
     ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.output;
   }
-  auto r = test::run_command(py + " " + test::source_dir() + "/python/oidn_direct.py " + in + " " + out + " 2>&1");
+  // The default (OIDN's albedo convention) and `albedo = tracer` (T as stored), each against
+  // OIDN's own API on the same buffers.
+  const std::string direct = py + " " + test::source_dir() + "/python/oidn_direct.py ";
+  auto r = test::run_command(direct + in + " " + out + " 2>&1");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr(" 0 of 9216 values differ"));
+  r = test::run_command(direct + "--tracer " + in + " " + out_tracer + " 2>&1");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr(" 0 of 9216 values differ"));
+  // The box's light is in view: its albedo is 0 as stored and 1 by OIDN's convention, so the
+  // two modes must differ (the check sees a change of albedo).
+  r = test::run_command(direct + in + " " + out_tracer + " 2>&1");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  // A frame without the optional layers (an imported frame has no reflection levels) runs too,
+  // and without emission or levels the default albedo is T as stored, where T is non-zero.
+  const AovFrame full = read_frame(in);
+  AovFrame bare(full.width(), full.height());
+  bare.meta = full.meta;
+  for (const char* name : {"color", "albedo", "normal"}) bare.set(name, full.layer(name));
+  write_frame(bare, dir.file("bare.exr"));
+  auto b = test::run_denoisebench("denoise oidn " + dir.file("bare.exr") + " -o " + dir.file("bare_out.exr"));
+  ASSERT_EQ(b.exit_code, 0) << b.output;
+  r = test::run_command(direct + dir.file("bare.exr") + " " + dir.file("bare_out.exr") + " 2>&1");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
+// OIDN's albedo convention as the plug-in makes it (plugins/oidn/oidn_albedo.py), pixel by pixel:
+// T where it is non-zero; where it is 0, what a smooth mirror or pane shows (refl1.tint *
+// refl1.albedo), 1 on an emitter, and 0 elsewhere (rough metal or glass).
+TEST(Plugins, OidnAlbedoFollowsOidnsConvention) {
+  auto r = test::run_command_stdout(
+      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
+      "/plugins/oidn\"); import numpy as np, oidn_albedo as o\n"
+      "z = np.zeros((1, 5, 3), np.float32)\n"
+      "f = {n: z.copy() for n in (\"albedo\", \"emission\", \"refl1.albedo\", \"refl1.tint\")}\n"
+      "f[\"albedo\"][0, 0] = [0.5, 0.4, 0.3]; f[\"emission\"][0, 0] = [3, 3, 3]\n"  // T wins over emission
+      "f[\"emission\"][0, 1] = [2, 0, 0]\n"
+      "f[\"refl1.albedo\"][0, 2] = [0.5, 0.6, 0.7]; f[\"refl1.tint\"][0, 2] = [0.9, 0.5, 0.1]\n"
+      "f[\"refl1.albedo\"][0, 4] = [2, 2, 2]; f[\"refl1.tint\"][0, 4] = [1, 1, 1]\n"  // clamped to 1
+      "print(\" \".join(f\"{v:.3f}\" for v in o.oidn_albedo(f).ravel()))\n"
+      "print(\" \".join(f\"{v:.3f}\" for v in o.oidn_albedo({\"albedo\": z.copy()}).ravel()))'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output,
+            "0.500 0.400 0.300 1.000 1.000 1.000 0.450 0.300 0.070 0.000 0.000 0.000 1.000 1.000 1.000\n"
+            "0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000 0.000\n");
 }
 
 // The repository's `oidn` plug-in (plugins/oidn: Intel Open Image Denoise from the PyPI package
@@ -427,6 +471,9 @@ TEST(Plugins, BadManifestsExit2NamingTheFileAndKey) {
       {good_plugin + "[params.r]\ntype = \"integer\"\ndefault = \"1\"\n", "key 'params.r.type'"},
       {good_plugin + "[params.r]\ntype = \"int\"\n", "has no key 'default'"},
       {good_plugin + "timeout_seconds = -1\n", "key 'plugin.timeout_seconds'"},
+      {good_plugin + "optional_layers = [\"refl1.albedoo\"]\n", "unknown layer 'refl1.albedoo'"},
+      {good_plugin + "optional_layers = [\"color\"]\n", "'color' is in layers too"},
+      {good_plugin + "optional_layers = [\"motion\"]\n", "sequences only"},
   };
   for (const auto& c : cases) {
     test::TempDir dir;
