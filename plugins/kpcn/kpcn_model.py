@@ -75,6 +75,16 @@ class Kpcn(nn.Module):
         self.trunk = nn.Sequential(*layers)
         self.diffuse_head = nn.Conv2d(channels, kernel * kernel, 1)
         self.specular_head = nn.Conv2d(channels, kernel * kernel, 1)
+        # The untrained kernels keep half of each pixel's own value (the centre's logit is
+        # log(k^2 - 1) above the others'): an untrained or barely trained net is the input half
+        # blurred, not an 11 x 11 box blur, which erased thin lines over whole regions (the held-out
+        # scene B of issue 51, 20x the input's mse). Training moves the weight off the centre
+        # only where that lowers the loss.
+        with torch.no_grad():
+            for head in (self.diffuse_head, self.specular_head):
+                head.weight.mul_(0.1)
+                head.bias.zero_()
+                head.bias[(kernel * kernel) // 2] = float(np.log(kernel * kernel - 1))
         self.kernel = kernel
         self.radius = receptive_radius(dilations)
 
@@ -212,15 +222,6 @@ def load(path):
     model.load_state_dict(blob["state"])
     model.eval()
     return model
-
-
-def log_l1(out, target):
-    """The training loss: L1 between log(1 + x) of the output and of the reference (KPCN's HDR
-    transform). Tried first and not kept: Noise2Noise's relative L2 against the 1024-spp
-    references, whose fireflies (small lamps) dominated every batch and kept the loss from
-    falling; L1 in log space bounds each pixel's pull, so a firefly of the target costs what a
-    small error does (docs/method-defaults.md, "kpcn")."""
-    return (torch.log1p(out) - torch.log1p(target)).abs().mean()
 
 
 def parameter_count(model):
