@@ -171,6 +171,28 @@ def _run_worker(fn, setup, info):
             answer({"ok": False, "error": f"{type(e).__name__}: {e}"})
 
 
+
+def unavailable(name, why):
+    """Says plug-in `name` cannot run here (no weights, a missing library) and exits: in the worker
+    protocol as its ready line {"ready": false, "unavailable": why}, so the harness skips its
+    cells with that reason; in the frame protocol (arguments given) as an error."""
+    if len(sys.argv) > 1:
+        sys.exit(f"{name}: {why}")
+    sys.__stdout__.write(json.dumps({"ready": False, "unavailable": why}) + "\n")
+    sys.__stdout__.flush()
+    sys.exit(0)
+
+
+def torch_threads(n):
+    """Sets PyTorch's intra-op threads (n <= 0: every core this process may use) and returns the
+    count. For the learned plug-ins' `threads` parameter."""
+    import torch
+
+    if n <= 0:
+        n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    torch.set_num_threads(n)
+    return n
+
 def run(fn, setup=None, info=None):
     """Runs `fn(frame, params) -> H x W x 3 array` under the protocol the harness started this
     program with. With `setup` (worker protocol), `setup()` runs once before the ready line (load

@@ -224,11 +224,3 @@ def load(path):
 
 def parameter_count(model):
     return int(sum(p.numel() for p in model.parameters()))
-
-
-def threads(n):
-    """Sets torch's intra-op threads (0: every core) and returns the count."""
-    if n <= 0:
-        n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    torch.set_num_threads(n)
-    return n

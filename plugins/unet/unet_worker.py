@@ -22,22 +22,14 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_WEIGHTS = os.path.join(HERE, "weights", "unet.pt")
 TRAIN = "scripts/train_unet --out plugins/unet/weights (docs/method-defaults.md, \"unet\")"
 
-
-def _unavailable(why):
-    if len(sys.argv) > 1:  # frame protocol: an error
-        sys.exit(f"unet: {why}")
-    sys.__stdout__.write(json.dumps({"ready": False, "unavailable": why}) + "\n")
-    sys.__stdout__.flush()
-    sys.exit(0)
-
+from denoisebench_plugin import run, torch_threads, unavailable  # noqa: E402
 
 try:
     import torch  # noqa: F401
 except ImportError as e:
-    _unavailable(f"PyTorch is not importable ({e}): install Debian's python3-torch (scripts/setup does)")
+    unavailable("unet", f"PyTorch is not importable ({e}): install Debian's python3-torch (scripts/setup does)")
 
 import unet_model  # noqa: E402
-from denoisebench_plugin import run  # noqa: E402
 
 
 def validation_summary(rows):
@@ -53,7 +45,7 @@ def validation_summary(rows):
 def setup():
     path = os.environ.get("DENOISEBENCH_UNET_WEIGHTS") or DEFAULT_WEIGHTS
     if not os.path.isfile(path):
-        _unavailable(f"no trained weights at '{path}': train them with {TRAIN}")
+        unavailable("unet", f"no trained weights at '{path}': train them with {TRAIN}")
     with open(path, "rb") as f:
         digest = hashlib.sha256(f.read()).hexdigest()
     model = unet_model.load(path)
@@ -77,7 +69,7 @@ def setup():
 
 
 def denoise(frame, params, state):
-    unet_model.threads(int(params.get("threads", 0)))
+    torch_threads(int(params.get("threads", 0)))
     return unet_model.denoise_planes(state["model"], unet_model.prepare(frame))
 
 
