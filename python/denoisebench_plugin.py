@@ -193,6 +193,47 @@ def torch_threads(n):
     torch.set_num_threads(n)
     return n
 
+
+def _validation_summary(rows):
+    """One line from a weights manifest's held-out rows: the mean 8-bit mse of input and net."""
+    a = sum(r["input_mse"] for r in rows) / len(rows)
+    b = sum(r["net_mse"] for r in rows) / len(rows)
+    scenes = len({r["scene"] for r in rows})
+    return f"8-bit mse {a:.2f} -> {b:.2f} (mean of {len(rows)} held-out frames, {scenes} scenes)"
+
+
+def learned_weights(name, folder, env, train, load, parameter_count):
+    """The weights of learned plug-in `name` (kpcn, unet): the file named by the first set
+    variable of `env`, else FOLDER/weights/NAME.pt; without it, `unavailable` saying to run
+    `train`. Returns (model, info): `load(path)`'s model and what every cell records (the
+    weights' SHA-256, the training's steps, scenes and held-out scores from the manifest NAME.json
+    the training script wrote beside them)."""
+    import hashlib
+
+    path = next((os.environ[v] for v in env if os.environ.get(v)), os.path.join(folder, "weights", f"{name}.pt"))
+    if not os.path.isfile(path):
+        unavailable(name, f"no trained weights at '{path}': train them with {train}")
+    with open(path, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()
+    model = load(path)
+    manifest = {}
+    man_path = os.path.splitext(path)[0] + ".json"
+    if os.path.isfile(man_path):
+        with open(man_path) as f:
+            manifest = json.load(f)
+    print(f"{name}: weights {path} (sha256 {digest[:16]}, {parameter_count(model)} parameters, "
+          f"{manifest.get('steps', '?')} training steps)")
+    info = {"weights": os.path.relpath(path, folder) if path.startswith(folder) else path, "weights_sha256": digest,
+            "parameters": parameter_count(model)}
+    for key in ("steps", "train_seconds", "final_loss", "script_sha256", "model_sha256", "torch_version"):
+        if key in manifest:
+            info[key] = manifest[key]
+    if "scenes" in manifest:
+        info["trained_on"] = ", ".join(s["name"] for s in manifest["scenes"] if s.get("split") != "validation")
+    if manifest.get("validation"):
+        info["validation"] = _validation_summary(manifest["validation"])
+    return model, info
+
 def run(fn, setup=None, info=None):
     """Runs `fn(frame, params) -> H x W x 3 array` under the protocol the harness started this
     program with. With `setup` (worker protocol), `setup()` runs once before the ready line (load

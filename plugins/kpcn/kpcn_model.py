@@ -39,8 +39,6 @@ halo of the receptive field, so memory stays bounded whatever the frame's size, 
 does not depend on the tile size beyond float rounding (the halo covers every pixel a tile's
 output depends on; measured 4e-6 between tile sizes on values around 1).
 """
-import os
-
 import numpy as np
 import torch
 import torch.nn as nn
@@ -226,12 +224,3 @@ def load(path):
 
 def parameter_count(model):
     return int(sum(p.numel() for p in model.parameters()))
-
-
-def threads(n):
-    """Sets torch's intra-op threads (0: every core) and returns the count."""
-    if n <= 0:
-        n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    torch.set_num_threads(n)
-    return n
-
