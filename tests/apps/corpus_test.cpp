@@ -1,0 +1,126 @@
+// The learned baselines' training corpus (python/training_corpus.py) holds no evaluation or
+// generalisation scene: checked on the manifests of the committed weights (what the networks
+// were actually trained on), and on the generator itself.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <map>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "core/exr_io.h"
+#include "test_util.h"
+
+namespace dnb {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// Every scene of configs/scenes/ (the evaluation scenes of quick.toml, paper.toml and
+// mcguire.toml, and generalisation.toml's): name -> the tracer's content hash of the loaded
+// scene, rendered at 1 spp on 8x8 pixels. A McGuire scene needs the scenes folder; without it
+// its hash is missing from the map (its meshes are still checked by name below).
+std::map<std::string, std::string> evaluation_hashes(const test::TempDir& dir, std::vector<std::string>* missing) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::directory_iterator(test::source_dir() + "/configs/scenes")) {
+    if (e.path().extension() != ".toml") continue;
+    const std::string name = e.path().stem().string();
+    const std::string exr = dir.file(name + ".exr");
+    auto r = test::run_denoisebench("render " + name + " --spp 1 --size 8x8 -o " + exr + " 2>&1");
+    if (r.exit_code != 0) {
+      EXPECT_EQ(name.rfind("mcguire-", 0), 0u) << name << " does not render: " << r.output;
+      missing->push_back(name);
+      continue;
+    }
+    out[name] = read_frame(exr).meta.extra.at("scene_hash");
+  }
+  return out;
+}
+
+TEST(Corpus, CommittedWeightsWereTrainedOnNoEvaluationScene) {
+  test::TempDir dir;
+  std::vector<std::string> missing;
+  const auto eval = evaluation_hashes(dir, &missing);
+  ASSERT_GE(eval.size(), 8u) << "the built-in evaluation scenes must all render";
+  std::set<std::string> eval_files;  // SHA-256 of the evaluation scene files
+  std::set<std::string> eval_meshes;  // meshes they read, relative to the scenes folder
+  auto py = test::run_command_stdout(
+      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
+      "/python\"); import json, training_corpus as c; f, m = c.evaluation_scene_files(); "
+      "print(json.dumps({\"files\": [c.sha256_file(p) for p in f], \"meshes\": sorted(m), \"pool\": c.MESH_POOL}))'");
+  ASSERT_EQ(py.exit_code, 0) << py.output;
+  const json ev = json::parse(py.output);
+  for (const auto& h : ev["files"]) eval_files.insert(h.get<std::string>());
+  for (const auto& m : ev["meshes"]) eval_meshes.insert(m.get<std::string>());
+  ASSERT_GE(eval_files.size(), eval.size());
+  ASSERT_FALSE(eval_meshes.empty()) << "the McGuire scenes' meshes are read from configs/scenes/";
+  // The generator's mesh pool itself.
+  for (const auto& m : ev["pool"]) EXPECT_FALSE(eval_meshes.count(m.get<std::string>())) << m;
+
+  int manifests = 0;
+  for (const char* m : {"plugins/kpcn/weights/kpcn.json", "plugins/unet/weights/unet.json"}) {
+    const fs::path p = fs::path(test::source_dir()) / m;
+    if (!fs::exists(p)) continue;
+    ++manifests;
+    const json doc = json::parse(test::slurp(p));
+    ASSERT_TRUE(doc.contains("scenes")) << m;
+    ASSERT_GE(doc["scenes"].size(), 2u) << m;
+    for (const auto& s : doc["scenes"]) {
+      const std::string name = s.at("name");
+      EXPECT_FALSE(eval_files.count(s.at("sha256").get<std::string>())) << m << ": " << name << " is an evaluation scene's file";
+      for (const auto& [ename, hash] : eval)
+        EXPECT_NE(s.at("content_hash").get<std::string>(), hash) << m << ": " << name << " is evaluation scene " << ename;
+      for (const auto& mesh : s.at("meshes"))
+        EXPECT_FALSE(eval_meshes.count(mesh.get<std::string>())) << m << ": " << name << " reads " << mesh;
+    }
+  }
+  EXPECT_GE(manifests, 1) << "no committed weights' manifest to check";
+  if (!missing.empty())
+    std::printf("(without the scenes folder: %zu McGuire scenes checked by their meshes only)\n", missing.size());
+}
+
+// The generator: a scene is a function of (seed, index) only, two seeds give other scenes, and
+// over 30 scenes every material type and light kind of the tracer appears (the corpus is to hold
+// them all: docs/method-defaults.md, "The training corpus").
+TEST(Corpus, ScenesAreFunctionsOfTheSeedAndCoverEveryMaterial) {
+  test::TempDir dir;
+  auto r = test::run_command_stdout(
+      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
+      "/python\"); import numpy as np, training_corpus as c\n"
+      "def scenes(seed):\n"
+      "    rng = np.random.default_rng(seed)\n"
+      "    return [c.procedural_scene(rng, i, \"" + dir.file("") + "\", \"/scenes\")[0] for i in range(30)]\n"
+      "a, b, d = scenes(1), scenes(1), scenes(2)\n"
+      "print(a == b, a[0] != d[0])\n"
+      "text = \"\".join(a)\n"
+      "kinds = [f\"type = \\\"{k}\\\"\" for k in (\"mirror\", \"coated\", \"conductor\", \"plastic\", \"dielectric\", \"image\", "
+      "\"leaf\", \"obj\", \"arch\")] + [\"[sun]\", \"material = \\\"e0\\\"\", \"roughness = \", \"name = \\\"lamp0\\\"\"]\n"
+      "print(\" \".join(k for k in kinds if k not in text) or \"all\")'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output, "True True\nall\n");
+}
+
+// The relative loss: 1 (up to its epsilon) for an output equal to the noisy input, 0 for the
+// reference itself, above 1 for an output worse than the input.
+TEST(Corpus, RelativeLossIsTheErrorOverTheInputs) {
+  if (test::run_command("/usr/bin/python3 -c 'import torch' 2>&1").exit_code != 0)
+    GTEST_SKIP() << "PyTorch is not importable by /usr/bin/python3 (scripts/setup installs Debian's python3-torch)";
+  auto r = test::run_command_stdout(
+      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
+      "/python\"); import torch, training_corpus as c\n"
+      "torch.manual_seed(1)\n"
+      "ref = torch.rand(2, 3, 8, 8) * 0.8\n"
+      "noisy = (ref + 0.2 * torch.randn(2, 3, 8, 8)).clamp_min(0)\n"
+      "same = float(c.relative_display_loss(noisy, ref, noisy))\n"
+      "exact = float(c.relative_display_loss(ref, ref, noisy))\n"
+      "worse = float(c.relative_display_loss(noisy * 2, ref, noisy))\n"
+      "print(0.98 < same < 1.0, exact == 0.0, worse > 1.0)'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // same: l / (l + 2e-3) with l ~ 0.1 (noise of 0.2 in display space): 0.98 .. 1.
+  EXPECT_EQ(r.output, "True True True\n");
+}
+
+}  // namespace
+}  // namespace dnb
