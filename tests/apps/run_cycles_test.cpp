@@ -30,7 +30,7 @@ height = 24
 seeds = [1, 2, 3]
 spp = [4]
 max_depth = 6
-methods = ["am", "atrous", "bilateral", "guided", "nlmeans", "proposed", "svgf", "nfor", "kpcn", "oidn", "irradiance_cache"]
+methods = ["am", "atrous", "bilateral", "guided", "nlmeans", "proposed", "svgf", "nfor", "kpcn", "unet", "oidn", "irradiance_cache"]
 [reference]
 spp = 16
 block_spp = 8
@@ -83,7 +83,7 @@ TEST(RunCycles, RendersInputsReferenceCurveAndEveryMethodThenReusesTheCache) {
     cells.emplace(rec["method"].get<std::string>(), rec["seed"].get<std::uint64_t>());
   }
   EXPECT_EQ(curve, (std::set<int>{2, 4}));
-  for (const char* m : {"input", "am", "atrous", "bilateral", "guided", "nlmeans", "proposed", "svgf", "nfor", "kpcn", "oidn"})
+  for (const char* m : {"input", "am", "atrous", "bilateral", "guided", "nlmeans", "proposed", "svgf", "nfor", "kpcn", "unet", "oidn"})
     for (std::uint64_t seed : {1, 2, 3}) EXPECT_TRUE(cells.count({m, seed})) << m << " seed " << seed;
   // An input is two Cycles renders (half buffers) with the variances they give.
   const ExrChannels frame = read_exr_channels(dir.file("first/frames/box/input_4_s2.exr"), false);
