@@ -3,8 +3,8 @@
 documented one-call entry, a different path from the `oidn` plug-in's ctypes calls) on a harness
 frame's colour, albedo and normal, in the plug-in's default mode (RT filter, hdr, quality high,
 no cleanAux), and compares the result with an image the plug-in wrote. The albedo is OIDN's
-convention as the plug-in makes it by default (plugins/oidn/oidn_albedo.py), or with --tracer
-the frame's albedo layer as stored (the plug-in's `albedo = "tracer"`).
+convention as the plug-in makes it with `albedo = "oidn"` (plugins/oidn/oidn_albedo.py), or with
+--tracer the frame's albedo layer as stored (the plug-in's default, `albedo = "tracer"`).
 
     .venv/bin/python python/oidn_direct.py [--tracer] FRAME.exr PLUGIN_OUT.exr
 

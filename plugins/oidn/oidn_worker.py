@@ -202,7 +202,7 @@ def denoise(frame, params, oidn):
     if quality not in QUALITY:
         raise ValueError(f"quality '{quality}': expected one of {', '.join(QUALITY)}")
     color = _rgb(frame, "color")
-    mode = str(params.get("albedo", "oidn"))
+    mode = str(params.get("albedo", "tracer"))
     if mode not in ALBEDO:
         raise ValueError(f"albedo '{mode}': expected one of {', '.join(ALBEDO)}")
     # The frame's own arrays or copies: the prefilters may overwrite them.

@@ -129,33 +129,34 @@ TEST(Plugins, OidnRowIsOidnItself) {
     GTEST_SKIP() << "pyoidn (with cffi) does not import in " << py << " (scripts/setup installs both)";
   test::TempDir dir;
   const std::string in = dir.file("in.exr"), out = dir.file("out.exr");
-  const std::string out_tracer = dir.file("out_tracer.exr");
+  const std::string out_convention = dir.file("out_convention.exr");
   for (const auto& args : {"render cornell-box --spp 16 --size 64x48 --seed 3 -o " + in, "denoise oidn " + in + " -o " + out,
-                           "denoise oidn " + in + " -o " + out_tracer + " --set albedo=tracer"}) {
+                           "denoise oidn " + in + " -o " + out_convention + " --set albedo=oidn"}) {
     auto r = test::run_denoisebench(args);
     ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.output;
   }
-  // The default (OIDN's albedo convention) and `albedo = tracer` (T as stored), each against
-  // OIDN's own API on the same buffers.
+  // The default (T as stored) and `albedo = oidn` (OIDN's convention), each against OIDN's own
+  // API on the same buffers.
   const std::string direct = py + " " + test::source_dir() + "/python/oidn_direct.py ";
-  auto r = test::run_command(direct + in + " " + out + " 2>&1");
+  auto r = test::run_command(direct + "--tracer " + in + " " + out + " 2>&1");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr(" 0 of 9216 values differ"));
-  r = test::run_command(direct + "--tracer " + in + " " + out_tracer + " 2>&1");
+  r = test::run_command(direct + in + " " + out_convention + " 2>&1");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr(" 0 of 9216 values differ"));
   // The box's light is in view: its albedo is 0 as stored and 1 by OIDN's convention, so the
   // two modes must differ (the check sees a change of albedo).
-  r = test::run_command(direct + in + " " + out_tracer + " 2>&1");
+  r = test::run_command(direct + in + " " + out + " 2>&1");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   // A frame without the optional layers (an imported frame has no reflection levels) runs too,
-  // and without emission or levels the default albedo is T as stored, where T is non-zero.
+  // and without emission or levels OIDN's convention falls back to T as stored.
   const AovFrame full = read_frame(in);
   AovFrame bare(full.width(), full.height());
   bare.meta = full.meta;
   for (const char* name : {"color", "albedo", "normal"}) bare.set(name, full.layer(name));
   write_frame(bare, dir.file("bare.exr"));
-  auto b = test::run_denoisebench("denoise oidn " + dir.file("bare.exr") + " -o " + dir.file("bare_out.exr"));
+  auto b = test::run_denoisebench("denoise oidn " + dir.file("bare.exr") + " -o " + dir.file("bare_out.exr") +
+                                  " --set albedo=oidn");
   ASSERT_EQ(b.exit_code, 0) << b.output;
   r = test::run_command(direct + dir.file("bare.exr") + " " + dir.file("bare_out.exr") + " 2>&1");
   EXPECT_EQ(r.exit_code, 0) << r.output;
