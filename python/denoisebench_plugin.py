@@ -234,6 +234,25 @@ def learned_weights(name, folder, env, train, load, parameter_count):
         info["validation"] = _validation_summary(manifest["validation"])
     return model, info
 
+
+def noise_clamp(color, variance, output, c):
+    """Limits how far a denoiser moves each pixel from its noisy input to `c` standard
+    deviations of the pixel's mean, per channel: out = color + clip(output - color, -c s, c s),
+    s = sqrt(variance averaged over the pixel's 3x3 neighbourhood; the per-pixel estimate has 7
+    degrees of freedom, the average about 60). A converged pixel (s ~ 0) keeps its value; a noisy
+    one may move as far as its noise reaches. c <= 0 returns `output` unchanged. Arrays are
+    H x W x 3. The learned plug-ins use it against erasing what a nearly converged input already
+    holds (docs/method-defaults.md, "The learned baselines on scenes outside the corpus")."""
+    if c <= 0:
+        return output
+    v = np.maximum(np.asarray(variance, np.float64), 0.0)
+    p = np.pad(v, ((1, 1), (1, 1), (0, 0)), mode="edge")
+    h, w = v.shape[:2]
+    mean = sum(p[1 + dy:1 + dy + h, 1 + dx:1 + dx + w] for dy in (-1, 0, 1) for dx in (-1, 0, 1)) / 9.0
+    bound = c * np.sqrt(mean)
+    x = np.asarray(color, np.float64)
+    return (x + np.clip(np.asarray(output, np.float64) - x, -bound, bound)).astype(np.float32)
+
 def run(fn, setup=None, info=None):
     """Runs `fn(frame, params) -> H x W x 3 array` under the protocol the harness started this
     program with. With `setup` (worker protocol), `setup()` runs once before the ready line (load

@@ -16,7 +16,7 @@ import os
 HERE = os.path.dirname(os.path.abspath(__file__))
 TRAIN = "scripts/train_kpcn --out plugins/kpcn/weights (docs/method-defaults.md, \"kpcn\")"
 
-from denoisebench_plugin import learned_weights, run, torch_threads, unavailable  # noqa: E402
+from denoisebench_plugin import learned_weights, noise_clamp, run, torch_threads, unavailable  # noqa: E402
 
 try:
     import torch  # noqa: F401
@@ -33,8 +33,8 @@ def setup():
 
 def denoise(frame, params, state):
     torch_threads(int(params.get("threads", 0)))
-    planes = kpcn_model.prepare(frame)
-    return kpcn_model.denoise_planes(state["model"], planes)
+    out = kpcn_model.denoise_planes(state["model"], kpcn_model.prepare(frame))
+    return noise_clamp(frame["color"], frame["variance"], out, float(params.get("noise_clamp", 3.0)))
 
 
 run(denoise, setup=setup, info=lambda state: state["info"])

@@ -19,7 +19,7 @@ sys.dont_write_bytecode = True  # no __pycache__ in plugins/unet: its content is
 HERE = os.path.dirname(os.path.abspath(__file__))
 TRAIN = "scripts/train_unet --out plugins/unet/weights (docs/method-defaults.md, \"unet\")"
 
-from denoisebench_plugin import learned_weights, run, torch_threads, unavailable  # noqa: E402
+from denoisebench_plugin import learned_weights, noise_clamp, run, torch_threads, unavailable  # noqa: E402
 
 try:
     import torch  # noqa: F401
@@ -36,7 +36,8 @@ def setup():
 
 def denoise(frame, params, state):
     torch_threads(int(params.get("threads", 0)))
-    return unet_model.denoise_planes(state["model"], unet_model.prepare(frame))
+    out = unet_model.denoise_planes(state["model"], unet_model.prepare(frame))
+    return noise_clamp(frame["color"], frame["variance"], out, float(params.get("noise_clamp", 1.5)))
 
 
 run(denoise, setup=setup, info=lambda state: state["info"])

@@ -122,5 +122,21 @@ TEST(Corpus, RelativeLossIsTheErrorOverTheInputs) {
   EXPECT_EQ(r.output, "True True True\n");
 }
 
+// The learned plug-ins' noise clamp (python/denoisebench_plugin.py, noise_clamp): a pixel whose
+// 3x3 neighbourhood has no variance keeps its input; elsewhere the change is cut to c standard
+// deviations of the 3x3-averaged variance; c = 0 returns the network's output.
+TEST(LearnedPlugins, NoiseClampBoundsTheChangeByTheNoise) {
+  auto r = test::run_command_stdout(
+      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
+      "/python\"); import numpy as np, denoisebench_plugin as p\n"
+      "x = np.full((4, 4, 3), 0.5, np.float32); v = np.zeros((4, 4, 3), np.float32); y = x + 0.3\n"
+      "print(np.array_equal(p.noise_clamp(x, v, y, 3.0), x))\n"  // converged: the input
+      "v[:] = 0.01\n"  // s = 0.1: c = 2 allows 0.2 of the 0.3 change
+      "print(np.allclose(p.noise_clamp(x, v, y, 2.0), x + 0.2), np.allclose(p.noise_clamp(x, v, y, 5.0), y))\n"
+      "print(p.noise_clamp(x, v, y, 0.0) is y)'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output, "True\nTrue True\nTrue\n");
+}
+
 }  // namespace
 }  // namespace dnb
