@@ -171,7 +171,6 @@ def _run_worker(fn, setup, info):
             answer({"ok": False, "error": f"{type(e).__name__}: {e}"})
 
 
-
 def unavailable(name, why):
     """Says plug-in `name` cannot run here (no weights, a missing library) and exits: in the worker
     protocol as its ready line {"ready": false, "unavailable": why}, so the harness skips its
@@ -181,6 +180,15 @@ def unavailable(name, why):
     sys.__stdout__.write(json.dumps({"ready": False, "unavailable": why}) + "\n")
     sys.__stdout__.flush()
     sys.exit(0)
+
+
+def require_torch(name):
+    """Imports PyTorch for learned plug-in `name`, or says the plug-in is unavailable (Debian's
+    python3-torch, which scripts/setup installs, is missing)."""
+    try:
+        import torch  # noqa: F401
+    except ImportError as e:
+        unavailable(name, f"PyTorch is not importable ({e}): install Debian's python3-torch (scripts/setup does)")
 
 
 def torch_threads(n):

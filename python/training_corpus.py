@@ -403,6 +403,30 @@ def display_np(x):
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
 
 
+def mse8(image, reference):
+    """Table 1's mse (metrics/metrics.cpp): both through the display transform (clamp to [0, 1],
+    sRGB), times 255, rounded half away from zero as std::round, mean squared error."""
+    a = np.floor(display_np(np.asarray(image, np.float64)) * 255.0 + 0.5)
+    b = np.floor(display_np(np.asarray(reference, np.float64)) * 255.0 + 0.5)
+    return float(np.mean((a - b) ** 2))
+
+
+def weights_record(manifest, held):
+    """What a weights manifest says of its corpus: the build's parameters and every scene (name,
+    file relative to the checkout, file SHA-256, content hash, meshes, split; `held`: the names
+    of the validation scenes)."""
+    def rel(path):
+        return os.path.relpath(path, ROOT) if path.startswith(ROOT) else path
+
+    return {
+        "corpus": {k: manifest[k] for k in ("seed", "size", "input_spp", "ref_spp", "reference_seed", "scenes_folder_found",
+                                            "render_seconds")},
+        "scenes": [{"name": s["name"], "file": rel(s["file"]), "sha256": s["sha256"], "content_hash": s["content_hash"],
+                    "meshes": s["meshes"], "split": "validation" if s["name"] in held else "training"}
+                   for s in manifest["scenes"]],
+    }
+
+
 class CropSampler:
     """Random crops of `patch` x `patch` pixels, half of them uniform over the samples and
     positions, half weighted by the input's error against the reference in display space (the

@@ -16,18 +16,16 @@ import os
 HERE = os.path.dirname(os.path.abspath(__file__))
 TRAIN = "scripts/train_kpcn --out plugins/kpcn/weights (docs/method-defaults.md, \"kpcn\")"
 
-from denoisebench_plugin import learned_weights, noise_clamp, run, torch_threads, unavailable  # noqa: E402
+from denoisebench_plugin import learned_weights, noise_clamp, require_torch, run, torch_threads  # noqa: E402
 
-try:
-    import torch  # noqa: F401
-except ImportError as e:
-    unavailable("kpcn", f"PyTorch is not importable ({e}): install Debian's python3-torch (scripts/setup does)")
+require_torch("kpcn")
 
 import kpcn_model  # noqa: E402
 
 
 def setup():
-    model, info = learned_weights("kpcn", HERE, ("DENOISEBENCH_KPCN_WEIGHTS", "DNB_KPCN_WEIGHTS"), TRAIN, kpcn_model.load, kpcn_model.parameter_count)
+    model, info = learned_weights("kpcn", HERE, ("DENOISEBENCH_KPCN_WEIGHTS", "DNB_KPCN_WEIGHTS"), TRAIN, kpcn_model.load,
+                                  kpcn_model.parameter_count)
     return {"model": model, "info": info}
 
 

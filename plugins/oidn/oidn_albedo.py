@@ -1,7 +1,8 @@
 """The albedo the `oidn` plug-in gives OIDN with `albedo = "oidn"`: OIDN's documented
-convention, made from the tracer's layers (the default, `albedo = "tracer"`, passes T as stored:
-measured the stronger row, docs/method-defaults.md, "oidn"). Its own module so that python/oidn_direct.py (the
-check that the plug-in's row is OIDN itself) feeds OIDN's own API the same buffers."""
+convention, made from the tracer's layers (the default, `albedo = "tracer"`, passes T as
+stored: measured the stronger row, docs/method-defaults.md, "oidn"). Its own module so that
+python/oidn_direct.py (the check that the plug-in's row is OIDN itself) feeds OIDN's own API the
+same buffers."""
 import numpy as np
 
 

@@ -12,25 +12,20 @@ scores (from the manifest the training script writes beside them), recorded in e
 of results.json.
 """
 import os
-import sys
-
-sys.dont_write_bytecode = True  # no __pycache__ in plugins/unet: its content is in cell keys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TRAIN = "scripts/train_unet --out plugins/unet/weights (docs/method-defaults.md, \"unet\")"
 
-from denoisebench_plugin import learned_weights, noise_clamp, run, torch_threads, unavailable  # noqa: E402
+from denoisebench_plugin import learned_weights, noise_clamp, require_torch, run, torch_threads  # noqa: E402
 
-try:
-    import torch  # noqa: F401
-except ImportError as e:
-    unavailable("unet", f"PyTorch is not importable ({e}): install Debian's python3-torch (scripts/setup does)")
+require_torch("unet")
 
 import unet_model  # noqa: E402
 
 
 def setup():
-    model, info = learned_weights("unet", HERE, ("DENOISEBENCH_UNET_WEIGHTS",), TRAIN, unet_model.load, unet_model.parameter_count)
+    model, info = learned_weights("unet", HERE, ("DENOISEBENCH_UNET_WEIGHTS",), TRAIN, unet_model.load,
+                                  unet_model.parameter_count)
     return {"model": model, "info": info}
 
 

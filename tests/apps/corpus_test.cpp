@@ -18,6 +18,13 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+// Runs Python `code` (one statement per line; no single quotes) with the repository's python/
+// folder importable; its standard output is the result's.
+test::CommandResult python(const std::string& code) {
+  return test::run_command_stdout("/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
+                                  "/python\")\n" + code + "'");
+}
+
 // Every scene of configs/scenes/ (the evaluation scenes of quick.toml, paper.toml and
 // mcguire.toml, and generalisation.toml's): name -> the tracer's content hash of the loaded
 // scene, rendered at 1 spp on 8x8 pixels. A McGuire scene needs the scenes folder; without it
@@ -46,11 +53,9 @@ TEST(Corpus, CommittedWeightsWereTrainedOnNoEvaluationScene) {
   ASSERT_GE(eval.size(), 8u) << "the built-in evaluation scenes must all render";
   std::set<std::string> eval_files;  // SHA-256 of the evaluation scene files
   std::set<std::string> eval_meshes;  // meshes they read, relative to the scenes folder
-  auto py = test::run_command_stdout(
-      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
-      "/python\"); import json, training_corpus as c; f, m = c.evaluation_scene_files(); "
-      "print(json.dumps({\"files\": [c.sha256_file(p) for p in f], \"meshes\": sorted(m), \"pool\": c.MESH_POOL}))'");
-  ASSERT_EQ(py.exit_code, 0) << py.output;
+  auto py = python("import json, training_corpus as c; f, m = c.evaluation_scene_files(); "
+      "print(json.dumps({\"files\": [c.sha256_file(p) for p in f], \"meshes\": sorted(m), \"pool\": c.MESH_POOL}))");
+  ASSERT_EQ(py.exit_code, 0) << py.output << py.errors;
   const json ev = json::parse(py.output);
   for (const auto& h : ev["files"]) eval_files.insert(h.get<std::string>());
   for (const auto& m : ev["meshes"]) eval_meshes.insert(m.get<std::string>());
@@ -86,9 +91,7 @@ TEST(Corpus, CommittedWeightsWereTrainedOnNoEvaluationScene) {
 // them all: docs/method-defaults.md, "The training corpus").
 TEST(Corpus, ScenesAreFunctionsOfTheSeedAndCoverEveryMaterial) {
   test::TempDir dir;
-  auto r = test::run_command_stdout(
-      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
-      "/python\"); import numpy as np, training_corpus as c\n"
+  auto r = python("import numpy as np, training_corpus as c\n"
       "def scenes(seed):\n"
       "    rng = np.random.default_rng(seed)\n"
       "    return [c.procedural_scene(rng, i, \"" + dir.file("") + "\", \"/scenes\")[0] for i in range(30)]\n"
@@ -97,8 +100,8 @@ TEST(Corpus, ScenesAreFunctionsOfTheSeedAndCoverEveryMaterial) {
       "text = \"\".join(a)\n"
       "kinds = [f\"type = \\\"{k}\\\"\" for k in (\"mirror\", \"coated\", \"conductor\", \"plastic\", \"dielectric\", \"image\", "
       "\"leaf\", \"obj\", \"arch\")] + [\"[sun]\", \"material = \\\"e0\\\"\", \"roughness = \", \"name = \\\"lamp0\\\"\"]\n"
-      "print(\" \".join(k for k in kinds if k not in text) or \"all\")'");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+      "print(\" \".join(k for k in kinds if k not in text) or \"all\")");
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
   EXPECT_EQ(r.output, "True True\nall\n");
 }
 
@@ -107,17 +110,15 @@ TEST(Corpus, ScenesAreFunctionsOfTheSeedAndCoverEveryMaterial) {
 TEST(Corpus, RelativeLossIsTheErrorOverTheInputs) {
   if (test::run_command("/usr/bin/python3 -c 'import torch' 2>&1").exit_code != 0)
     GTEST_SKIP() << "PyTorch is not importable by /usr/bin/python3 (scripts/setup installs Debian's python3-torch)";
-  auto r = test::run_command_stdout(
-      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
-      "/python\"); import torch, training_corpus as c\n"
+  auto r = python("import torch, training_corpus as c\n"
       "torch.manual_seed(1)\n"
       "ref = torch.rand(2, 3, 8, 8) * 0.8\n"
       "noisy = (ref + 0.2 * torch.randn(2, 3, 8, 8)).clamp_min(0)\n"
       "same = float(c.relative_display_loss(noisy, ref, noisy))\n"
       "exact = float(c.relative_display_loss(ref, ref, noisy))\n"
       "worse = float(c.relative_display_loss(noisy * 2, ref, noisy))\n"
-      "print(0.98 < same < 1.0, exact == 0.0, worse > 1.0)'");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+      "print(0.98 < same < 1.0, exact == 0.0, worse > 1.0)");
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
   // same: l / (l + 2e-3) with l ~ 0.1 (noise of 0.2 in display space): 0.98 .. 1.
   EXPECT_EQ(r.output, "True True True\n");
 }
@@ -126,15 +127,13 @@ TEST(Corpus, RelativeLossIsTheErrorOverTheInputs) {
 // 3x3 neighbourhood has no variance keeps its input; elsewhere the change is cut to c standard
 // deviations of the 3x3-averaged variance; c = 0 returns the network's output.
 TEST(LearnedPlugins, NoiseClampBoundsTheChangeByTheNoise) {
-  auto r = test::run_command_stdout(
-      "/usr/bin/python3 -c 'import sys; sys.path.insert(0, \"" + test::source_dir() +
-      "/python\"); import numpy as np, denoisebench_plugin as p\n"
+  auto r = python("import numpy as np, denoisebench_plugin as p\n"
       "x = np.full((4, 4, 3), 0.5, np.float32); v = np.zeros((4, 4, 3), np.float32); y = x + 0.3\n"
       "print(np.array_equal(p.noise_clamp(x, v, y, 3.0), x))\n"  // converged: the input
       "v[:] = 0.01\n"  // s = 0.1: c = 2 allows 0.2 of the 0.3 change
       "print(np.allclose(p.noise_clamp(x, v, y, 2.0), x + 0.2), np.allclose(p.noise_clamp(x, v, y, 5.0), y))\n"
-      "print(p.noise_clamp(x, v, y, 0.0) is y)'");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+      "print(p.noise_clamp(x, v, y, 0.0) is y)");
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
   EXPECT_EQ(r.output, "True\nTrue True\nTrue\n");
 }
 
