@@ -75,9 +75,9 @@ class Kpcn(nn.Module):
         self.specular_head = nn.Conv2d(channels, kernel * kernel, 1)
         # The untrained kernels keep half of each pixel's own value (the centre's logit is
         # log(k^2 - 1) above the others'): an untrained or barely trained net is the input half
-        # blurred, not an 11 x 11 box blur, which erased thin lines over whole regions (the held-out
-        # scene B of issue 51, 20x the input's mse). Training moves the weight off the centre
-        # only where that lowers the loss.
+        # blurred, not an 11 x 11 box blur, which erased thin lines over whole regions (20x the
+        # input's mse on a held-out scene of thin texture lines). Training moves the weight off
+        # the centre only where that lowers the loss.
         with torch.no_grad():
             for head in (self.diffuse_head, self.specular_head):
                 head.weight.mul_(0.1)
