@@ -261,6 +261,126 @@ def noise_clamp(color, variance, output, c):
     x = np.asarray(color, np.float64)
     return (x + np.clip(np.asarray(output, np.float64) - x, -bound, bound)).astype(np.float32)
 
+def display(x):
+    """The harness's display transform (docs/design.md, `mse`): clamp to [0, 1], sRGB."""
+    c = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+
+
+def box_mean(a, r):
+    """The mean of H x W array `a` over each pixel's (2r + 1)^2 window, the border replicated
+    (an integral image: O(1) per pixel whatever r)."""
+    p = np.pad(np.asarray(a, np.float64), r + 1, mode="edge")
+    s = p.cumsum(0).cumsum(1)
+    h, w = a.shape
+    n = 2 * r + 1
+    return (s[n:n + h, n:n + w] - s[:h, n:n + w] - s[n:n + h, :w] + s[:h, :w]) / (n * n)
+
+
+# The two halves of a tracer frame (layer::at_half): the even and the odd samples, independent
+# estimates of each pixel. A layer the halves lack is made for one half as follows.
+HALF_LAYERS = ("color", "direct", "indirect", "albedo", "normal", "depth")
+
+
+def half_frame(frame, h, layers):
+    """Half h (0, 1) of `frame` as a dict of the named `layers`, for running a network on half of
+    the samples. Layers in the halves are the half's own; `variance` is twice the frame's (the
+    variance of a mean of half the samples); `emission` is the frame's (the emitter seen first,
+    nearly noise-free); `reflection` is what is left of the half's colour after its diffuse
+    part and the emission, F_h - (D_h + I_h) T_h - E (the tracer's split is exact on pixel
+    means: F = (D + I) T + R + E). None when the frame lacks a half layer this needs (an
+    imported frame)."""
+    if any(name not in frame for name in half_layers(layers)):
+        return None
+    out = {}
+    for name in layers:
+        if name in HALF_LAYERS:
+            out[name] = frame[f"half{h}.{name}"]
+        elif name == "variance":
+            out[name] = 2.0 * np.asarray(frame["variance"], np.float32)
+        elif name == "emission":
+            out[name] = frame["emission"]
+        elif name == "reflection":
+            c, t = frame[f"half{h}.color"], frame[f"half{h}.albedo"]
+            out[name] = c - (frame[f"half{h}.direct"] + frame[f"half{h}.indirect"]) * t - frame["emission"]
+        else:
+            raise KeyError(f"half_frame: no half of layer '{name}'")
+    return out
+
+
+def half_layers(layers):
+    """The manifest's optional layers `half_frame` reads to build both halves of `layers`."""
+    need = set(n for n in layers if n in HALF_LAYERS)
+    if "reflection" in layers:
+        need |= {"color", "direct", "indirect", "albedo"}
+    return [f"half{h}.{n}" for h in (0, 1) for n in HALF_LAYERS if n in need]
+
+
+# The significance gate of `cross_validated_weight`: a window's estimated gain counts in full
+# from GATE_FULL standard errors of its estimate up, not at all below GATE_ZERO, linearly between.
+GATE_ZERO, GATE_FULL = 1.0, 2.0
+
+
+def cross_validated_weight(den, x, y, var_y, radius):
+    """How far to trust a denoised image over its noisy input, judged against an independent
+    estimate: `x` is one half's colour, `den` the denoiser's output on that half alone, `y` the
+    other half (independent of both), `var_y` its variance per pixel (H x W x 3). In the
+    harness's display space (Table 1's), with e = den - x over the (2r + 1)^2 window W,
+
+        w = clip(sum_W e (y - x) / sum_W e^2, 0, 1)
+
+    is the least-squares weight of x + w e against y; as y = mu + noise independent of e, it is
+    an unbiased estimate of the weight against the true mean mu, whatever the denoiser does (a
+    network on a scene unlike its training). w is then scaled down where the numerator is within
+    GATE_FULL of its own standard error (y's noise: sqrt(sum_W e^2 var(y)), var(y) carried
+    through the display transform), and to 0 below GATE_ZERO: a change the halves cannot tell
+    from noise is not made. Where the window shows no difference in display (saturated or black)
+    w is 1. Returns H x W x 1."""
+    sd = np.sqrt(np.maximum(np.asarray(var_y, np.float64), 0.0))
+    yy = np.asarray(y, np.float64)
+    dy = 0.5 * (display(yy + sd) - display(np.maximum(yy - sd, 0.0)))  # display's slope times sd
+    dx, dyy, dd = display(x), display(yy), display(den)
+    e = dd - dx
+    n = (2 * radius + 1) ** 2
+    num = box_mean((e * (dyy - dx)).sum(axis=2), radius)
+    den2 = box_mean((e * e).sum(axis=2), radius)
+    se = np.sqrt(np.maximum(box_mean((e * e * dy * dy).sum(axis=2), radius), 0.0) / n)
+    flat = den2 <= 1e-18
+    w = np.clip(num / np.where(flat, 1.0, den2), 0.0, 1.0)
+    gate = np.clip((num / np.maximum(se, 1e-30) - GATE_ZERO) / (GATE_FULL - GATE_ZERO), 0.0, 1.0)
+    return np.where(flat, 1.0, w * gate)[:, :, None]
+
+
+def cross_validated(color, output, halves, half_outputs, variance, radius):
+    """The learned plug-ins' guard against making a frame worse than its input: the denoiser is
+    also run on each half of the samples (`halves`: the two half colours, `half_outputs`: its
+    outputs on them); each half's output is judged against the other half by
+    `cross_validated_weight`, and the frame's output moves from the input towards `output` by
+    the mean of the two weights: color + w (output - color). Where the network helps the halves
+    say so and w ~ 1; where it erases what the input holds (thin texture at high spp), w ~ 0 and
+    the input stays. Arrays H x W x 3; radius <= 0 returns `output`."""
+    if radius <= 0:
+        return output
+    var_half = 2.0 * np.asarray(variance, np.float64)
+    a, b = halves
+    da, db = half_outputs
+    w = 0.5 * (cross_validated_weight(da, a, b, var_half, radius) + cross_validated_weight(db, b, a, var_half, radius))
+    x = np.asarray(color, np.float64)
+    return (x + w * (np.asarray(output, np.float64) - x)).astype(np.float32)
+
+
+def guarded(frame, output, denoise, layers, radius, clamp):
+    """A learned plug-in's output made safe against its input: with the frame's half buffers and
+    radius > 0, `cross_validated` (the network run again on each half through `denoise`, a
+    function of a dict of `layers`); without halves (an imported frame) or with radius <= 0,
+    `noise_clamp` at `clamp` standard deviations."""
+    halves = [half_frame(frame, h, layers) for h in (0, 1)]
+    if radius > 0 and halves[0] is not None:
+        return cross_validated(frame["color"], output, [h["color"] for h in halves], [denoise(h) for h in halves],
+                               frame["variance"], radius)
+    return noise_clamp(frame["color"], frame["variance"], output, clamp)
+
+
 def run(fn, setup=None, info=None):
     """Runs `fn(frame, params) -> H x W x 3 array` under the protocol the harness started this
     program with. With `setup` (worker protocol), `setup()` runs once before the ready line (load

@@ -36,6 +36,8 @@ import tomllib
 import numpy as np
 import OpenImageIO as oiio
 
+from denoisebench_plugin import display
+
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 EVALUATION_DIR = os.path.join(ROOT, "configs", "scenes")
 REFERENCE_SEED = 1000003
@@ -397,17 +399,11 @@ def split(manifest, every=5):
     return train, val
 
 
-def display_np(x):
-    """The harness's display transform (docs/design.md, `mse`): clamp to [0, 1], sRGB."""
-    c = np.clip(x, 0.0, 1.0)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
-
-
 def mse8(image, reference):
     """Table 1's mse (metrics/metrics.cpp): both through the display transform (clamp to [0, 1],
     sRGB), times 255, rounded half away from zero as std::round, mean squared error."""
-    a = np.floor(display_np(np.asarray(image, np.float64)) * 255.0 + 0.5)
-    b = np.floor(display_np(np.asarray(reference, np.float64)) * 255.0 + 0.5)
+    a = np.floor(display(np.asarray(image, np.float64)) * 255.0 + 0.5)
+    b = np.floor(display(np.asarray(reference, np.float64)) * 255.0 + 0.5)
     return float(np.mean((a - b) ** 2))
 
 
@@ -441,7 +437,7 @@ class CropSampler:
         for i, (x, r) in enumerate(zip(inputs, references)):
             h, w = r.shape[:2]
             ph, pw = min(patch, h), min(patch, w)
-            err = np.abs(display_np(x) - display_np(r)).mean(axis=2)
+            err = np.abs(display(x) - display(r)).mean(axis=2)
             step = max(1, patch // 2)
             for y in range(0, h - ph + 1, step):
                 for xx in range(0, w - pw + 1, step):

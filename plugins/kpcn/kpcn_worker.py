@@ -16,7 +16,7 @@ import os
 HERE = os.path.dirname(os.path.abspath(__file__))
 TRAIN = "scripts/train_kpcn --out plugins/kpcn/weights (docs/method-defaults.md, \"kpcn\")"
 
-from denoisebench_plugin import learned_weights, noise_clamp, require_torch, run, torch_threads  # noqa: E402
+from denoisebench_plugin import guarded, learned_weights, require_torch, run, torch_threads  # noqa: E402
 
 require_torch("kpcn")
 
@@ -31,8 +31,12 @@ def setup():
 
 def denoise(frame, params, state):
     torch_threads(int(params.get("threads", 0)))
-    out = kpcn_model.denoise_planes(state["model"], kpcn_model.prepare(frame))
-    return noise_clamp(frame["color"], frame["variance"], out, float(params.get("noise_clamp", 3.0)))
+
+    def net(layers):
+        return kpcn_model.denoise_planes(state["model"], kpcn_model.prepare(layers))
+
+    return guarded(frame, net(frame), net, kpcn_model.LAYERS, int(params.get("cross_validation", 5)),
+                   float(params.get("noise_clamp", 3.0)))
 
 
 run(denoise, setup=setup, info=lambda state: state["info"])

@@ -16,7 +16,7 @@ import os
 HERE = os.path.dirname(os.path.abspath(__file__))
 TRAIN = "scripts/train_unet --out plugins/unet/weights (docs/method-defaults.md, \"unet\")"
 
-from denoisebench_plugin import learned_weights, noise_clamp, require_torch, run, torch_threads  # noqa: E402
+from denoisebench_plugin import guarded, learned_weights, require_torch, run, torch_threads  # noqa: E402
 
 require_torch("unet")
 
@@ -31,8 +31,12 @@ def setup():
 
 def denoise(frame, params, state):
     torch_threads(int(params.get("threads", 0)))
-    out = unet_model.denoise_planes(state["model"], unet_model.prepare(frame))
-    return noise_clamp(frame["color"], frame["variance"], out, float(params.get("noise_clamp", 1.5)))
+
+    def net(layers):
+        return unet_model.denoise_planes(state["model"], unet_model.prepare(layers))
+
+    return guarded(frame, net(frame), net, unet_model.LAYERS, int(params.get("cross_validation", 2)),
+                   float(params.get("noise_clamp", 1.5)))
 
 
 run(denoise, setup=setup, info=lambda state: state["info"])

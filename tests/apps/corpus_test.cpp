@@ -137,5 +137,49 @@ TEST(LearnedPlugins, NoiseClampBoundsTheChangeByTheNoise) {
   EXPECT_EQ(r.output, "True\nTrue True\nTrue\n");
 }
 
+// The guard's promise on a scene with a known answer: thin bright lines every 4 columns, two
+// halves with independent Gaussian noise. A denoiser that returns the truth is kept (w ~ 1); one
+// that erases the lines (their local mean, 40x the input's error) is dropped (w ~ 0), so the
+// output is no worse than the input. Bounds: over seeds 0..9 the kept one measured 0.004-0.006
+// of the input's display mse (the weight's estimate is off by ~1/sqrt(147 values) per window),
+// the dropped one 0.979-1.0007 (the weight of a harmful change is estimated about 0, with noise).
+TEST(LearnedPlugins, CrossValidationKeepsWhatHelpsAndDropsWhatHarms) {
+  auto r = python("import numpy as np, denoisebench_plugin as p\n"
+      "rng = np.random.default_rng(7)\n"
+      "mu = np.full((64, 64, 3), 0.2); mu[:, ::4] = 0.6; s = 0.03\n"
+      "A = mu + rng.normal(0, s, mu.shape); B = mu + rng.normal(0, s, mu.shape)\n"
+      "F = (A + B) / 2; var = np.full(mu.shape, s * s / 2)\n"
+      "def mse(x): return float(np.mean((p.display(x) - p.display(mu)) ** 2))\n"
+      "blur = np.full(mu.shape, 0.3)\n"
+      "good = p.cross_validated(F, mu, [A, B], [mu, mu], var, 3)\n"
+      "bad = p.cross_validated(F, blur, [A, B], [blur, blur], var, 3)\n"
+      "print(mse(good) < 0.05 * mse(F), mse(bad) < 1.02 * mse(F), mse(blur) > 10 * mse(F))\n"
+      "print(p.cross_validated(F, blur, [A, B], [blur, blur], var, 0) is blur)");
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
+  EXPECT_EQ(r.output, "True True True\nTrue\n");
+}
+
+// A half of a tracer frame for a network that reads the split: the half's own layers, twice the
+// variance, the frame's emission, and the reflection that closes F_h = (D_h + I_h) T_h + R_h + E;
+// no half at all where the frame lacks a layer that needs (an imported frame).
+TEST(LearnedPlugins, HalfFramesCloseTheSplitAndNeedTheirLayers) {
+  auto r = python("import numpy as np, denoisebench_plugin as p\n"
+      "rng = np.random.default_rng(1)\n"
+      "f = {k: rng.random((3, 5, 3)).astype(np.float32) for k in (\"color\", \"variance\", \"emission\", \"reflection\")}\n"
+      "for h in (0, 1):\n"
+      "    for k in (\"color\", \"direct\", \"indirect\", \"albedo\", \"normal\"): f[f\"half{h}.{k}\"] = rng.random((3, 5, 3)).astype(np.float32)\n"
+      "    f[f\"half{h}.depth\"] = rng.random((3, 5, 1)).astype(np.float32)\n"
+      "layers = [\"color\", \"albedo\", \"reflection\", \"emission\", \"normal\", \"depth\", \"variance\"]\n"
+      "x = p.half_frame(f, 1, layers)\n"
+      "back = (f[\"half1.direct\"] + f[\"half1.indirect\"]) * f[\"half1.albedo\"] + x[\"reflection\"] + f[\"emission\"]\n"
+      "print(np.allclose(back, f[\"half1.color\"], atol=1e-6), np.array_equal(x[\"variance\"], 2 * f[\"variance\"]),"
+      " x[\"depth\"] is f[\"half1.depth\"], sorted(x) == sorted(layers))\n"
+      "del f[\"half0.indirect\"]\n"
+      "print(p.half_frame(f, 0, layers), p.half_frame(f, 0, [\"color\", \"albedo\", \"variance\"]) is not None)\n"
+      "print(*p.half_layers([\"color\", \"variance\"]))");
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
+  EXPECT_EQ(r.output, "True True True True\nNone True\nhalf0.color half1.color\n");
+}
+
 }  // namespace
 }  // namespace dnb

@@ -311,6 +311,15 @@ TEST(Plugins, KpcnTrainsDeterministicallyResumesAndDenoisesWithItsWeights) {
   EXPECT_TRUE(o1 == read_rgb(dir.file("o2.exr"))) << "two one-thread runs differ";
   EXPECT_TRUE(o1 == read_rgb(dir.file("o3.exr"))) << "one and two threads differ";
   EXPECT_FALSE(o1 == input) << "the output is the input";
+  // The guard reads the half buffers (optional layers): with the noise clamp off, the guarded
+  // output differs from the bare network's; without halves it would fall back to the (off) clamp
+  // and be the bare network's bit for bit.
+  for (const auto& [out, radius] : {std::pair{"bare.exr", 0}, std::pair{"guarded.exr", 5}}) {
+    auto r = test::run_command(weights + "'" + binary().string() + "' denoise kpcn " + in + " -o " + dir.file(out) +
+                               " --set noise_clamp=0 --set cross_validation=" + std::to_string(radius) + " 2>&1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  EXPECT_FALSE(read_rgb(dir.file("bare.exr")) == read_rgb(dir.file("guarded.exr"))) << "the guard did not run";
 
   // A constant frame stays constant to rounding everywhere, the border included (normalised
   // kernels of a constant; the border replicated), whatever the weights; a NaN colour sample and
