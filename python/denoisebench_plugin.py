@@ -261,6 +261,7 @@ def noise_clamp(color, variance, output, c):
     x = np.asarray(color, np.float64)
     return (x + np.clip(np.asarray(output, np.float64) - x, -bound, bound)).astype(np.float32)
 
+
 def display(x):
     """The harness's display transform (docs/design.md, `mse`): clamp to [0, 1], sRGB."""
     c = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
@@ -341,6 +342,7 @@ def cross_validated_weight(den, x, y, var_y, radius):
     dy = 0.5 * (display(yy + sd) - display(np.maximum(yy - sd, 0.0)))  # display's slope times sd
     dx, dyy, dd = display(x), display(yy), display(den)
     e = dd - dx
+    e = np.where(np.isfinite(e), e, 0.0)  # a non-finite output pixel: no change, and no NaN spread by the sums
     n = (2 * radius + 1) ** 2
     num = box_mean((e * (dyy - dx)).sum(axis=2), radius)
     den2 = box_mean((e * e).sum(axis=2), radius)

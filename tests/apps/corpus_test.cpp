@@ -154,9 +154,12 @@ TEST(LearnedPlugins, CrossValidationKeepsWhatHelpsAndDropsWhatHarms) {
       "good = p.cross_validated(F, mu, [A, B], [mu, mu], var, 3)\n"
       "bad = p.cross_validated(F, blur, [A, B], [blur, blur], var, 3)\n"
       "print(mse(good) < 0.05 * mse(F), mse(bad) < 1.02 * mse(F), mse(blur) > 10 * mse(F))\n"
-      "print(p.cross_validated(F, blur, [A, B], [blur, blur], var, 0) is blur)");
+      "print(p.cross_validated(F, blur, [A, B], [blur, blur], var, 0) is blur)\n"
+      "odd = mu.copy(); odd[5, 5, 0] = np.nan\n"  // a NaN on one half's output stays local
+      "x = p.cross_validated(F, mu, [A, B], [odd, mu], var, 3)\n"
+      "print(np.isfinite(x).all(), mse(x) < 0.05 * mse(F))");
   ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
-  EXPECT_EQ(r.output, "True True True\nTrue\n");
+  EXPECT_EQ(r.output, "True True True\nTrue\nTrue True\n");
 }
 
 // A half of a tracer frame for a network that reads the split: the half's own layers, twice the
