@@ -376,10 +376,11 @@ def guarded(frame, output, denoise, layers, radius, clamp):
     radius > 0, `cross_validated` (the network run again on each half through `denoise`, a
     function of a dict of `layers`); without halves (an imported frame) or with radius <= 0,
     `noise_clamp` at `clamp` standard deviations."""
-    halves = [half_frame(frame, h, layers) for h in (0, 1)]
-    if radius > 0 and halves[0] is not None:
-        return cross_validated(frame["color"], output, [h["color"] for h in halves], [denoise(h) for h in halves],
-                               frame["variance"], radius)
+    if radius > 0:
+        halves = [half_frame(frame, h, layers) for h in (0, 1)]
+        if halves[0] is not None:
+            return cross_validated(frame["color"], output, [h["color"] for h in halves], [denoise(h) for h in halves],
+                                   frame["variance"], radius)
     return noise_clamp(frame["color"], frame["variance"], output, clamp)
 
 
