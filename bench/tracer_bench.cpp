@@ -12,13 +12,21 @@
 // tracer renders the same OBJ (mcguire-cornell-box, with its area light) and the built-in
 // cornell-box (area light, mirror sphere, coated block). The tutorial is timed as a whole
 // process (start-up, BVH build and writing its image add about 0.1 s to a run of a few
-// seconds); it reports no ray count, so only its paths per second are given.
+// seconds); it reports no ray count, so only its paths per second are given. BM_EmbreeTutorial
+// times our tracer on mcguire-cornell-box in the same case and reports the ratio,
+// tracer/embree (2026-12-07, 2 cores: 0.98 at 4 spp, 1.14 at 16).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdlib>
+#include <random>
 #include <filesystem>
 #include <string>
+#include <vector>
 
+#include "core/timer.h"
+#include "tracer/math.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
 #include "tracer/scene_loader.h"
@@ -27,6 +35,11 @@ namespace {
 
 namespace fs = std::filesystem;
 constexpr int kWidth = 1024, kHeight = 768, kPathLength = 8;  // spp: the case's argument
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
 
 void BM_Tracer(benchmark::State& state, const char* scene_name) {
   std::shared_ptr<const dnb::Scene> scene;
@@ -65,7 +78,11 @@ std::string mcguire_cornell_obj() {
   return {};
 }
 
+// The tutorial and the tracer (render_frame on mcguire-cornell-box: its area light, every AOV)
+// at the same size, spp and path length, alternately in one case after a warm-up of each, the
+// median of kRepeats each: counters embree_paths/s, tracer_paths/s and tracer/embree.
 void BM_EmbreeTutorial(benchmark::State& state) {
+  constexpr int kRepeats = 3;
   const std::string obj = mcguire_cornell_obj();
   if (obj.empty() || std::system("command -v pathtracer > /dev/null 2>&1") != 0) {
     state.SkipWithError("needs `pathtracer` (embree-tools) and CornellBox-Original.obj");
@@ -80,15 +97,94 @@ void BM_EmbreeTutorial(benchmark::State& state) {
                           std::to_string(kHeight) + " --spp " + std::to_string(spp) + " --max-path-length " +
                           std::to_string(kPathLength) + " --pointlight 0 1.9 -0.03 3 3 3 -o '" + out.string() +
                           "' > /dev/null 2>&1";
-  for (auto _ : state)
-    if (std::system(cmd.c_str()) != 0) {
-      state.SkipWithError("pathtracer failed");
-      return;
+  const auto scene = dnb::load_scene("mcguire-cornell-box");
+  dnb::RenderSettings s;
+  s.width = kWidth;
+  s.height = kHeight;
+  s.spp = spp;
+  s.max_depth = kPathLength;
+  for (auto _ : state) {
+    std::vector<double> tutorial, tracer;
+    for (int k = -1; k < kRepeats; ++k) {  // k = -1: the warm-ups
+      dnb::Stopwatch clock;
+      if (std::system(cmd.c_str()) != 0) {
+        state.SkipWithError("pathtracer failed");
+        return;
+      }
+      if (k >= 0) tutorial.push_back(clock.seconds());
+      clock = dnb::Stopwatch();
+      dnb::AovFrame f = dnb::render_frame(*scene, s);
+      if (k >= 0) tracer.push_back(clock.seconds());
+      benchmark::DoNotOptimize(f);
     }
+    const double paths = double(kWidth) * kHeight * spp;
+    const double embree = paths / median(tutorial), ours = paths / median(tracer);
+    state.SetIterationTime(median(tutorial));
+    state.counters["embree_paths/s"] = embree;
+    state.counters["tracer_paths/s"] = ours;
+    state.counters["tracer/embree"] = ours / embree;
+  }
   fs::remove(out);
-  const double paths = double(kWidth) * kHeight * spp * double(state.iterations());
-  state.counters["paths/s"] = benchmark::Counter(paths, benchmark::Counter::kIsRate);
 }
+
+// What Embree's packets would gain the tracer on its bounce rays (docs/speed.md): on
+// mcguire-cornell-box at 256x192, 16 camera rays per pixel, and from each hit one cosine-
+// distributed bounce ray, kept in pixel order (the 16 bounce rays of a pixel's samples are one
+// packet, as a wavefront integrator over a pixel's samples would trace them). Both ways trace
+// the same rays through Scene::intersect, hits filled in full: one by one, and 16 at a time; a
+// warm-up of each, then kRepeats of each alternately. Counters single_rays/s, packet_rays/s and
+// packet/single; range(0) = 1 shuffles the rays first (packets of unrelated rays).
+void BM_BounceRays(benchmark::State& state) {
+  constexpr int kRepeats = 5, kW = 256, kH = 192, kSpp = 16;
+  std::shared_ptr<const dnb::Scene> scene;
+  try {
+    scene = dnb::load_scene("mcguire-cornell-box");
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return;
+  }
+  std::vector<dnb::rt::Ray> rays;
+  dnb::rt::Sampler rng(5, 0, 0);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x)
+      for (int s = 0; s < kSpp; ++s) {
+        dnb::rt::SurfaceHit h;
+        const dnb::rt::Ray cam = scene->camera.generate_ray(x + rng.next(), y + rng.next(), kW, kH);
+        if (!scene->intersect(cam, h)) continue;
+        const dnb::rt::Frame f(h.ns);
+        rays.push_back(h.spawn_ray(f.to_world(dnb::rt::sample_cosine_hemisphere(rng.next(), rng.next()))));
+      }
+  if (state.range(0)) std::shuffle(rays.begin(), rays.end(), std::mt19937(1));
+  std::vector<dnb::rt::SurfaceHit> hits(rays.size());
+  std::vector<std::uint8_t> found(rays.size());
+  auto single = [&] {
+    dnb::Stopwatch clock;
+    for (std::size_t i = 0; i < rays.size(); ++i) found[i] = scene->intersect(rays[i], hits[i]) ? 1 : 0;
+    benchmark::DoNotOptimize(found.data());
+    return clock.seconds();
+  };
+  auto packets = [&] {
+    dnb::Stopwatch clock;
+    scene->intersect(rays.data(), int(rays.size()), hits.data(), found.data());
+    benchmark::DoNotOptimize(found.data());
+    return clock.seconds();
+  };
+  for (auto _ : state) {
+    single();
+    packets();
+    std::vector<double> a, b;
+    for (int k = 0; k < kRepeats; ++k) {
+      a.push_back(single());
+      b.push_back(packets());
+    }
+    const double n = double(rays.size());
+    state.SetIterationTime(median(b));
+    state.counters["single_rays/s"] = n / median(a);
+    state.counters["packet_rays/s"] = n / median(b);
+    state.counters["packet/single"] = median(a) / median(b);
+  }
+}
+BENCHMARK(BM_BounceRays)->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kMillisecond);
 
 // Samples per pixel per iteration: 4 and 16 (fixed per-frame costs, such as allocating and
 // zeroing the ~260 MB of AOV layers, weigh more at 4). Every built-in scene at 4 spp, the
@@ -102,6 +198,6 @@ BENCHMARK_CAPTURE(BM_Tracer, mcguire_cornell_box, "mcguire-cornell-box")
     ->Arg(16)
     ->Unit(benchmark::kSecond)
     ->UseRealTime();
-BENCHMARK(BM_EmbreeTutorial)->Arg(4)->Arg(16)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_EmbreeTutorial)->Arg(4)->Arg(16)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
 
 }  // namespace

@@ -331,6 +331,49 @@ bool Scene::intersect(const Ray& ray, SurfaceHit& hit) const {
   return true;
 }
 
+void Scene::intersect(const Ray* rays, int n, SurfaceHit* hits, std::uint8_t* found) const {
+  for (int first = 0; first < n; first += 16) {
+    const int m = std::min(16, n - first);
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);  // not COHERENT: see occluded(rays, n, hidden) below
+    alignas(64) RTCRayHit16 rh;
+    alignas(64) int valid[16];
+    for (int i = 0; i < 16; ++i) {
+      const Ray& ray = rays[first + std::min(i, m - 1)];
+      valid[i] = i < m ? -1 : 0;
+      rh.ray.org_x[i] = ray.origin.x;
+      rh.ray.org_y[i] = ray.origin.y;
+      rh.ray.org_z[i] = ray.origin.z;
+      rh.ray.dir_x[i] = ray.dir.x;
+      rh.ray.dir_y[i] = ray.dir.y;
+      rh.ray.dir_z[i] = ray.dir.z;
+      rh.ray.tnear[i] = 0.0f;
+      rh.ray.tfar[i] = ray.tmax;
+      rh.ray.mask[i] = 0xFFFFFFFFu;
+      rh.ray.id[i] = unsigned(i);
+      rh.ray.flags[i] = 0;
+      rh.ray.time[i] = ray.time;
+      rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, rtc_, &ctx, &rh);
+    for (int i = 0; i < m; ++i) {
+      found[first + i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID ? 1 : 0;
+      if (!found[first + i]) continue;
+      RTCRayHit one;  // lane i as fill_hit reads a single ray's hit
+      one.ray.tfar = rh.ray.tfar[i];
+      one.hit.u = rh.hit.u[i];
+      one.hit.v = rh.hit.v[i];
+      one.hit.Ng_x = rh.hit.Ng_x[i];
+      one.hit.Ng_y = rh.hit.Ng_y[i];
+      one.hit.Ng_z = rh.hit.Ng_z[i];
+      one.hit.geomID = rh.hit.geomID[i];
+      one.hit.primID = rh.hit.primID[i];
+      fill_hit(rays[first + i], one, hits[first + i]);
+    }
+  }
+}
+
 bool Scene::occluded(const Ray& ray) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);

@@ -298,6 +298,12 @@ class Scene {
   // ---- queries (thread-safe after commit) ----
   // Closest hit along the ray in (0, ray.tmax); false on a miss.
   bool intersect(const rt::Ray& ray, rt::SurfaceHit& hit) const;
+  // intersect() for n rays at once (Embree packets of 16): found[i] = 1 and hits[i] filled when
+  // rays[i] hits something, found[i] = 0 (hits[i] untouched) on a miss; the same hits as
+  // intersect() one by one, bit for bit (Embree's packet and single-ray kernels run the same
+  // triangle test; tested). Not used by the integrator yet: BM_BounceRays measures what packets
+  // of one pixel's bounce rays would gain (docs/speed.md).
+  void intersect(const rt::Ray* rays, int n, rt::SurfaceHit* hits, std::uint8_t* found) const;
   // True when something blocks the segment origin + t dir, t in (0, tmax).
   bool occluded(const rt::Ray& ray) const;
   // occluded() for n rays at once (Embree packets of 16): hidden[i] = 1 when rays[i] is

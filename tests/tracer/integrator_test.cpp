@@ -634,5 +634,65 @@ TEST(DirectLight, BatchedShadowRaysEqualOneByOne) {
   }
 }
 
+// Scene::intersect over packets of 16 gives intersect()'s hits one by one, bit for bit, on the
+// camera rays of 24 samples per pixel (one packet and a partial one) and on cosine bounce rays
+// from their hits; on a scene of diffuse boxes, coated and mirror surfaces (cornell-box), one
+// with alpha cut-out leaves (plant: the filter function runs on packets) and one with moving
+// geometry and a shutter (motion-room: each lane at its own time). Plant's rays also miss.
+TEST(Intersect, PacketsOfSixteenGiveTheHitsOfSingleRays) {
+  for (const char* name : {"cornell-box", "plant", "motion-room"}) {
+    auto scene = load_scene(name);
+    const rt::Camera& cam = scene->camera;
+    std::vector<rt::Ray> rays;
+    rt::Sampler rng(11, 0, 0);
+    for (int px = 0; px < 48; ++px) {
+      const float x = rng.next() * 64, y = rng.next() * 48;
+      std::vector<rt::Ray> camera;
+      for (int s = 0; s < 24; ++s) {
+        const float time = cam.has_shutter() ? cam.time_at(rng.next()) : cam.shutter_open;
+        camera.push_back(cam.generate_ray_at(x + rng.next(), y + rng.next(), 64, 48, 0, 0, time));
+      }
+      rays.insert(rays.end(), camera.begin(), camera.end());
+      for (const rt::Ray& r : camera) {  // the bounce rays of the same samples
+        rt::SurfaceHit h;
+        if (!scene->intersect(r, h)) continue;
+        const rt::Frame f(h.ns);
+        rays.push_back(h.spawn_ray(f.to_world(rt::sample_cosine_hemisphere(rng.next(), rng.next()))));
+      }
+    }
+    std::vector<rt::SurfaceHit> hits(rays.size());
+    std::vector<std::uint8_t> found(rays.size(), 7);
+    scene->intersect(rays.data(), int(rays.size()), hits.data(), found.data());
+    int hit = 0, missed = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      rt::SurfaceHit one;
+      const bool f = scene->intersect(rays[i], one);
+      ASSERT_EQ(int(found[i]), f ? 1 : 0) << name << " ray " << i;
+      if (!f) {
+        ++missed;
+        continue;
+      }
+      ++hit;
+      const rt::SurfaceHit& b = hits[i];
+      ASSERT_EQ(one.t, b.t) << name << " ray " << i;
+      ASSERT_EQ(one.geom, b.geom);
+      ASSERT_EQ(one.prim, b.prim);
+      ASSERT_EQ(one.front, b.front);
+      ASSERT_EQ(one.material, b.material);
+      ASSERT_EQ(one.time, b.time);
+      ASSERT_EQ(one.u, b.u);
+      ASSERT_EQ(one.v, b.v);
+      ASSERT_EQ(one.offset, b.offset);
+      for (auto [p, q] : {std::pair{one.p, b.p}, {one.ng, b.ng}, {one.ns, b.ns}, {one.albedo, b.albedo}}) {
+        ASSERT_EQ(p.x, q.x) << name << " ray " << i;
+        ASSERT_EQ(p.y, q.y);
+        ASSERT_EQ(p.z, q.z);
+      }
+    }
+    EXPECT_GT(hit, 500) << name;  // 48 pixels x 24 samples, most of them hit, and their bounces
+    if (std::string(name) == "plant") EXPECT_GT(missed, 10) << name;  // under an open sky: rays escape
+  }
+}
+
 }  // namespace
 }  // namespace dnb
