@@ -23,6 +23,7 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
+#include "core/stats.h"
 #include "denoisers/am/adaptive_manifold.h"
 #include "denoisers/am/opencl.h"
 #include "denoisers/hdr_mapping.h"
@@ -246,12 +247,10 @@ void BM_proposed_device_ratio(benchmark::State& state) {
       c.push_back(timed(*cpu));
       o.push_back(timed(*ocl));
     }
-    std::sort(c.begin(), c.end());
-    std::sort(o.begin(), o.end());
-    state.SetIterationTime(o[kRepeats / 2] / 1e3);
-    state.counters["cpu_ms"] = c[kRepeats / 2];
-    state.counters["opencl_ms"] = o[kRepeats / 2];
-    state.counters["opencl/cpu"] = o[kRepeats / 2] / c[kRepeats / 2];
+    state.SetIterationTime(stats::median(o) / 1e3);
+    state.counters["cpu_ms"] = stats::median(c);
+    state.counters["opencl_ms"] = stats::median(o);
+    state.counters["opencl/cpu"] = stats::median(o) / stats::median(c);
   }
   state.SetLabel(am_opencl_device_name());
 }

@@ -88,4 +88,13 @@ std::string ReferenceWorkload::description() {
          std::to_string(kRefSpp) + " spp, colour only";
 }
 
+RenderSettings render_settings(int w, int h, int spp, int max_depth) {
+  RenderSettings s;
+  s.width = w;
+  s.height = h;
+  s.spp = spp;
+  s.max_depth = max_depth;
+  return s;
+}
+
 }  // namespace dnb::bench

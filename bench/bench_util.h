@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/aov_frame.h"
+#include "tracer/render.h"
 
 namespace dnb {
 class Scene;
@@ -23,6 +24,10 @@ std::shared_ptr<const Scene> scene(const std::string& name);
 // and stored on the first use on a machine, read from the cache afterwards, kept in memory
 // for the rest of the process.
 const AovFrame& rendered_frame(const std::string& scene, int w, int h, int spp);
+
+// The tracer's settings for a speed case: w x h, `spp`, path length `max_depth`, the rest the
+// defaults (every AOV, two reflection levels, edge sub-pixels, seed 1, all cores).
+RenderSettings render_settings(int w, int h, int spp, int max_depth);
 
 // Limits TBB and OpenCV to `threads` threads while alive (0: leave them at all cores).
 class ThreadLimit {

@@ -28,6 +28,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench_util.h"
+#include "core/stats.h"
 #include "core/timer.h"
 #include "tracer/mitsuba_export.h"
 #include "tracer/render.h"
@@ -57,11 +59,6 @@ std::string find_libllvm() {
   return {};
 }
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 void BM_Mitsuba(benchmark::State& state, const char* variant) {
   const int spp = int(state.range(0));
   const std::string src = DNB_BENCH_SOURCE_DIR, py = src + "/.venv/bin/python";
@@ -85,11 +82,7 @@ void BM_Mitsuba(benchmark::State& state, const char* variant) {
     if (const std::string llvm = find_libllvm(); !llvm.empty()) env = "DRJIT_LIBLLVM_PATH=" + llvm + " ";
   const std::string cmd = env + py + " " + src + "/python/mitsuba_speed.py " + (dir / "scene.xml").string() +
                           " --variant " + variant + " --repeats " + std::to_string(kRepeats) + " 2>/dev/null";
-  dnb::RenderSettings s;
-  s.width = kWidth;
-  s.height = kHeight;
-  s.spp = spp;
-  s.max_depth = kPathLength;
+  const dnb::RenderSettings s = dnb::bench::render_settings(kWidth, kHeight, spp, kPathLength);
   for (auto _ : state) {
     if (run_capture(cmd, out) != 0) {
       state.SkipWithError((std::string("Mitsuba ") + variant + " did not run (libLLVM?): " + cmd).c_str());
@@ -105,8 +98,8 @@ void BM_Mitsuba(benchmark::State& state, const char* variant) {
       seconds.push_back(clock.seconds());
       benchmark::DoNotOptimize(f);
     }
-    const double tracer = double(kWidth) * kHeight * spp / median(seconds);
-    state.SetIterationTime(median(seconds));
+    const double tracer = double(kWidth) * kHeight * spp / dnb::stats::median(seconds);
+    state.SetIterationTime(dnb::stats::median(seconds));
     state.counters["mitsuba_paths/s"] = mitsuba;
     state.counters["tracer_paths/s"] = tracer;
     state.counters["tracer/mitsuba"] = tracer / mitsuba;

@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include "bench_util.h"
+#include "core/stats.h"
 #include "core/timer.h"
 #include "tracer/math.h"
 #include "tracer/render.h"
@@ -36,11 +38,6 @@ namespace {
 namespace fs = std::filesystem;
 constexpr int kWidth = 1024, kHeight = 768, kPathLength = 8;  // spp: the case's argument
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 void BM_Tracer(benchmark::State& state, const char* scene_name) {
   std::shared_ptr<const dnb::Scene> scene;
   try {
@@ -50,11 +47,7 @@ void BM_Tracer(benchmark::State& state, const char* scene_name) {
     return;
   }
   const int spp = int(state.range(0));
-  dnb::RenderSettings s;
-  s.width = kWidth;
-  s.height = kHeight;
-  s.spp = spp;
-  s.max_depth = kPathLength;
+  const dnb::RenderSettings s = dnb::bench::render_settings(kWidth, kHeight, spp, kPathLength);
   double rays = 0;
   for (auto _ : state) {
     dnb::AovFrame f = dnb::render_frame(*scene, s);
@@ -98,11 +91,7 @@ void BM_EmbreeTutorial(benchmark::State& state) {
                           std::to_string(kPathLength) + " --pointlight 0 1.9 -0.03 3 3 3 -o '" + out.string() +
                           "' > /dev/null 2>&1";
   const auto scene = dnb::load_scene("mcguire-cornell-box");
-  dnb::RenderSettings s;
-  s.width = kWidth;
-  s.height = kHeight;
-  s.spp = spp;
-  s.max_depth = kPathLength;
+  const dnb::RenderSettings s = dnb::bench::render_settings(kWidth, kHeight, spp, kPathLength);
   for (auto _ : state) {
     std::vector<double> tutorial, tracer;
     for (int k = -1; k < kRepeats; ++k) {  // k = -1: the warm-ups
@@ -118,8 +107,8 @@ void BM_EmbreeTutorial(benchmark::State& state) {
       benchmark::DoNotOptimize(f);
     }
     const double paths = double(kWidth) * kHeight * spp;
-    const double embree = paths / median(tutorial), ours = paths / median(tracer);
-    state.SetIterationTime(median(tutorial));
+    const double embree = paths / dnb::stats::median(tutorial), ours = paths / dnb::stats::median(tracer);
+    state.SetIterationTime(dnb::stats::median(tutorial));
     state.counters["embree_paths/s"] = embree;
     state.counters["tracer_paths/s"] = ours;
     state.counters["tracer/embree"] = ours / embree;
@@ -178,10 +167,10 @@ void BM_BounceRays(benchmark::State& state) {
       b.push_back(packets());
     }
     const double n = double(rays.size());
-    state.SetIterationTime(median(b));
-    state.counters["single_rays/s"] = n / median(a);
-    state.counters["packet_rays/s"] = n / median(b);
-    state.counters["packet/single"] = median(a) / median(b);
+    state.SetIterationTime(dnb::stats::median(b));
+    state.counters["single_rays/s"] = n / dnb::stats::median(a);
+    state.counters["packet_rays/s"] = n / dnb::stats::median(b);
+    state.counters["packet/single"] = dnb::stats::median(a) / dnb::stats::median(b);
   }
 }
 BENCHMARK(BM_BounceRays)->Arg(0)->Arg(1)->Iterations(1)->UseManualTime()->Unit(benchmark::kMillisecond);
