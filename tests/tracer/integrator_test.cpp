@@ -690,7 +690,9 @@ TEST(Intersect, PacketsOfSixteenGiveTheHitsOfSingleRays) {
       }
     }
     EXPECT_GT(hit, 500) << name;  // 48 pixels x 24 samples, most of them hit, and their bounces
-    if (std::string(name) == "plant") EXPECT_GT(missed, 10) << name;  // under an open sky: rays escape
+    if (std::string(name) == "plant") {
+      EXPECT_GT(missed, 10) << name;  // under an open sky: rays escape
+    }
   }
 }
 
