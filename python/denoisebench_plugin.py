@@ -337,10 +337,20 @@ def cross_validated_weight(den, x, y, var_y, radius):
     through the display transform), and to 0 below GATE_ZERO: a change the halves cannot tell
     from noise is not made. Where the window shows no difference in display (saturated or black)
     w is 1. Returns H x W x 1."""
+    dyy, dy = _display_with_noise(y, var_y)
+    return _weight_in_display(display(den), display(x), dyy, dy, radius)
+
+
+def _display_with_noise(y, var_y):
+    """`y` in display space, and its noise there: display's slope times y's standard deviation."""
     sd = np.sqrt(np.maximum(np.asarray(var_y, np.float64), 0.0))
     yy = np.asarray(y, np.float64)
-    dy = 0.5 * (display(yy + sd) - display(np.maximum(yy - sd, 0.0)))  # display's slope times sd
-    dx, dyy, dd = display(x), display(yy), display(den)
+    return display(yy), 0.5 * (display(yy + sd) - display(np.maximum(yy - sd, 0.0)))
+
+
+def _weight_in_display(dd, dx, dyy, dy, radius):
+    """cross_validated_weight on images already in display space: the output dd, the judged half
+    dx, the other half dyy and its noise dy."""
     e = dd - dx
     e = np.where(np.isfinite(e), e, 0.0)  # a non-finite output pixel: no change, and no NaN spread by the sums
     n = (2 * radius + 1) ** 2
@@ -364,9 +374,10 @@ def cross_validated(color, output, halves, half_outputs, variance, radius):
     if radius <= 0:
         return output
     var_half = 2.0 * np.asarray(variance, np.float64)
-    a, b = halves
-    da, db = half_outputs
-    w = 0.5 * (cross_validated_weight(da, a, b, var_half, radius) + cross_validated_weight(db, b, a, var_half, radius))
+    # Each half is judged once and is the other's yardstick once: its display image serves both.
+    (xa, sa), (xb, sb) = (_display_with_noise(h, var_half) for h in halves)
+    da, db = (display(o) for o in half_outputs)
+    w = 0.5 * (_weight_in_display(da, xa, xb, sb, radius) + _weight_in_display(db, xb, xa, sa, radius))
     x = np.asarray(color, np.float64)
     return (x + w * (np.asarray(output, np.float64) - x)).astype(np.float32)
 

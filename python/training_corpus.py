@@ -399,12 +399,15 @@ def split(manifest, every=5):
     return train, val
 
 
+def srgb8(image):
+    """An image as Table 1 compares it (metrics/metrics.cpp): the display transform (clamp to
+    [0, 1], sRGB), times 255, rounded half away from zero as std::round; float64 levels."""
+    return np.floor(display(np.asarray(image, np.float64)) * 255.0 + 0.5)
+
+
 def mse8(image, reference):
-    """Table 1's mse (metrics/metrics.cpp): both through the display transform (clamp to [0, 1],
-    sRGB), times 255, rounded half away from zero as std::round, mean squared error."""
-    a = np.floor(display(np.asarray(image, np.float64)) * 255.0 + 0.5)
-    b = np.floor(display(np.asarray(reference, np.float64)) * 255.0 + 0.5)
-    return float(np.mean((a - b) ** 2))
+    """Table 1's mse: the mean squared difference of srgb8 levels."""
+    return float(np.mean((srgb8(image) - srgb8(reference)) ** 2))
 
 
 def weights_record(manifest, held):

@@ -331,6 +331,31 @@ bool Scene::intersect(const Ray& ray, SurfaceHit& hit) const {
   return true;
 }
 
+namespace {
+
+// Rays [first, first + m) of `rays` (m <= 16) as an Embree packet: lane i < m holds ray
+// first + i, the lanes past m repeat the last ray and are masked off in `valid`.
+void load_packet(const Ray* rays, int first, int m, RTCRay16& r, int (&valid)[16]) {
+  for (int i = 0; i < 16; ++i) {
+    const Ray& ray = rays[first + std::min(i, m - 1)];
+    valid[i] = i < m ? -1 : 0;
+    r.org_x[i] = ray.origin.x;
+    r.org_y[i] = ray.origin.y;
+    r.org_z[i] = ray.origin.z;
+    r.dir_x[i] = ray.dir.x;
+    r.dir_y[i] = ray.dir.y;
+    r.dir_z[i] = ray.dir.z;
+    r.tnear[i] = 0.0f;
+    r.tfar[i] = ray.tmax;
+    r.mask[i] = 0xFFFFFFFFu;
+    r.id[i] = unsigned(i);
+    r.flags[i] = 0;
+    r.time[i] = ray.time;
+  }
+}
+
+}  // namespace
+
 void Scene::intersect(const Ray* rays, int n, SurfaceHit* hits, std::uint8_t* found) const {
   for (int first = 0; first < n; first += 16) {
     const int m = std::min(16, n - first);
@@ -338,21 +363,8 @@ void Scene::intersect(const Ray* rays, int n, SurfaceHit* hits, std::uint8_t* fo
     rtcInitIntersectContext(&ctx);  // not COHERENT: see occluded(rays, n, hidden) below
     alignas(64) RTCRayHit16 rh;
     alignas(64) int valid[16];
+    load_packet(rays, first, m, rh.ray, valid);
     for (int i = 0; i < 16; ++i) {
-      const Ray& ray = rays[first + std::min(i, m - 1)];
-      valid[i] = i < m ? -1 : 0;
-      rh.ray.org_x[i] = ray.origin.x;
-      rh.ray.org_y[i] = ray.origin.y;
-      rh.ray.org_z[i] = ray.origin.z;
-      rh.ray.dir_x[i] = ray.dir.x;
-      rh.ray.dir_y[i] = ray.dir.y;
-      rh.ray.dir_z[i] = ray.dir.z;
-      rh.ray.tnear[i] = 0.0f;
-      rh.ray.tfar[i] = ray.tmax;
-      rh.ray.mask[i] = 0xFFFFFFFFu;
-      rh.ray.id[i] = unsigned(i);
-      rh.ray.flags[i] = 0;
-      rh.ray.time[i] = ray.time;
       rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
       rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
@@ -403,22 +415,7 @@ void Scene::occluded(const rt::Ray* rays, int n, std::uint8_t* hidden) const {
     // DirectLight.BatchedShadowRaysEqualOneByOne).
     RTCRay16 r;
     int valid[16];
-    for (int i = 0; i < 16; ++i) {
-      const rt::Ray& ray = rays[first + std::min(i, m - 1)];
-      valid[i] = i < m ? -1 : 0;
-      r.org_x[i] = ray.origin.x;
-      r.org_y[i] = ray.origin.y;
-      r.org_z[i] = ray.origin.z;
-      r.dir_x[i] = ray.dir.x;
-      r.dir_y[i] = ray.dir.y;
-      r.dir_z[i] = ray.dir.z;
-      r.tnear[i] = 0.0f;
-      r.tfar[i] = ray.tmax;
-      r.mask[i] = 0xFFFFFFFFu;
-      r.id[i] = unsigned(i);
-      r.flags[i] = 0;
-      r.time[i] = ray.time;
-    }
+    load_packet(rays, first, m, r, valid);
     rtcOccluded16(valid, rtc_, &ctx, &r);
     for (int i = 0; i < m; ++i) hidden[first + i] = r.tfar[i] < 0 ? 1 : 0;
   }
