@@ -1,6 +1,6 @@
 // scripts/check_skips: in CI a skipped test that tests/allowed_skips.txt does not list fails the
 // run, naming it and the reason it gave; a listed one (for its build) passes; off CI skips are
-// only listed.
+// only listed. Also scripts/lsan_exit_crashes, which reads the same JUnit files.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -46,6 +46,37 @@ TEST(CheckSkips, AListedSkipPassesOnlyForItsBuild) {
   test::write(dir.path() / "j.xml", "<?xml version=\"1.0\"?><testsuite><testcase name=\"A.B\" status=\"run\"/></testsuite>");
   EXPECT_EQ(check(dir, "release", true).exit_code, 0);
   EXPECT_EQ(test::run_command("'" + test::source_dir() + "/scripts/check_skips' '" + dir.file("none.xml") + "' release").exit_code, 2);
+}
+
+// scripts/lsan_exit_crashes: names the failed tests for a rerun only when every failure of the
+// run is LeakSanitizer crashing at exit after the test passed; any other failure, or a crash
+// before PASSED, names none.
+std::string failed_case(const std::string& name, const std::string& out) {
+  return "<testcase name=\"" + name + "\" status=\"fail\"><system-out>" + out + "</system-out></testcase>\n";
+}
+
+TEST(LsanExitCrashes, RerunsOnlyTestsThatPassedBeforeLeakSanitizerCrashed) {
+  const std::string passed = "[ RUN      ] OpenCl.A\n[       OK ] OpenCl.A (3 ms)\n[  PASSED  ] 1 test.\n";
+  const std::string crash = "Tracer caught signal 11: addr=0x2b20\n==7==LeakSanitizer has encountered a fatal error.\n";
+  const std::string ok = "<testcase name=\"Ran.Fine\" status=\"run\"/>\n";
+  test::TempDir dir;
+  auto run = [&](const std::string& cases) {
+    test::write(dir.path() / "j.xml", "<?xml version=\"1.0\"?>\n<testsuite>\n" + ok + cases + "</testsuite>\n");
+    return test::run_command("'" + test::source_dir() + "/scripts/lsan_exit_crashes' '" + dir.file("j.xml") + "'");
+  };
+  auto r = run(failed_case("OpenCl.A", passed + crash) + failed_case("Suite/P.B/0", passed + crash));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output, "^(OpenCl\\.A|Suite/P\\.B/0)$\n");  // regex-escaped, anchored: exactly these
+  // Beside an assertion's failure, nothing is rerun.
+  r = run(failed_case("OpenCl.A", passed + crash) + failed_case("X.Y", "[  FAILED  ] X.Y\n"));
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.output, "");
+  // The crash before the test finished, or with a finding, is a failure of its own.
+  EXPECT_EQ(run(failed_case("OpenCl.A", crash + passed)).output, "");
+  EXPECT_EQ(run(failed_case("OpenCl.A", "ERROR: AddressSanitizer: heap-use-after-free\n" + passed + crash)).output, "");
+  EXPECT_EQ(run("").output, "");  // nothing failed
+  EXPECT_EQ(test::run_command("'" + test::source_dir() + "/scripts/lsan_exit_crashes' '" + dir.file("none.xml") + "'").exit_code,
+            2);
 }
 
 }  // namespace

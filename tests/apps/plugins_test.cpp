@@ -405,7 +405,9 @@ TEST(Plugins, UnetTrainsDeterministicallyResumesStartsAsTheIdentityAndDenoisesWi
   for (const auto& [args, says] : {std::pair{" --steps 10 --patch 18", "--patch must be a multiple of 2^levels = 4"},
                                    std::pair{" --steps 10 --levels 0", "--levels must be in"},
                                    std::pair{" --steps -1", "--steps must be in"},
-                                   std::pair{" --steps 10 --size 40by32", "--size must be WxH"}}) {
+                                   std::pair{" --steps 10 --size 40by32", "--size must be WxH"},
+                                   std::pair{" --steps 10 --guard-weight -1", "--guard-weight must be in [0, 1e4]"},
+                                   std::pair{" --steps 10 --guard-weight nan", "--guard-weight must be in [0, 1e4]"}}) {
     auto bad = test::run_command(train + args + " --out " + dir.file("c") + " 2>&1");
     EXPECT_EQ(bad.exit_code, 2) << args << "\n" << bad.output;
     EXPECT_THAT(bad.output, HasSubstr(says)) << args;
