@@ -303,6 +303,49 @@ __kernel void cov_rows(int sw, int sh, int node, __global const float* cov, __gl
   for (int k = 0; k < TRI; ++k) rows[(size_t)sy * TRI + k] = s[k];
 }
 
+// The split directions of a group's m manifolds (one work-item each), on the device so that the
+// host never waits for the tree: the row sums of cov_rows added in row order into the D x D
+// matrix, then the power iteration of am_detail::split_direction (adaptive_manifold.cpp) step for
+// step, from the start vector the host drew for each node (start: D per node id, by id). In
+// double where the device has it (as the CPU path computes), float otherwise; products not fused,
+// as the CPU path's are not required to be either: the two agree to rounding.
+#ifdef cl_khr_fp64
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+typedef double real;
+#define REAL_TINY 1e-300
+#else
+typedef float real;
+#define REAL_TINY 1e-37f
+#endif
+__kernel void split_dirs(int sh, int m, int id0, int iterations, __global const float* rows,
+                         __global const real* start, __global float* v) {
+#pragma OPENCL FP_CONTRACT OFF
+  const int j = get_global_id(0);
+  if (j >= m) return;
+  real cov[DIMS * DIMS], vd[DIMS], u[DIMS];
+  for (int k = 0; k < DIMS * DIMS; ++k) cov[k] = 0;
+  for (int sy = 0; sy < sh; ++sy) {
+    __global const float* r = rows + ((size_t)j * sh + sy) * TRI;
+    for (int a = 0, e = 0; a < DIMS; ++a)
+      for (int b = a; b < DIMS; ++b) cov[a * DIMS + b] += (real)r[e++];
+  }
+  for (int a = 0; a < DIMS; ++a)
+    for (int b = 0; b < a; ++b) cov[a * DIMS + b] = cov[b * DIMS + a];
+  for (int i = 0; i < DIMS; ++i) vd[i] = start[(size_t)(id0 + j) * DIMS + i];
+  for (int it = 0; it < max(1, iterations); ++it) {
+    real n = 0;
+    for (int i = 0; i < DIMS; ++i) {
+      u[i] = 0;
+      for (int k = 0; k < DIMS; ++k) u[i] += cov[i * DIMS + k] * vd[k];
+      n += u[i] * u[i];
+    }
+    if (!(n > REAL_TINY)) break;  // the cluster is flat: any direction splits it
+    n = sqrt(n);
+    for (int i = 0; i < DIMS; ++i) vd[i] = u[i] / n;
+  }
+  for (int i = 0; i < DIMS; ++i) v[(size_t)j * DIMS + i] = (float)vd[i];
+}
+
 // Box average of the full-resolution first manifold onto the reduced grid.
 __kernel void downsample(int W, int H, int sw, int sh, int df, __global const float* full, __global float* small) {
   const int sx = get_global_id(0), sy = get_global_id(1);
@@ -692,6 +735,24 @@ __kernel void query_group(int nruns, __global const int* runs, int W, int H, int
     }
     for (int c = 0; c <= CHANS; ++c) qacc[(size_t)q * (CHANS + 1) + c] = a[c];
     qmin[q] = nearest;
+  }
+}
+
+// The queries' answers, as finish computes a pixel's: sum(w blur) / sum(w blur_0) at the query's
+// guide, with the outlier adjustment towards its source value where asked (flags bit 0), that
+// value being the query's own (flags bit 1: qsrc) or its pixel's; C floats per query.
+__kernel void finish_queries(int nq, int W, int H, __global const int* qxy, __global const float* qacc,
+                             __global const float* qmin, __global const float* qsrc, __global const int* flags,
+                             __global const float* src, float alpha_k, __global float* out) {
+  const int q = get_global_id(0);
+  if (q >= nq) return;
+  const size_t n = (size_t)W * H, i = (size_t)qxy[2 * q + 1] * W + qxy[2 * q];
+  const float den = qacc[(size_t)q * (CHANS + 1) + CHANS];
+  const float alpha = (flags[q] & 1) ? exp(alpha_k * qmin[q]) : 1.0f;
+  for (int c = 0; c < CHANS; ++c) {
+    const float f = (flags[q] & 2) ? qsrc[(size_t)q * CHANS + c] : src[(size_t)c * n + i];
+    const float g = den > 1e-30f ? qacc[(size_t)q * (CHANS + 1) + c] / den : f;  // kAmMinWeight
+    out[(size_t)q * CHANS + c] = f + alpha * (g - f);
   }
 }
 

@@ -287,11 +287,16 @@ void AmRun::answer_queries(const Node& n, int y, const float* eta, const float* 
   }
 }
 
-std::vector<float> split_direction(const std::vector<double>& cov, int D, std::uint64_t seed, int id, int iterations) {
+std::vector<double> split_start(int D, std::uint64_t seed, int id) {
   std::mt19937_64 rng(seed ^ (0x9E3779B97F4A7C15ull * std::uint64_t(id)));
   std::uniform_real_distribution<double> uni(-0.5, 0.5);
-  std::vector<double> vd(D), u(D);
+  std::vector<double> vd(D);
   for (auto& e : vd) e = uni(rng);
+  return vd;
+}
+
+std::vector<float> split_direction(const std::vector<double>& cov, int D, std::uint64_t seed, int id, int iterations) {
+  std::vector<double> vd = split_start(D, seed, id), u(D);
   for (int it = 0; it < std::max(1, iterations); ++it) {
     double n = 0;
     for (int i = 0; i < D; ++i) {

@@ -98,8 +98,11 @@ inline constexpr float kAmMinWeight = 1e-30f;
 namespace am_detail {
 // Hash of the guide's samples (every 61st float) and shape: the seed of the split vectors.
 std::uint64_t guide_seed(ConstImageView guide);
+// The power iteration's start vector of tree node `id` (D values in [-0.5, 0.5) from seed and id).
+std::vector<double> split_start(int D, std::uint64_t seed, int id);
 // Leading eigenvector of the D x D covariance `cov` (row-major, symmetric) by `iterations`
-// power-iteration steps from a start vector drawn from seed and tree node `id`.
+// power-iteration steps from split_start(D, seed, id). (The OpenCL path runs the same steps on
+// the device: adaptive_manifold.cl's split_dirs.)
 std::vector<float> split_direction(const std::vector<double>& cov, int D, std::uint64_t seed, int id, int iterations);
 
 // What a run on either path derives from its input and settings before it starts: sizes, the

@@ -58,6 +58,7 @@ struct ClState {
   std::string error;
   bool ok = false;
   bool gpu = false;  // the device is a GPU: the recursive filters one column per work-item (rf_cols1, transposes)
+  bool fp64 = false;  // the device has doubles: split_dirs computes in double, as the CPU path
   // DENOISEBENCH_OPENCL_PROFILE=1: every kernel, write and read of a run timed by the device (queue
   // profiling), summed per name and printed to stderr after the run (bench/device/am_device.cpp).
   const bool profile = [] {
@@ -78,6 +79,7 @@ struct ClState {
       if (devices.empty()) throw std::runtime_error("no OpenCL device on the platform");
       device = devices[0];
       gpu = (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
+      fp64 = device.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_khr_fp64") != std::string::npos;
       context = cl::Context(device);
       queue = cl::CommandQueue(context, device, profile ? cl_command_queue_properties(CL_QUEUE_PROFILING_ENABLE) : 0);
       ok = true;
@@ -175,6 +177,17 @@ class ClRun : private am_detail::AmRunShape {
     cov_ = take(sizeof(float) * std::size_t(kMaxGroup) * nwx_ * sh_ * tri);
     cov_rows_ = take(sizeof(float) * std::size_t(kMaxGroup) * sh_ * tri);
     vetas_ = take(sizeof(float) * std::size_t(kMaxGroup) * sw_ * sh_);
+    // The power iteration's start vectors of every node that splits (ids 1 .. 2^(height - 1) - 1),
+    // by id, in the type split_dirs computes in.
+    {
+      const int ids = 1 << std::max(height_ - 1, 1);
+      std::vector<double> start(std::size_t(ids) * D_, 0.0);
+      for (int id = 1; id < ids; ++id) {
+        const std::vector<double> v = am_detail::split_start(D_, seed_, id);
+        std::copy(v.begin(), v.end(), start.begin() + std::ptrdiff_t(id) * D_);
+      }
+      starts_ = st_.fp64 ? upload(std::move(start)) : upload(std::vector<float>(start.begin(), start.end()));
+    }
     const int hstride = std::max(sw_ - 1, 1);
     ah_ = take(sizeof(float) * std::size_t(sh_) * hstride);
     av_ = take(sizeof(float) * std::size_t(std::max(sh_ - 1, 1)) * sw_);
@@ -194,6 +207,17 @@ class ClRun : private am_detail::AmRunShape {
       runs_ = upload(runs);
       qxy_ = upload(xy);
       qguide_ = upload(qg);
+      // Each query's source value for the outlier adjustment (its own, or the pixel's when it
+      // gives none: read on the device) and whether it is adjusted, for finish_queries.
+      std::vector<float> qs(queries_.size() * C_, 0.0f);
+      std::vector<int> qflags(queries_.size());
+      tbb::parallel_for(std::size_t(0), queries_.size(), [&](std::size_t q) {
+        const AmQuery& a = queries_[q];
+        if (a.src) std::copy(a.src, a.src + C_, qs.begin() + std::ptrdiff_t(q * C_));
+        qflags[q] = (a.adjust_outliers ? 1 : 0) | (a.src ? 2 : 0);
+      });
+      qsrc_ = upload(qs);
+      qflags_ = upload(qflags);
       qacc_ = filled(queries_.size() * (C_ + 1), 0.0f);
       qmin_ = filled(queries_.size(), float(INFINITY));
     }
@@ -229,7 +253,7 @@ class ClRun : private am_detail::AmRunShape {
         group(level, k0, std::min(kMaxGroup, level.count - k0), split, next);
       level = next;
     }
-    host_mark("tree (enqueue, covariance waits)");
+    host_mark("tree (enqueue)");
 
     cl::Buffer out = take(sizeof(float) * N * C_);
     cl::Kernel& k = kernel("finish");
@@ -239,20 +263,14 @@ class ClRun : private am_detail::AmRunShape {
     q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data(), nullptr, event("read output"));
     host_mark("finish and read-back");
     if (query_out && !queries_.empty()) {
-      std::vector<float> acc(queries_.size() * (C_ + 1)), mn(queries_.size());
-      q.enqueueReadBuffer(qacc_, CL_TRUE, 0, sizeof(float) * acc.size(), acc.data());
-      q.enqueueReadBuffer(qmin_, CL_TRUE, 0, sizeof(float) * mn.size(), mn.data());
-      const float alpha_k = float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r));
-      query_out->assign(queries_.size() * C_, 0.0f);
-      tbb::parallel_for(std::size_t(0), queries_.size(), [&](std::size_t i) {
-        const float den = acc[i * (C_ + 1) + C_];
-        const float alpha = queries_[i].adjust_outliers ? std::exp(alpha_k * mn[i]) : 1.0f;
-        for (int c = 0; c < C_; ++c) {
-          const float f = queries_[i].src ? queries_[i].src[c] : src_value(queries_[i].x, queries_[i].y, c);
-          const float g = den > kAmMinWeight ? acc[i * (C_ + 1) + c] / den : f;
-          (*query_out)[i * C_ + c] = f + alpha * (g - f);
-        }
-      });
+      const std::size_t nq = queries_.size();
+      cl::Buffer answers = take(sizeof(float) * nq * C_);
+      cl::Kernel& fq = kernel("finish_queries");
+      set(fq, int(nq), W_, H_, qxy_, qacc_, qmin_, qsrc_, qflags_, src_, float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)),
+          answers);
+      launch(fq, nq);
+      query_out->resize(nq * C_);
+      q.enqueueReadBuffer(answers, CL_TRUE, 0, sizeof(float) * nq * C_, query_out->data(), nullptr, event("read queries"));
     } else if (query_out) {
       query_out->clear();
     }
@@ -386,13 +404,6 @@ class ClRun : private am_detail::AmRunShape {
   }
   static constexpr std::size_t kGroup = 32;
 
-  float src_value(int x, int y, int c) {
-    float v = 0;
-    const std::size_t N = std::size_t(W_) * H_;
-    st_.queue.enqueueReadBuffer(src_, CL_TRUE, sizeof(float) * (c * N + std::size_t(y) * W_ + x), sizeof(float), &v);
-    return v;
-  }
-
   // The recursive filter with a constant feedback (their h_filter) on planes p0 .. p0 + n - 1 of w x h.
   void low_pass(cl::Buffer& p, int p0, int w, int h, int n, double sigma) {
     const float a = float(std::exp(-std::sqrt(2.0) / sigma));
@@ -451,7 +462,6 @@ class ClRun : private am_detail::AmRunShape {
   // Manifolds k0 .. k0 + m - 1 of `level`: splat (one pass over the images for the group), blur
   // each, answer the queries, slice and split (one pass), and the children into next.etas.
   void group(const Level& level, int k0, int m, bool split, Level& next) {
-    auto& q = st_.queue;
     const std::size_t n = std::size_t(sw_) * sh_;
     const int id0 = level.first_id + k0;
     // Blocks that fit a work-item's 8 columns are summed there (block_store in the kernels).
@@ -470,29 +480,18 @@ class ClRun : private am_detail::AmRunShape {
         set(b, W_, H_, sw_, sh_, df_, j, colsum_, j * (C_ + 1), splats);
         launch(b, sw_, sh_);
       }
-    // The split directions: the leading eigenvectors of the clusters' covariances (host).
-    std::vector<float> v(std::size_t(m) * D_, 0.0f);
+    // The split directions: the leading eigenvectors of the clusters' covariances, on the device
+    // (split_dirs): nothing of the tree waits for the host.
+    cl::Buffer vb = take(sizeof(float) * std::size_t(m) * D_);
     if (split) {
       for (int j = 0; j < m; ++j) {
         cl::Kernel& k = kernel("cov_rows");
         set(k, nwx_, sh_, j, cov_, cov_rows_);
         launch(k, sh_);
       }
-      const std::size_t tri = std::size_t(D_) * (D_ + 1) / 2;  // upper triangles, row by row
-      std::vector<float> rows(std::size_t(m) * sh_ * tri);
-      q.enqueueReadBuffer(cov_rows_, CL_TRUE, 0, sizeof(float) * rows.size(), rows.data(), nullptr, event("read covariances"));
-      for (int j = 0; j < m; ++j) {
-        std::vector<double> cov(D_ * D_, 0.0);
-        for (int sy = 0; sy < sh_; ++sy) {
-          const float* r = rows.data() + (std::size_t(j) * sh_ + sy) * tri;
-          for (int a = 0, e = 0; a < D_; ++a)
-            for (int b = a; b < D_; ++b) cov[a * D_ + b] += r[e++];
-        }
-        for (int a = 0; a < D_; ++a)
-          for (int b = 0; b < a; ++b) cov[a * D_ + b] = cov[b * D_ + a];
-        const std::vector<float> vj = am_detail::split_direction(cov, D_, seed_, id0 + j, s_.pca_iterations);
-        std::copy(vj.begin(), vj.end(), v.begin() + std::ptrdiff_t(j) * D_);
-      }
+      cl::Kernel& k = kernel("split_dirs");
+      set(k, sh_, m, id0, s_.pca_iterations, cov_rows_, starts_, vb);
+      launch(k, std::size_t(m));
     }
     // Each manifold on the reduced grid: planes e0 .. of `small`.
     cl::Buffer small = level.etas;
@@ -519,7 +518,6 @@ class ClRun : private am_detail::AmRunShape {
           ty0_, ty1_, tfy_, inv_sr2_, qacc_, qmin_);
       launch(k, std::size_t(nruns_));
     }
-    cl::Buffer vb = upload(v);
     if (split && !level.full) {
       cl::Kernel& k = kernel("veta");
       set(k, int(n), m, small, k0, vb, vetas_);
@@ -555,6 +553,7 @@ class ClRun : private am_detail::AmRunShape {
   cl::Buffer guide_, src_, acc_, w_, min_d2_, label_, tx0_, tx1_, tfx_, ty0_, ty1_, tfy_, cov_, cov_rows_, ah_, av_;
   cl::Buffer colsum_;  // a group's column sums: the splat's (C + 1 planes of sh x W per manifold), the split's (2 (D + 1))
   cl::Buffer vetas_;  // a group's v . eta on the reduced grid (one plane per manifold)
+  cl::Buffer starts_;  // the split directions' start vectors, D per node id
   std::map<std::string, cl::Kernel> kernels_;
   std::vector<std::shared_ptr<void>> uploaded_;  // host data of upload()'s writes, kept until the run ends
   int lanes_ = lanes_for(st_.gpu);
@@ -563,7 +562,7 @@ class ClRun : private am_detail::AmRunShape {
   std::vector<std::pair<const char*, double>> host_;  // DENOISEBENCH_OPENCL_PROFILE: host_mark()'s steps
   std::vector<std::pair<std::size_t, cl::Buffer>> owned_;  // given back to the pool by the destructor
   int nwx_ = 1;        // the splat's work-items per row
-  cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_;
+  cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_, qsrc_, qflags_;
   int nruns_ = 0;
 };
 

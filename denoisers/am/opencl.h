@@ -1,7 +1,8 @@
 // The adaptive-manifold core on OpenCL (kernels in denoisers/am/adaptive_manifold.cl): splat, blur,
-// slice, split and the slice queries run as kernels; the host walks the manifold tree and runs
-// the D x D power iteration (am_detail::split_direction, shared with the CPU path, so both
-// split the same way). Output matches am_filter() up to float summation order (relative RMS
+// slice, split, the split directions (the D x D power iteration of am_detail::split_direction,
+// from the same start vectors, so both paths split the same way) and the slice queries' answers
+// run as kernels; the host only enqueues the tree, level by level, and never waits for the device
+// before the read-back. Output matches am_filter() up to float summation order (relative RMS
 // difference well below 1e-4, tests/denoisers/opencl_test.cpp).
 //
 // Device: the first device of the first OpenCL platform (PoCL's CPU device here, any GPU
