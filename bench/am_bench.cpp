@@ -218,11 +218,11 @@ void BM_proposed(benchmark::State& state, const std::string& device, std::map<st
   for (const auto& [name, seconds] : last.phases) state.counters[name + "_ms"] += seconds * 1e3;
 }
 
-// `proposed` with device = opencl against device = cpu in one case: a warm-up of each, then
-// kRepeats runs of each alternately on the same frame; counters cpu_ms and opencl_ms (medians)
-// and opencl/cpu, the ratio of their times (below 1: the device path is faster). This is the
-// OpenCL mode as it stands (the adaptive-manifold core on the device, the rest on the host),
-// not a whole filter on the device.
+// `proposed` with device = opencl (the whole filter on the device, proposed_opencl.h) and with
+// device = opencl_core (the adaptive-manifold core alone on the device, the rest on the host)
+// against device = cpu in one case: a warm-up of each, then kRepeats runs of each in turn on the
+// same frame; counters cpu_ms, opencl_ms and opencl_core_ms (medians), opencl/cpu and
+// opencl_core/cpu, the ratios of their times (below 1: the device path is faster).
 void BM_proposed_device_ratio(benchmark::State& state) {
   constexpr int kRepeats = 5;
   std::string why;
@@ -233,6 +233,7 @@ void BM_proposed_device_ratio(benchmark::State& state) {
   const AovFrame& f = proposed_frame();
   auto cpu = MethodRegistry::global().create("proposed", {});
   auto ocl = MethodRegistry::global().create("proposed", {{"device", "opencl"}});
+  auto core = MethodRegistry::global().create("proposed", {{"device", "opencl_core"}});
   auto timed = [&](Method& m) {
     const auto t0 = std::chrono::steady_clock::now();
     MethodResult r = run_method(m, {.frame = &f});
@@ -242,15 +243,19 @@ void BM_proposed_device_ratio(benchmark::State& state) {
   for (auto _ : state) {
     timed(*cpu);  // warm-ups (first-touch page faults, the OpenCL kernels' build)
     timed(*ocl);
-    std::vector<double> c, o;
+    timed(*core);
+    std::vector<double> c, o, oc;
     for (int k = 0; k < kRepeats; ++k) {
       c.push_back(timed(*cpu));
       o.push_back(timed(*ocl));
+      oc.push_back(timed(*core));
     }
     state.SetIterationTime(stats::median(o) / 1e3);
     state.counters["cpu_ms"] = stats::median(c);
     state.counters["opencl_ms"] = stats::median(o);
+    state.counters["opencl_core_ms"] = stats::median(oc);
     state.counters["opencl/cpu"] = stats::median(o) / stats::median(c);
+    state.counters["opencl_core/cpu"] = stats::median(oc) / stats::median(c);
   }
   state.SetLabel(am_opencl_device_name());
 }

@@ -30,16 +30,6 @@ float mean_luminance(const Image& img) {
   return m > 1e-12 ? float(m) : 1.0f;  // a black image: any scale
 }
 
-std::uint64_t hash_image(const Image& img) {
-  std::uint64_t h = 1469598103934665603ull;
-  for (std::size_t k = 0; k < img.size(); k += 53) {
-    std::uint32_t bits;
-    std::memcpy(&bits, img.data() + k, 4);
-    h = (h ^ bits) * 1099511628211ull;
-  }
-  return h ^ (std::uint64_t(img.width()) << 32 | std::uint64_t(img.height()));
-}
-
 }  // namespace
 
 // log(1 + x) through OpenCV's vectorised log32f, for whole rows (libm's log1pf, one pixel at a
@@ -84,6 +74,66 @@ void NlmSpace::vectors_with_centers(const Image& illumination, int x, int y, con
 
 float illumination_scale(const Image& illumination) { return mean_luminance(illumination); }
 
+std::uint64_t nlm_sample_seed(ConstImageView img) {
+  std::uint64_t h = 1469598103934665603ull;
+  const std::size_t ch = std::size_t(img.channels), n = std::size_t(img.width) * img.height * ch;
+  for (std::size_t k = 0; k < n; k += 53) {
+    const std::size_t px = k / ch;
+    std::uint32_t bits;
+    std::memcpy(&bits, img.pixel(int(px % std::size_t(img.width)), int(px / std::size_t(img.width))) + k % ch, 4);
+    h = (h ^ bits) * 1099511628211ull;
+  }
+  return h ^ (std::uint64_t(img.width) << 32 | std::uint64_t(img.height));
+}
+
+std::vector<float> nlm_patch_weights(const NlmSpaceSettings& s) {
+  const int side = 2 * s.radius + 1;
+  std::vector<float> weight(std::size_t(side) * side);
+  double wsum = 0;
+  for (int dy = -s.radius; dy <= s.radius; ++dy)
+    for (int dx = -s.radius; dx <= s.radius; ++dx) {
+      const double v = std::exp(-(dx * dx + dy * dy) / (2.0 * s.patch_sigma * s.patch_sigma));
+      weight[std::size_t((dy + s.radius) * side + dx + s.radius)] = float(v);
+      wsum += v;
+    }
+  for (auto& v : weight) v = float(v / wsum);
+  return weight;
+}
+
+std::vector<int> nlm_sample_pixels(std::uint64_t seed, int w, int h, int samples) {
+  const int n = std::min(samples, w * h);
+  std::vector<int> out(std::size_t(std::max(n, 0)));
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> px(0, w * h - 1);
+  for (int r = 0; r < n; ++r) out[std::size_t(r)] = n == w * h ? r : px(rng);
+  return out;
+}
+
+NlmBasis nlm_basis(const cv::Mat& patches, const std::vector<float>& weight, int dims) {
+  cv::Mat covar, mean;
+  cv::calcCovarMatrix(patches, covar, mean, cv::COVAR_NORMAL | cv::COVAR_ROWS | cv::COVAR_SCALE, CV_64F);
+  return nlm_basis_from_covariance(covar, mean, weight, dims);
+}
+
+NlmBasis nlm_basis_from_covariance(const cv::Mat& covar, const cv::Mat& mean, const std::vector<float>& weight, int dims) {
+  const int P = covar.cols, side = int(std::lround(std::sqrt(double(P))));
+  cv::Mat evals, evecs;
+  cv::eigen(covar, evals, evecs);  // rows of evecs: eigenvectors, eigenvalues descending
+  NlmBasis b;
+  b.kernels.assign(std::size_t(dims) * P, 0.0f);
+  b.offsets.assign(std::size_t(dims), 0.0);
+  b.center.resize(std::size_t(dims));
+  for (int k = 0; k < dims; ++k) {
+    for (int j = 0; j < P; ++j) {
+      const double e = evecs.at<double>(k, j);
+      b.kernels[std::size_t(k) * P + j] = float(e * weight[std::size_t(j)]);
+      b.offsets[std::size_t(k)] += e * mean.at<double>(0, j);
+    }
+    b.center[std::size_t(k)] = b.kernels[std::size_t(k) * P + std::size_t((side / 2) * side + side / 2)];
+  }
+  return b;
+}
+
 Image compressed_illumination(const Image& illumination, float m) {
   Image out(illumination.width(), illumination.height(), 3);
   tbb::parallel_for(0, out.height(), [&](int y) {
@@ -113,45 +163,28 @@ NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& s) {
   cv::copyMakeBorder(y, padded, s.radius, s.radius, s.radius, s.radius,
                      (w > s.radius && h > s.radius) ? cv::BORDER_REFLECT_101 : cv::BORDER_REPLICATE);
 
-  std::vector<float> weight(P);
-  double wsum = 0;
-  for (int dy = -s.radius; dy <= s.radius; ++dy)
-    for (int dx = -s.radius; dx <= s.radius; ++dx) {
-      const double v = std::exp(-(dx * dx + dy * dy) / (2.0 * s.patch_sigma * s.patch_sigma));
-      weight[(dy + s.radius) * side + dx + s.radius] = float(v);
-      wsum += v;
-    }
-  for (auto& v : weight) v = float(v / wsum);
+  const std::vector<float> weight = nlm_patch_weights(s);
 
   // PCA of the weighted patches of a deterministic random subset of pixels.
-  const int n = std::min(s.samples, w * h);
-  std::mt19937_64 rng(hash_image(illumination));
-  std::uniform_int_distribution<int> px(0, w * h - 1);
+  const std::vector<int> picks = nlm_sample_pixels(nlm_sample_seed(illumination.cview()), w, h, s.samples);
+  const int n = int(picks.size());
   cv::Mat patches(n, P, CV_64F);
   for (int r = 0; r < n; ++r) {
-    const int p = n == w * h ? r : px(rng);
+    const int p = picks[std::size_t(r)];
     const int cx = p % w, cy = p / w;
     double* row = patches.ptr<double>(r);
     for (int dy = 0; dy < side; ++dy)
       for (int dx = 0; dx < side; ++dx) row[dy * side + dx] = weight[dy * side + dx] * padded.at<float>(cy + dy, cx + dx);
   }
-  cv::Mat covar, mean;
-  cv::calcCovarMatrix(patches, covar, mean, cv::COVAR_NORMAL | cv::COVAR_ROWS | cv::COVAR_SCALE, CV_64F);
-  cv::Mat evals, evecs;
-  cv::eigen(covar, evals, evecs);  // rows of evecs: eigenvectors, eigenvalues descending
+  const NlmBasis basis = nlm_basis(patches, weight, dims);
 
   out.vectors = Image(w, h, dims);
-  out.center.resize(dims);
+  out.center = basis.center;
   std::vector<cv::Mat> kernels(dims);
-  std::vector<double> offsets(dims, 0.0);
+  const std::vector<double>& offsets = basis.offsets;
   for (int k = 0; k < dims; ++k) {
     kernels[k] = cv::Mat(side, side, CV_32F);
-    for (int j = 0; j < P; ++j) {
-      const double b = evecs.at<double>(k, j);
-      kernels[k].at<float>(j / side, j % side) = float(b * weight[j]);
-      offsets[k] += b * mean.at<double>(0, j);
-    }
-    out.center[k] = kernels[k].at<float>(s.radius, s.radius);
+    for (int j = 0; j < P; ++j) kernels[k].at<float>(j / side, j % side) = basis.kernels[std::size_t(k) * P + j];
   }
   // Projections: one task per (dimension, band of rows), each a filter2D over its band of the
   // padded image (the band plus the patch radius above and below), written into the

@@ -21,6 +21,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <opencv2/core/mat.hpp>
+
 #include "core/image.h"
 
 namespace dnb {
@@ -49,6 +51,27 @@ struct NlmSpace {
 };
 
 NlmSpace nlm_space(const Image& illumination, const NlmSpaceSettings& settings);
+
+// The pieces of nlm_space() that proposed's OpenCL pipeline (denoisers/proposed_opencl.cpp)
+// shares, so that both build the space the same way:
+// the seed of the PCA's patch sample: a hash of every 53rd float of the image and its size;
+std::uint64_t nlm_sample_seed(ConstImageView image);
+// the patch's Gaussian weights, (2 radius + 1)^2 row by row, summing to 1;
+std::vector<float> nlm_patch_weights(const NlmSpaceSettings& settings);
+// the pixels (y w + x) whose patches estimate the PCA: min(samples, w h) of them, every pixel
+// once when that is all of them, else drawn by std::mt19937_64(seed);
+std::vector<int> nlm_sample_pixels(std::uint64_t seed, int w, int h, int samples);
+// and the basis from the weighted patches (one per row, CV_64F): per component its correlation
+// kernel (the eigenvector times the weights, P floats), the projected mean patch (subtracted) and
+// the kernel's centre weight.
+struct NlmBasis {
+  std::vector<float> kernels;   // dims x P
+  std::vector<double> offsets;  // dims
+  std::vector<float> center;    // dims
+};
+NlmBasis nlm_basis(const cv::Mat& patches, const std::vector<float>& weight, int dims);
+// The same from the patches' covariance (P x P, scaled by 1 / count) and mean (1 x P), CV_64F.
+NlmBasis nlm_basis_from_covariance(const cv::Mat& covar, const cv::Mat& mean, const std::vector<float>& weight, int dims);
 
 // m of the range compression: the mean Rec. 709 luminance (1 for a black image).
 float illumination_scale(const Image& illumination);

@@ -38,6 +38,7 @@
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"
 #include "denoisers/nlm_space.h"
+#include "denoisers/proposed_opencl.h"
 
 namespace dnb {
 namespace {
@@ -61,7 +62,8 @@ class Proposed final : public Method {
         use_reflections_(p.b("reflections")),
         reflection_sum_(p.b("reflection_sum")),
         filter_color_(p.b("filter_color")),
-        opencl_(p.s("device") == "opencl"),
+        opencl_(p.s("device") != "cpu"),
+        pipeline_(p.s("device") == "opencl"),
         tint_radius_(p.i("tint_radius")),
         reflection_downsample_(p.i("reflection_downsample")) {
     std::string why;
@@ -123,6 +125,16 @@ class Proposed final : public Method {
       const Image depth = use_geometry_ ? normalized_depth(f, 0) : Image();
       r.image = filter_layer(f, 0, f.layer(layer::kColor), depth, plan.sigma_nlm, plan.am, r.stats, nullptr).image;
       guard_details(f, r.image, r.stats);
+      return r;
+    }
+    // device = opencl on the paper's split: the whole filter on the device (proposed_opencl.h).
+    // Elsewhere (another renderer's frame, the ablations, the cut light given back), and with
+    // device = opencl_core, only the adaptive-manifold core runs there, each call with its own
+    // upload and read-back.
+    r.stats.counters["device_pipeline"] = 0;
+    if (pipeline_ && !demodulated && use_nlm_ && use_geometry_ && !(firefly_sigma_ > 0)) {
+      r.stats.counters["device_pipeline"] = 1;
+      r.image = run_on_device(f, plan, r.stats);
       return r;
     }
     const AovFrame split = demodulated ? demodulate(f) : AovFrame();
@@ -231,6 +243,33 @@ class Proposed final : public Method {
     plan.am = am_;
     plan.am.outlier_scale = spp_scale(f.meta.spp, -outlier_spp_exponent_);
     stats.counters["outlier_scale"] = plan.am.outlier_scale;
+  }
+
+  // The frame on the device: plan_levels' choices, for proposed_opencl().
+  Image run_on_device(const AovFrame& f, const Plan& plan, MethodStats& stats) const {
+    ProposedDevicePlan d;
+    d.am = plan.am;
+    d.reflection_am = plan.am;
+    if (reflection_downsample_ > 0) d.reflection_am.downsample = reflection_downsample_;
+    d.nlm = nlm_;
+    d.sigma_nlm = plan.sigma_nlm;
+    d.sigma_direct = plan.sigma_direct;
+    d.sigma_normal = sigma_normal_;
+    d.sigma_depth = sigma_depth_;
+    d.firefly_ratio = firefly_ratio_;
+    if (use_reflections_)
+      while (has_level(f, d.levels + 1)) ++d.levels;
+    stats.counters["reflection_levels_filtered"] = d.levels;
+    d.edges = use_edges_ && f.edges && !f.edges->pixels.empty();
+    stats.counters["edge_subpixels_used"] = d.edges ? 1 : 0;
+    d.reflection_sum = reflection_sum_;
+    d.tint_radius = tint_radius_;
+    d.tint_band = f.meta.spp > 0 ? 3.0f * 2.0f / std::sqrt(float(f.meta.spp)) : 0.0f;  // plan_levels' band
+    d.smooth_tints = tint_radius_ > 0 && d.tint_band > 0;
+    d.tint_normal_distance = kTintNormalDistance;
+    d.tint_depth_distance = kTintDepthDistance;
+    d.detail_guard = detail_guard_;
+    return proposed_opencl(f, d, stats);
   }
 
   // Every level's layers are filtered first, all as concurrent jobs (the levels do not depend
@@ -667,6 +706,7 @@ class Proposed final : public Method {
   NlmSpaceSettings nlm_;
   float sigma_nlm_, nlm_spp_exponent_, outlier_spp_exponent_, sigma_normal_, sigma_depth_, firefly_ratio_, sigma_nlm_direct_, nlm_direct_spp_exponent_, firefly_sigma_, detail_guard_;
   bool use_nlm_, use_geometry_, use_edges_, use_reflections_, reflection_sum_, filter_color_, opencl_;
+  bool pipeline_;  // device = opencl: the whole filter on the device where it can (else the core)
   int tint_radius_;
   int reflection_downsample_;
 };
@@ -708,8 +748,8 @@ MethodInfo proposed_method() {
               {"reflection_downsample", ParamType::Int, "4", "AM reduced-grid factor (1, 2, 4, ...) of the reflection levels; 0: as downsample", 0.0, 64.0},
               {"reflection_sum", ParamType::Bool, "false", "reflection levels: filter D + I as one layer (half the work)"},
               {"filter_color", ParamType::Bool, "false", "ablation: filter the colour instead of the illumination"},
-              {"device", ParamType::String, "cpu", "where the adaptive-manifold core runs: cpu, or opencl (kernels, e.g. PoCL or a GPU)", {}, {},
-               {"cpu", "opencl"}},
+              {"device", ParamType::String, "cpu", "where it runs: cpu; opencl (kernels, e.g. PoCL or a GPU: the whole filter on the illumination split, the adaptive-manifold core elsewhere); opencl_core (the core alone, each call with its own upload and read-back)", {}, {},
+               {"cpu", "opencl", "opencl_core"}},
           },
       .create = [](const Params& p) { return std::make_unique<Proposed>(p); },
   };

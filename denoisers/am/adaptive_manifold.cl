@@ -756,9 +756,10 @@ __kernel void finish_queries(int nq, int W, int H, __global const int* qxy, __gl
   }
 }
 
-// The output: sum(w blur) / sum(w blur_0), with the optional outlier adjustment; interleaved.
+// The output: sum(w blur) / sum(w blur_0), with the optional outlier adjustment; interleaved, or
+// planar (proposed's pipeline, am_cl::am_filter_planar).
 __kernel void finish(int W, int H, __global const float* acc, __global const float* src, __global const float* min_d2,
-                     int adjust, float alpha_k, __global float* out) {
+                     int adjust, float alpha_k, int planar, __global float* out) {
   const int x = get_global_id(0), y = get_global_id(1);
   if (x >= W || y >= H) return;
   const size_t i = (size_t)y * W + x, n = (size_t)W * H;
@@ -767,6 +768,6 @@ __kernel void finish(int W, int H, __global const float* acc, __global const flo
   for (int c = 0; c < CHANS; ++c) {
     const float f = src[(size_t)c * n + i];
     const float g = den > 1e-30f ? acc[(size_t)c * n + i] / den : f;  // kAmMinWeight
-    out[i * CHANS + c] = f + alpha * (g - f);
+    out[planar ? (size_t)c * n + i : i * CHANS + c] = f + alpha * (g - f);
   }
 }

@@ -88,14 +88,19 @@ std::uint64_t guide_seed(ConstImageView g) {
   return h;
 }
 
-AmRunShape::AmRunShape(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
-    : s_(s), W_(src.width), H_(src.height), C_(src.channels), D_(guide.channels), queries_(queries) {
+AmRunShape::AmRunShape(int width, int height, int src_channels, int guide_channels, std::uint64_t seed, const AmSettings& s,
+                       const std::vector<AmQuery>& queries)
+    : s_(s), W_(width), H_(height), C_(src_channels), D_(guide_channels), queries_(queries) {
   height_ = std::min(s.tree_height > 0 ? s.tree_height : am_tree_height(s.sigma_s, s.sigma_r), 12);
   df_ = s.downsample > 0 ? s.downsample : am_downsample_factor(s.sigma_s, s.sigma_r);
   sw_ = (W_ + df_ - 1) / df_;
   sh_ = (H_ + df_ - 1) / df_;
   inv_sr2_ = float(1.0 / (s.sigma_r * s.sigma_r));
-  seed_ = guide_seed(guide);
+  seed_ = seed;
+}
+
+AmRunShape::AmRunShape(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
+    : AmRunShape(src.width, src.height, src.channels, guide.channels, guide_seed(guide), s, queries) {
   // Both paths index their buffers by the queries' pixels.
   for (std::size_t q = 0; q < queries.size(); ++q)
     if (queries[q].x < 0 || queries[q].x >= W_ || queries[q].y < 0 || queries[q].y >= H_)

@@ -110,6 +110,10 @@ std::vector<float> split_direction(const std::vector<double>& cov, int D, std::u
 // The base of the CPU run (am/run.h) and the OpenCL one (am/opencl.cpp).
 struct AmRunShape {
   AmRunShape(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries);
+  // Without the images (proposed's OpenCL pipeline, whose images stay on the device): their sizes
+  // and the split vectors' seed given (and host queries, if any).
+  AmRunShape(int width, int height, int src_channels, int guide_channels, std::uint64_t seed, const AmSettings& s,
+             const std::vector<AmQuery>& queries);
   AmSettings s_;
   int W_, H_, C_, D_;
   const std::vector<AmQuery>& queries_;

@@ -23,6 +23,7 @@
 
 #include "denoisers/am/opencl_source.h"
 #include "denoisers/am/grid.h"
+#include "denoisers/am/opencl_device.h"
 #endif
 
 namespace dnb {
@@ -122,7 +123,7 @@ struct ClState {
     std::lock_guard<std::mutex> lock(mutex);
     auto it = programs.find({dims, chans});
     if (it != programs.end()) return it->second;
-    cl::Program p(context, kAdaptiveManifoldClSource);
+    cl::Program p(context, std::string(kAdaptiveManifoldClSource) + "\n" + kProposedClSource);
     const std::string options = "-cl-std=CL1.2 -DDIMS=" + std::to_string(dims) + " -DCHANS=" + std::to_string(chans) +
                                 " -DMAXG=" + std::to_string(kMaxGroup);
     try {
@@ -144,23 +145,125 @@ ClState& state() {
 
 class ClRun : private am_detail::AmRunShape {
  public:
+  // Host images: uploaded and made planar on the device.
   ClRun(ConstImageView src, ConstImageView guide, const AmSettings& s, const std::vector<AmQuery>& queries)
-      : AmRunShape(src, guide, s, queries), st_(state()) {
+      : AmRunShape(src, guide, s, queries), st_(state()), nq_(queries.size()) {
     prog_ = st_.program(D_, C_);
-    const std::size_t N = std::size_t(W_) * H_;
     // The images go up interleaved, as they are, and become planes on the device (to_planar):
     // the host's planar copy took as long as the upload itself on the H200 machine.
     guide_ = planar_on_device(guide, D_, "write guide");
     src_ = planar_on_device(src, C_, "write source");
     host_mark("upload");
-    auto filled = [&](std::size_t count, auto value) {  // filled on the device, no host copy
-      cl::Buffer b = take(sizeof(value) * count);
-      st_.queue.enqueueFillBuffer(b, value, 0, sizeof(value) * count);
-      return b;
-    };
+    prepare();
+    if (nq_ > 0) {
+      std::vector<int> xy(2 * nq_);
+      std::vector<float> qg(nq_ * D_);
+      tbb::parallel_for(std::size_t(0), nq_, [&](std::size_t q) {
+        xy[2 * q] = queries_[q].x, xy[2 * q + 1] = queries_[q].y;
+        for (int c = 0; c < D_; ++c) qg[q * D_ + c] = queries_[q].guide[c];
+      });
+      // Runs of consecutive queries at one pixel (query_group upsamples once per run).
+      std::vector<int> runs{0};
+      for (std::size_t q = 1; q < nq_; ++q)
+        if (queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) runs.push_back(int(q));
+      runs.push_back(int(nq_));
+      set_runs(std::move(runs));
+      qxy_ = upload(xy);
+      qguide_ = upload(qg);
+      // Each query's source value for the outlier adjustment (its own, or the pixel's when it
+      // gives none: read on the device) and whether it is adjusted, for finish_queries.
+      std::vector<float> qs(nq_ * C_, 0.0f);
+      std::vector<int> qflags(nq_);
+      tbb::parallel_for(std::size_t(0), nq_, [&](std::size_t q) {
+        const AmQuery& a = queries_[q];
+        if (a.src) std::copy(a.src, a.src + C_, qs.begin() + std::ptrdiff_t(q * C_));
+        qflags[q] = (a.adjust_outliers ? 1 : 0) | (a.src ? 2 : 0);
+      });
+      qsrc_ = upload(qs);
+      qflags_ = upload(qflags);
+    }
+    host_mark("tables and queries");
+  }
+
+  // Planes already on the device, and queries too (am_cl::am_filter_planar).
+  ClRun(const cl::Buffer& src, const cl::Buffer& guide, int W, int H, int C, int D, std::uint64_t seed,
+        const AmSettings& s, const am_cl::DeviceQueries* dq)
+      : AmRunShape(W, H, C, D, seed, s, no_queries()), st_(state()), nq_(dq ? dq->count : 0) {
+    prog_ = st_.program(D_, C_);
+    src_ = src;
+    guide_ = guide;
+    prepare();
+    if (nq_ > 0) {
+      set_runs(dq->runs);
+      qxy_ = dq->xy, qguide_ = dq->guide, qsrc_ = dq->src;
+      qflags_ = filled(nq_, cl_int(3));  // adjusted, towards the query's own value
+    }
+  }
+
+  ~ClRun() {
+    // Every write of upload() done before its host data goes (a run that threw may leave some queued).
+    try {
+      st_.queue.finish();
+    } catch (...) {
+    }
+    for (auto& [bytes, b] : owned_) st_.give(bytes, b);
+  }
+  ClRun(const ClRun&) = delete;
+  ClRun& operator=(const ClRun&) = delete;
+
+  Image run(std::vector<float>* query_out) {
+    auto& q = st_.queue;
+    const std::size_t N = std::size_t(W_) * H_;
+    tree();
+    cl::Buffer out = take(sizeof(float) * N * C_);
+    finish(out, false);
+    Image img(W_, H_, C_);
+    q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data(), nullptr, event("read output"));
+    host_mark("finish and read-back");
+    if (query_out && nq_ > 0) {
+      cl::Buffer answers = take(sizeof(float) * nq_ * C_);
+      finish_queries(answers);
+      query_out->resize(nq_ * C_);
+      q.enqueueReadBuffer(answers, CL_TRUE, 0, sizeof(float) * nq_ * C_, query_out->data(), nullptr, event("read queries"));
+    } else if (query_out) {
+      query_out->clear();
+    }
+    host_mark("queries' read-back and results");
+    if (st_.profile) print_profile();
+    return img;
+  }
+
+  // The output (C planes) and the queries' answers into the caller's buffers; nothing read back.
+  void run_device(const cl::Buffer& out, const cl::Buffer* answers) {
+    tree();
+    finish(out, true);
+    if (answers && nq_ > 0) finish_queries(*answers);
+    if (st_.profile) print_profile();
+  }
+
+ private:
+  static const std::vector<AmQuery>& no_queries() {
+    static const std::vector<AmQuery> none;
+    return none;
+  }
+  template <typename T>
+  cl::Buffer filled(std::size_t count, T value) {  // filled on the device, no host copy
+    const std::size_t bytes = sizeof(T) * std::max<std::size_t>(count, 1);
+    cl::Buffer b = take(bytes);
+    st_.queue.enqueueFillBuffer(b, value, 0, bytes);
+    return b;
+  }
+  void set_runs(std::vector<int> runs) {
+    nruns_ = int(runs.size()) - 1;
+    runs_ = upload(std::move(runs));
+  }
+
+  // What both constructors share: the sums, labels, tables, scratch and the split vectors' starts.
+  void prepare() {
+    const std::size_t N = std::size_t(W_) * H_;
     acc_ = filled(N * (C_ + 1), 0.0f);
     w_ = take(sizeof(float) * N * kMaxGroup);  // each manifold's weights, by splat_group
-    min_d2_ = filled(s.adjust_outliers ? N : 1, float(INFINITY));
+    min_d2_ = filled(s_.adjust_outliers ? N : 1, float(INFINITY));
     label_ = filled(N, cl_ushort(1));
     // The CPU path's bilinear tables.
     std::vector<int> x0, x1, y0, y1;
@@ -179,63 +282,24 @@ class ClRun : private am_detail::AmRunShape {
     vetas_ = take(sizeof(float) * std::size_t(kMaxGroup) * sw_ * sh_);
     // The power iteration's start vectors of every node that splits (ids 1 .. 2^(height - 1) - 1),
     // by id, in the type split_dirs computes in.
-    {
-      const int ids = 1 << std::max(height_ - 1, 1);
-      std::vector<double> start(std::size_t(ids) * D_, 0.0);
-      for (int id = 1; id < ids; ++id) {
-        const std::vector<double> v = am_detail::split_start(D_, seed_, id);
-        std::copy(v.begin(), v.end(), start.begin() + std::ptrdiff_t(id) * D_);
-      }
-      starts_ = st_.fp64 ? upload(std::move(start)) : upload(std::vector<float>(start.begin(), start.end()));
+    const int ids = 1 << std::max(height_ - 1, 1);
+    std::vector<double> start(std::size_t(ids) * D_, 0.0);
+    for (int id = 1; id < ids; ++id) {
+      const std::vector<double> v = am_detail::split_start(D_, seed_, id);
+      std::copy(v.begin(), v.end(), start.begin() + std::ptrdiff_t(id) * D_);
     }
+    starts_ = st_.fp64 ? upload(std::move(start)) : upload(std::vector<float>(start.begin(), start.end()));
     const int hstride = std::max(sw_ - 1, 1);
     ah_ = take(sizeof(float) * std::size_t(sh_) * hstride);
     av_ = take(sizeof(float) * std::size_t(std::max(sh_ - 1, 1)) * sw_);
-    if (!queries_.empty()) {
-      std::vector<int> xy(2 * queries_.size());
-      std::vector<float> qg(queries_.size() * D_);
-      tbb::parallel_for(std::size_t(0), queries_.size(), [&](std::size_t q) {
-        xy[2 * q] = queries_[q].x, xy[2 * q + 1] = queries_[q].y;
-        for (int c = 0; c < D_; ++c) qg[q * D_ + c] = queries_[q].guide[c];
-      });
-      // Runs of consecutive queries at one pixel (query_group upsamples once per run).
-      std::vector<int> runs{0};
-      for (std::size_t q = 1; q < queries_.size(); ++q)
-        if (queries_[q].x != queries_[q - 1].x || queries_[q].y != queries_[q - 1].y) runs.push_back(int(q));
-      nruns_ = int(runs.size());
-      runs.push_back(int(queries_.size()));
-      runs_ = upload(runs);
-      qxy_ = upload(xy);
-      qguide_ = upload(qg);
-      // Each query's source value for the outlier adjustment (its own, or the pixel's when it
-      // gives none: read on the device) and whether it is adjusted, for finish_queries.
-      std::vector<float> qs(queries_.size() * C_, 0.0f);
-      std::vector<int> qflags(queries_.size());
-      tbb::parallel_for(std::size_t(0), queries_.size(), [&](std::size_t q) {
-        const AmQuery& a = queries_[q];
-        if (a.src) std::copy(a.src, a.src + C_, qs.begin() + std::ptrdiff_t(q * C_));
-        qflags[q] = (a.adjust_outliers ? 1 : 0) | (a.src ? 2 : 0);
-      });
-      qsrc_ = upload(qs);
-      qflags_ = upload(qflags);
-      qacc_ = filled(queries_.size() * (C_ + 1), 0.0f);
-      qmin_ = filled(queries_.size(), float(INFINITY));
+    if (nq_ > 0) {
+      qacc_ = filled(nq_ * (C_ + 1), 0.0f);
+      qmin_ = filled(nq_, float(INFINITY));
     }
-    host_mark("tables and queries");
   }
 
-  ~ClRun() {
-    // Every write of upload() done before its host data goes (a run that threw may leave some queued).
-    try {
-      st_.queue.finish();
-    } catch (...) {
-    }
-    for (auto& [bytes, b] : owned_) st_.give(bytes, b);
-  }
-  ClRun(const ClRun&) = delete;
-  ClRun& operator=(const ClRun&) = delete;
-
-  Image run(std::vector<float>* query_out) {
+  // Builds and slices the tree (the image's sums in acc_, the queries' in qacc_ and qmin_).
+  void tree() {
     auto& q = st_.queue;
     const std::size_t N = std::size_t(W_) * H_;
     // The first manifold: the guide low-passed at full resolution.
@@ -254,32 +318,20 @@ class ClRun : private am_detail::AmRunShape {
       level = next;
     }
     host_mark("tree (enqueue)");
-
-    cl::Buffer out = take(sizeof(float) * N * C_);
+  }
+  float alpha_k() const { return float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)); }
+  // The normalised output into `out`: C planes, or interleaved.
+  void finish(const cl::Buffer& out, bool planar) {
     cl::Kernel& k = kernel("finish");
-    set(k, W_, H_, acc_, src_, min_d2_, int(s_.adjust_outliers), float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)), out);
+    set(k, W_, H_, acc_, src_, min_d2_, int(s_.adjust_outliers), alpha_k(), int(planar), out);
     launch(k, W_, H_);
-    Image img(W_, H_, C_);
-    q.enqueueReadBuffer(out, CL_TRUE, 0, sizeof(float) * N * C_, img.data(), nullptr, event("read output"));
-    host_mark("finish and read-back");
-    if (query_out && !queries_.empty()) {
-      const std::size_t nq = queries_.size();
-      cl::Buffer answers = take(sizeof(float) * nq * C_);
-      cl::Kernel& fq = kernel("finish_queries");
-      set(fq, int(nq), W_, H_, qxy_, qacc_, qmin_, qsrc_, qflags_, src_, float(-0.5 * s_.outlier_scale / (s_.sigma_r * s_.sigma_r)),
-          answers);
-      launch(fq, nq);
-      query_out->resize(nq * C_);
-      q.enqueueReadBuffer(answers, CL_TRUE, 0, sizeof(float) * nq * C_, query_out->data(), nullptr, event("read queries"));
-    } else if (query_out) {
-      query_out->clear();
-    }
-    host_mark("queries' read-back and results");
-    if (st_.profile) print_profile();
-    return img;
+  }
+  void finish_queries(const cl::Buffer& answers) {
+    cl::Kernel& fq = kernel("finish_queries");
+    set(fq, int(nq_), W_, H_, qxy_, qacc_, qmin_, qsrc_, qflags_, src_, alpha_k(), answers);
+    launch(fq, nq_);
   }
 
- private:
   // A buffer from the pool for the rest of the run, and one for a scope.
   cl::Buffer take(std::size_t bytes) {
     cl::Buffer b = st_.take(bytes);
@@ -512,7 +564,7 @@ class ClRun : private am_detail::AmRunShape {
       launch(k, (std::size_t(sw_) + 7) / 8, sh_);  // 8 reduced columns per work-item
       recursive(splats, j * (C_ + 1), sw_, sh_, C_ + 1, 0.0f);
     }
-    if (!queries_.empty()) {
+    if (nq_ > 0) {
       cl::Kernel& k = kernel("query_group");
       set(k, nruns_, runs_, W_, H_, sw_, sh_, m, qxy_, qguide_, level.etas, k0, int(level.full), splats, tx0_, tx1_, tfx_,
           ty0_, ty1_, tfy_, inv_sr2_, qacc_, qmin_);
@@ -564,6 +616,7 @@ class ClRun : private am_detail::AmRunShape {
   int nwx_ = 1;        // the splat's work-items per row
   cl::Buffer qxy_, qguide_, qacc_, qmin_, runs_, qsrc_, qflags_;
   int nruns_ = 0;
+  std::size_t nq_ = 0;  // the queries (host or device)
 };
 
 }  // namespace
@@ -595,6 +648,36 @@ Image am_filter_opencl(ConstImageView src, ConstImageView guide, const AmSetting
     throw WorkError(std::string("OpenCL error in the adaptive-manifold core: ") + e.what() + " (" + std::to_string(e.err()) + ")");
   }
 }
+
+namespace am_cl {
+
+cl::CommandQueue& queue() { return state().queue; }
+bool device_has_fp64() { return state().fp64; }
+cl::Program program(int dims, int chans) { return state().program(dims, chans); }
+bool profiling() { return state().profile; }
+
+Pooled::Pooled(std::size_t bytes) : bytes_(std::max<std::size_t>(bytes, 4)), buf_(state().take(bytes_)) {}
+Pooled::~Pooled() {
+  if (bytes_ > 0) state().give(bytes_, buf_);
+}
+Pooled& Pooled::operator=(Pooled&& o) noexcept {
+  if (this != &o) {
+    if (bytes_ > 0) state().give(bytes_, buf_);
+    bytes_ = o.bytes_;
+    buf_ = std::move(o.buf_);
+    o.bytes_ = 0;
+  }
+  return *this;
+}
+
+void am_filter_planar(const cl::Buffer& src, const cl::Buffer& guide, int width, int height, int C, int D,
+                      std::uint64_t seed, const AmSettings& settings, const DeviceQueries* queries, const cl::Buffer& out,
+                      const cl::Buffer* answers) {
+  ClRun run(src, guide, width, height, C, D, seed, settings, queries);
+  run.run_device(out, answers);
+}
+
+}  // namespace am_cl
 
 #endif
 
