@@ -116,22 +116,43 @@ __kernel void pp_patch_cov(int count, int P, __global const real* patches, __glo
   if (a == b) mean[a] = ma;
 }
 
-// The NLM vectors: per component, the correlation of y with its kernel (P taps) minus its offset.
-__kernel void pp_project(int W, int H, int R, int reflect, int dims, __global const float* y, __global const float* kern,
-                         __global const float* offsets, __global float* out) {
-  const int x = get_global_id(0), yy0 = get_global_id(1);
-  if (x >= W || yy0 >= H) return;
-  const int side = 2 * R + 1, P = side * side;
-  const size_t n = (size_t)W * H, i = (size_t)yy0 * W + x;
-  for (int k = 0; k < dims; ++k) {
-    float s = 0;
-    for (int dy = 0; dy < side; ++dy) {
-      const size_t row = (size_t)pp_border(yy0 + dy - R, H, reflect) * W;
-      for (int dx = 0; dx < side; ++dx) s += kern[k * P + dy * side + dx] * y[row + pp_border(x + dx - R, W, reflect)];
+// y padded by R on every side under nlm_space's border, for pp_project8; the buffer has 8 floats of
+// slack after it (pp_project8's last lanes read past the last row and are dropped).
+__kernel void pp_pad(int W, int H, int R, int reflect, __global const float* y, __global float* padded) {
+  const int x = get_global_id(0), yy = get_global_id(1);
+  const int PW = W + 2 * R, PH = H + 2 * R;
+  if (x >= PW || yy >= PH) return;
+  padded[(size_t)yy * PW + x] = y[(size_t)pp_border(yy - R, H, reflect) * W + pp_border(x - R, W, reflect)];
+}
+
+#if DIMS > 4
+// The NLM vectors (the program's guide has DIMS = NLM components + normal + depth): per component,
+// the correlation of y with its kernel (P taps) minus its offset, 8 pixels of a row per work-item
+// in float8 lanes (one tap loop for every component: PoCL vectorises the lanes, a GPU loses nothing).
+#define NLMD (DIMS - 4)
+__kernel void pp_project8(int W, int H, int R, __global const float* padded, __global const float* kern,
+                          __global const float* offsets, __global float* out) {
+  const int x0 = get_global_id(0) * 8, y = get_global_id(1);
+  if (x0 >= W || y >= H) return;
+  const int side = 2 * R + 1, P = side * side, PW = W + 2 * R;
+  float8 acc[NLMD];
+  for (int k = 0; k < NLMD; ++k) acc[k] = (float8)(0.0f);
+  for (int dy = 0; dy < side; ++dy) {
+    __global const float* row = padded + (size_t)(y + dy) * PW + x0;
+    for (int dx = 0; dx < side; ++dx) {
+      const float8 v = vload8(0, row + dx);
+      for (int k = 0; k < NLMD; ++k) acc[k] += kern[k * P + dy * side + dx] * v;
     }
-    out[(size_t)k * n + i] = s - offsets[k];
+  }
+  const size_t n = (size_t)W * H;
+  const int lanes = min(8, W - x0);
+  for (int k = 0; k < NLMD; ++k) {
+    float a[8];
+    vstore8(acc[k] - offsets[k], 0, a);
+    for (int i = 0; i < lanes; ++i) out[(size_t)k * n + (size_t)y * W + x0 + i] = a[i];
   }
 }
+#endif
 
 // make_guide of [NLM vectors, normal, depth over its median]: each group times sigma_r / its sigma.
 __kernel void pp_guide(int n, int dims, __global const float* nlm, float s_nlm, __global const float* normal, float s_normal,

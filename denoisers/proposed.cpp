@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 
 #include <opencv2/imgproc.hpp>
@@ -31,6 +32,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "core/env.h"
 #include "core/errors.h"
 #include "denoisers/am/adaptive_manifold.h"
 #include "denoisers/am/opencl.h"
@@ -38,6 +40,7 @@
 #include "denoisers/illumination.h"
 #include "denoisers/method.h"
 #include "denoisers/nlm_space.h"
+#include "denoisers/proposed_capture.h"
 #include "denoisers/proposed_opencl.h"
 
 namespace dnb {
@@ -144,6 +147,14 @@ class Proposed final : public Method {
     run_jobs(r.stats, plan.jobs);
     r.image = compose_levels(fs, plan, r.stats);
     guard_details(f, r.image, r.stats);
+    // DENOISEBENCH_PROPOSED_CAPTURE=FILE: the frame, its device plan and this output, for the
+    // device pipeline's driver on another machine (proposed_capture.h); the first run writes it,
+    // later ones (a benchmark's repetitions) leave it.
+    if (const char* path = env::get("PROPOSED_CAPTURE");
+        path && *path && !demodulated && use_nlm_ && use_geometry_ && !std::filesystem::exists(path)) {
+      MethodStats unused;
+      write_proposed_capture(path, f, device_plan(f, plan, unused), r.image);
+    }
     return r;
   }
 
@@ -247,6 +258,9 @@ class Proposed final : public Method {
 
   // The frame on the device: plan_levels' choices, for proposed_opencl().
   Image run_on_device(const AovFrame& f, const Plan& plan, MethodStats& stats) const {
+    return proposed_opencl(f, device_plan(f, plan, stats), stats);
+  }
+  ProposedDevicePlan device_plan(const AovFrame& f, const Plan& plan, MethodStats& stats) const {
     ProposedDevicePlan d;
     d.am = plan.am;
     d.reflection_am = plan.am;
@@ -269,7 +283,7 @@ class Proposed final : public Method {
     d.tint_normal_distance = kTintNormalDistance;
     d.tint_depth_distance = kTintDepthDistance;
     d.detail_guard = detail_guard_;
-    return proposed_opencl(f, d, stats);
+    return d;
   }
 
   // Every level's layers are filtered first, all as concurrent jobs (the levels do not depend

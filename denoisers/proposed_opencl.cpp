@@ -15,6 +15,8 @@ Image proposed_opencl(const AovFrame&, const ProposedDevicePlan&, MethodStats&) 
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <deque>
 #include <map>
 #include <memory>
 #include <string>
@@ -80,6 +82,7 @@ class Pipeline {
     q_.enqueueReadBuffer(*il, CL_TRUE, 0, sizeof(float) * N_ * 3, out.data());
     stats_.counters["firefly_pixels"] = double(cut);
     stats_.counters["guide_channels"] = D_;
+    if (am_cl::profiling()) print_profile();
     return out;
   }
 
@@ -104,14 +107,34 @@ class Pipeline {
   void run1(cl::Kernel& k, std::size_t n, A&&... args) {
     set(k, std::forward<A>(args)...);
     const std::size_t l = 64;
-    q_.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((std::max<std::size_t>(n, 1) + l - 1) / l * l), cl::NDRange(l));
+    q_.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((std::max<std::size_t>(n, 1) + l - 1) / l * l), cl::NDRange(l),
+                            nullptr, event(k));
   }
   template <typename... A>
   void run2(cl::Kernel& k, int w, int h, int depth, A&&... args) {
     set(k, std::forward<A>(args)...);
     const std::size_t l = 32;
     q_.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange((std::size_t(w) + l - 1) / l * l, std::size_t(h), std::size_t(depth)),
-                            cl::NDRange(l, 1, 1));
+                            cl::NDRange(l, 1, 1), nullptr, event(k));
+  }
+  // DENOISEBENCH_OPENCL_PROFILE: each kernel of the pipeline timed by the device (the core's calls
+  // print their own), summed per name and printed after the frame.
+  cl::Event* event(cl::Kernel& k) {
+    if (!am_cl::profiling()) return nullptr;
+    events_.emplace_back(k.getInfo<CL_KERNEL_FUNCTION_NAME>(), cl::Event());
+    return &events_.back().second;
+  }
+  void print_profile() {
+    q_.finish();
+    std::map<std::string, std::pair<double, int>> by;
+    double total = 0;
+    for (auto& [name, e] : events_) {
+      const double ms = double(e.getProfilingInfo<CL_PROFILING_COMMAND_END>() - e.getProfilingInfo<CL_PROFILING_COMMAND_START>()) * 1e-6;
+      by[name].first += ms, ++by[name].second, total += ms;
+    }
+    std::string line = "opencl profile, proposed's pipeline besides the core: " + std::to_string(total) + " ms of device time:";
+    for (auto& [name, t] : by) line += " " + name + " " + std::to_string(t.first) + " ms/" + std::to_string(t.second) + ";";
+    std::fprintf(stderr, "%s\n", line.c_str());
   }
   template <typename... A>
   static void set(cl::Kernel& k, A&&... args) {
@@ -251,7 +274,9 @@ class Pipeline {
     std::vector<float> offsets(basis.offsets.begin(), basis.offsets.end());
     Pooled kern = upload(basis.kernels), offs = upload(std::move(offsets)), center = upload(basis.center);
     Pooled nlm(sizeof(float) * n * dims_);
-    run2(kernel("pp_project"), w, h, 1, w, h, R, reflect, dims_, *y, *kern, *offs, *nlm);
+    Pooled padded(sizeof(float) * (std::size_t(w + 2 * R) * (h + 2 * R) + 8));
+    run2(kernel("pp_pad"), w + 2 * R, h + 2 * R, 1, w, h, R, reflect, *y, *padded);
+    run2(kernel("pp_project8"), (w + 7) / 8, h, 1, w, h, R, *padded, *kern, *offs, *nlm);
     // The guide: each group times sigma_r / its sigma (make_guide).
     const float sr = float(am.sigma_r);
     Pooled guide(sizeof(float) * n * D_);
@@ -467,6 +492,7 @@ class Pipeline {
   cl::Program prog_;
   std::map<std::string, cl::Kernel> kernels_;
   std::vector<std::shared_ptr<void>> kept_;
+  std::deque<std::pair<std::string, cl::Event>> events_;  // DENOISEBENCH_OPENCL_PROFILE only (stable addresses)
   Pooled cut_;
   // Level 0's edge sub-pixels (queries in edge-pixel order, kPerPixel each) and their answers.
   std::size_t nq_ = 0;
