@@ -54,6 +54,16 @@ class Pipeline {
         dims_(std::clamp(p.nlm.dims, 1, (2 * p.nlm.radius + 1) * (2 * p.nlm.radius + 1))), D_(dims_ + 4),
         fp64_(am_cl::device_has_fp64()), prog_(am_cl::program(D_, 3)) {}
 
+  // A pipeline that threw may leave writes from kept_ queued: they finish before it goes.
+  ~Pipeline() {
+    try {
+      q_.finish();
+    } catch (...) {
+    }
+  }
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
   Image run() {
     const int K = p_.levels;
     std::vector<Level> lv(std::size_t(K) + 1);
