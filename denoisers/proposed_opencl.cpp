@@ -75,8 +75,14 @@ class Pipeline {
     cut_ = zeros(sizeof(cl_int));
     {
       ScopedPhase ph(stats_, "device_filter");
-      filter_level0(lv[0]);
-      for (int k = 1; k <= K; ++k) filter_reflection_level(k, lv[std::size_t(k)]);
+      // Every layer's NLM statistics first, then one wait for their covariances, then the rest:
+      // the host's eigen-decompositions cost the device one idle gap per frame, not one per layer.
+      std::deque<LayerJob> jobs;
+      plan_level0(lv[0], jobs);
+      for (int k = 1; k <= K; ++k) plan_reflection_level(k, lv[std::size_t(k)], jobs);
+      for (LayerJob& j : jobs) nlm_statistics(j);
+      q_.finish();
+      for (LayerJob& j : jobs) filter(j);
       for (int k = 0; k < K; ++k)
         if (p_.smooth_tints) smooth_tint_of(k, lv);
     }
@@ -102,6 +108,7 @@ class Pipeline {
     Pooled d, i, t, r, e, n, z, tint;  // tint: the raw refl<k>.tint (k >= 1)
     Pooled fd, fi;                     // filtered D and I (full frame, 0 outside the box)
     Pooled zn;                         // depth over the median of the box (the box's size)
+    Pooled zb, nb;                     // level k >= 1: its depth and normal cropped to the box
     Pooled smoothed;                   // the smoothed tint of level k + 1 (full frame), or empty
     PixelBox box;
     float median = 1.0f;
@@ -232,90 +239,121 @@ class Pipeline {
     sub_depth_ = upload(std::move(z));
   }
 
-  // ---- filter_layer: fireflies, NLM space, guide, edge queries, the adaptive-manifold core
-  struct Filtered {
-    Pooled image, answers;
+  // ---- filter_layer: fireflies, NLM space, guide, edge queries, the adaptive-manifold core, in
+  // two stages (nlm_statistics up to the patch covariance, read back; filter the rest), so that
+  // every layer's covariance is read in one wait.
+  struct LayerJob {
+    // What is filtered: `src` (3 planes of w x h) of a level, guided by its NLM vectors, `normal`
+    // and `zn` (normalised depth); `host` is the same layer on the host (the NLM sample's seed).
+    // With `sub` (level 0), also the edge sub-pixels' queries with those values.
+    const Pooled* src = nullptr;
+    Pooled owned_src;  // a crop or a sum made for the job
+    ConstImageView host;
+    int w = 0, h = 0;
+    const Pooled *normal = nullptr, *zn = nullptr;
+    float sigma_nlm = 0;
+    AmSettings am;
+    const Pooled* sub = nullptr;
+    float depth_scale = 1.0f;
+    // Where the result goes: *image (a frame's planes: pasted at `box` when it is not the whole
+    // frame) and *answers (the queries'), when sub is set.
+    Pooled* image = nullptr;
+    Pooled* answers = nullptr;
+    PixelBox box;
+    // The first stage's buffers and host copies.
+    Pooled kept_buf, bound, m, y, cov, mean;
+    const Pooled* kept = nullptr;
+    std::uint64_t seed = 0;
+    std::vector<double> cov_host, mean_host;
+    std::vector<float> cov_f, mean_f;
   };
-  // `src` (3 planes of w x h) of level k, guided by its NLM vectors, `normal` and `zn` (normalised
-  // depth); `host` is the same layer on the host (the NLM sample's seed). With `sub` (level 0),
-  // also the edge sub-pixels' queries with those values.
-  Filtered filter_layer(const Pooled& src, ConstImageView host, int w, int h, const Pooled& normal, const Pooled& zn,
-                        float sigma_nlm, const AmSettings& am, const Pooled* sub, float depth_scale) {
+
+  // Fireflies, the NLM scale and compressed luminance, the sample's weighted patches and their
+  // covariance, whose read-back is enqueued (not waited for).
+  void nlm_statistics(LayerJob& j) {
+    const int w = j.w, h = j.h;
     const std::size_t n = std::size_t(w) * h;
     const int R = p_.nlm.radius, side = 2 * R + 1, P = side * side;
     const int reflect = (w > R && h > R) ? 1 : 0;
     const std::size_t real = fp64_ ? sizeof(double) : sizeof(float);
-    // Fireflies.
-    Pooled kept_buf, bound;
-    const Pooled* kept = &src;
+    j.kept = j.src;
     if (p_.firefly_ratio > 0) {
-      kept_buf = Pooled(sizeof(float) * n * 3);
-      bound = Pooled(sizeof(float) * n);
-      run2(kernel("pp_fireflies"), w, h, 1, w, h, p_.firefly_ratio, *src, *kept_buf, *bound, *cut_);
-      kept = &kept_buf;
+      j.kept_buf = Pooled(sizeof(float) * n * 3);
+      j.bound = Pooled(sizeof(float) * n);
+      run2(kernel("pp_fireflies"), w, h, 1, w, h, p_.firefly_ratio, **j.src, *j.kept_buf, *j.bound, *cut_);
+      j.kept = &j.kept_buf;
     }
-    // The NLM space: the scale, the compressed luminance, the PCA of a sample of its patches.
-    Pooled rows(real * std::size_t(h)), m(sizeof(float)), y(sizeof(float) * n);
-    run1(kernel("pp_sum_rows"), std::size_t(h), w, h, 3, 0, **kept, *rows);
-    run1(kernel("pp_sum_finish"), 1, h, int(n), 0, *rows, *m);
-    run1(kernel("pp_compress"), n, int(n), **kept, *m, *y);
+    Pooled rows(real * std::size_t(h));
+    j.m = Pooled(sizeof(float)), j.y = Pooled(sizeof(float) * n);
+    run1(kernel("pp_sum_rows"), std::size_t(h), w, h, 3, 0, **j.kept, *rows);
+    run1(kernel("pp_sum_finish"), 1, h, int(n), 0, *rows, *j.m);
+    run1(kernel("pp_compress"), n, int(n), **j.kept, *j.m, *j.y);
     // The NLM sample's seed: a hash of the layer before its firefly cut (the host's copy), or with
     // DENOISEBENCH_OPENCL_CPU_SEEDS of the cut layer read back, as the CPU path hashes it.
-    const std::uint64_t seed = nlm_sample_seed(cpu_seeds_ ? host_copy(**kept, w, h, 3).cview() : host);
-    std::vector<int> picks = nlm_sample_pixels(seed, w, h, p_.nlm.samples);
+    j.seed = nlm_sample_seed(cpu_seeds_ ? host_copy(**j.kept, w, h, 3).cview() : j.host);
+    std::vector<int> picks = nlm_sample_pixels(j.seed, w, h, p_.nlm.samples);
     const int count = int(picks.size());
-    const std::vector<float> weight = nlm_patch_weights(p_.nlm);
-    Pooled pk = upload(std::move(picks)), wt = upload(weight);
-    Pooled patches(real * std::size_t(count) * P), mean(real * P), cov(real * P * P);
-    run1(kernel("pp_patches"), std::size_t(count), count, w, h, R, reflect, *pk, *y, *wt, *patches);
-    run2(kernel("pp_patch_cov"), P, P, 1, count, P, *patches, *mean, *cov);
-    cv::Mat covar(P, P, CV_64F), mu(1, P, CV_64F);
+    Pooled pk = upload(std::move(picks)), wt = upload(nlm_patch_weights(p_.nlm));
+    Pooled patches(real * std::size_t(count) * P);
+    j.mean = Pooled(real * P), j.cov = Pooled(real * P * P);
+    run1(kernel("pp_patches"), std::size_t(count), count, w, h, R, reflect, *pk, *j.y, *wt, *patches);
+    run2(kernel("pp_patch_cov"), P, P, 1, count, P, *patches, *j.mean, *j.cov);
     if (fp64_) {
-      q_.enqueueReadBuffer(*mean, CL_FALSE, 0, real * P, mu.ptr<double>());
-      q_.enqueueReadBuffer(*cov, CL_TRUE, 0, real * P * P, covar.ptr<double>());
+      j.mean_host.resize(std::size_t(P)), j.cov_host.resize(std::size_t(P) * P);
+      q_.enqueueReadBuffer(*j.mean, CL_FALSE, 0, real * P, j.mean_host.data());
+      q_.enqueueReadBuffer(*j.cov, CL_FALSE, 0, real * P * P, j.cov_host.data());
     } else {
-      std::vector<float> a(std::size_t(P) * std::size_t(P)), b(static_cast<std::size_t>(P));
-      q_.enqueueReadBuffer(*mean, CL_FALSE, 0, real * P, b.data());
-      q_.enqueueReadBuffer(*cov, CL_TRUE, 0, real * P * P, a.data());
-      for (int j = 0; j < P * P; ++j) covar.ptr<double>()[j] = a[std::size_t(j)];
-      for (int j = 0; j < P; ++j) mu.ptr<double>()[j] = b[std::size_t(j)];
+      j.mean_f.resize(std::size_t(P)), j.cov_f.resize(std::size_t(P) * P);
+      q_.enqueueReadBuffer(*j.mean, CL_FALSE, 0, real * P, j.mean_f.data());
+      q_.enqueueReadBuffer(*j.cov, CL_FALSE, 0, real * P * P, j.cov_f.data());
     }
-    const NlmBasis basis = nlm_basis_from_covariance(covar, mu, weight, dims_);
+  }
+
+  // After the covariances are read: the basis (host), the NLM vectors, the guide, the edge
+  // queries and the adaptive-manifold core, into the job's targets.
+  void filter(LayerJob& j) {
+    const int w = j.w, h = j.h;
+    const std::size_t n = std::size_t(w) * h;
+    const int R = p_.nlm.radius, side = 2 * R + 1, P = side * side;
+    const int reflect = (w > R && h > R) ? 1 : 0;
+    cv::Mat covar(P, P, CV_64F), mu(1, P, CV_64F);
+    for (int k = 0; k < P * P; ++k) covar.ptr<double>()[k] = fp64_ ? j.cov_host[std::size_t(k)] : j.cov_f[std::size_t(k)];
+    for (int k = 0; k < P; ++k) mu.ptr<double>()[k] = fp64_ ? j.mean_host[std::size_t(k)] : j.mean_f[std::size_t(k)];
+    const NlmBasis basis = nlm_basis_from_covariance(covar, mu, nlm_patch_weights(p_.nlm), dims_);
     std::vector<float> offsets(basis.offsets.begin(), basis.offsets.end());
     Pooled kern = upload(basis.kernels), offs = upload(std::move(offsets)), center = upload(basis.center);
     Pooled nlm(sizeof(float) * n * dims_);
     Pooled padded(sizeof(float) * (std::size_t(w + 2 * R) * (h + 2 * R) + 8));
-    run2(kernel("pp_pad"), w + 2 * R, h + 2 * R, 1, w, h, R, reflect, *y, *padded);
+    run2(kernel("pp_pad"), w + 2 * R, h + 2 * R, 1, w, h, R, reflect, *j.y, *padded);
     run2(kernel("pp_project8"), (w + 7) / 8, h, 1, w, h, R, *padded, *kern, *offs, *nlm);
     // The guide: each group times sigma_r / its sigma (make_guide).
-    const float sr = float(am.sigma_r);
+    const float sr = float(j.am.sigma_r);
     Pooled guide(sizeof(float) * n * D_);
-    run1(kernel("pp_guide"), n, int(n), dims_, *nlm, sr / sigma_nlm, *normal, sr / p_.sigma_normal, *zn,
+    run1(kernel("pp_guide"), n, int(n), dims_, *nlm, sr / j.sigma_nlm, **j.normal, sr / p_.sigma_normal, **j.zn,
          sr / p_.sigma_depth, *guide);
     // The edge sub-pixels' queries.
     am_cl::DeviceQueries dq;
     Pooled qguide, qsrc;
-    if (sub) {
+    if (j.sub) {
       qguide = Pooled(sizeof(float) * nq_ * D_);
       qsrc = Pooled(sizeof(float) * nq_ * 3);
-      run1(kernel("pp_edge_guides"), nq_, int(nq_), w, h, dims_, *qxy_, **sub, p_.firefly_ratio > 0 ? 1 : 0,
-           p_.firefly_ratio > 0 ? *bound : *src, **kept, *m, *nlm, *center, sr / sigma_nlm, *sub_normal_,
-           sr / p_.sigma_normal, *sub_depth_, depth_scale, sr / p_.sigma_depth, *qguide, *qsrc);
+      run1(kernel("pp_edge_guides"), nq_, int(nq_), w, h, dims_, *qxy_, **j.sub, p_.firefly_ratio > 0 ? 1 : 0,
+           p_.firefly_ratio > 0 ? *j.bound : **j.src, **j.kept, *j.m, *nlm, *center, sr / j.sigma_nlm, *sub_normal_,
+           sr / p_.sigma_normal, *sub_depth_, j.depth_scale, sr / p_.sigma_depth, *qguide, *qsrc);
       dq.count = nq_;
       dq.xy = *qxy_, dq.guide = *qguide, dq.src = *qsrc;
       dq.runs = runs_;
+      *j.answers = Pooled(sizeof(float) * nq_ * 3);
     }
-    Filtered out;
-    out.image = Pooled(sizeof(float) * n * 3);
-    if (sub) out.answers = Pooled(sizeof(float) * nq_ * 3);
-    // The split vectors' seed: the NLM sample's, mixed (the CPU path hashes its guide instead).
     // The split vectors' seed: the NLM sample's, mixed; with DENOISEBENCH_OPENCL_CPU_SEEDS the CPU
     // path's (a hash of the guide, read back).
     const std::uint64_t am_seed = cpu_seeds_ ? am_detail::guide_seed(host_copy(*guide, w, h, D_).cview())
-                                             : seed ^ 0x5851F42D4C957F2Dull;
-    am_cl::am_filter_planar(**kept, *guide, w, h, 3, D_, am_seed, am, sub ? &dq : nullptr, *out.image,
-                            sub ? &*out.answers : nullptr);
-    return out;
+                                             : j.seed ^ 0x5851F42D4C957F2Dull;
+    Pooled out(sizeof(float) * n * 3);
+    am_cl::am_filter_planar(**j.kept, *guide, w, h, 3, D_, am_seed, j.am, j.sub ? &dq : nullptr, *out,
+                            j.sub ? &**j.answers : nullptr);
+    const bool whole = j.box.x == 0 && j.box.y == 0 && j.box.w == W_ && j.box.h == H_;
+    *j.image = whole ? std::move(out) : paste(out, 3, j.box);
   }
 
   // Planes read back into an interleaved host image (DENOISEBENCH_OPENCL_CPU_SEEDS only).
@@ -336,7 +374,8 @@ class Pipeline {
     return out;
   }
 
-  void filter_level0(Level& l) {
+  // Level 0: the whole frame, its D and I with the edge sub-pixels' queries.
+  void plan_level0(Level& l, std::deque<LayerJob>& jobs) {
     l.box = {0, 0, W_, H_};
     const Image& z = f_.layer(layer::kDepth);
     l.median = median_depth(z, l.box);
@@ -350,19 +389,23 @@ class Pipeline {
         break;
       }
     }
-    const Image& d = f_.layer(layer::kDirect);
-    const Image& i = f_.layer(layer::kIndirect);
-    Filtered fd = filter_layer(l.d, d.cview(), W_, H_, l.n, l.zn, p_.sigma_direct, p_.am, p_.edges ? &sub_direct_ : nullptr,
-                               depth_scale);
-    Filtered fi = filter_layer(l.i, i.cview(), W_, H_, l.n, l.zn, p_.sigma_nlm, p_.am, p_.edges ? &sub_indirect_ : nullptr,
-                               depth_scale);
-    l.fd = std::move(fd.image), l.fi = std::move(fi.image);
-    qd_ = std::move(fd.answers), qi_ = std::move(fi.answers);
+    for (int layer_i = 0; layer_i < 2; ++layer_i) {
+      LayerJob& j = jobs.emplace_back();
+      j.src = layer_i == 0 ? &l.d : &l.i;
+      j.host = f_.layer(layer_i == 0 ? layer::kDirect : layer::kIndirect).cview();
+      j.w = W_, j.h = H_, j.normal = &l.n, j.zn = &l.zn;
+      j.sigma_nlm = layer_i == 0 ? p_.sigma_direct : p_.sigma_nlm;
+      j.am = p_.am;
+      j.sub = p_.edges ? (layer_i == 0 ? &sub_direct_ : &sub_indirect_) : nullptr;
+      j.depth_scale = depth_scale;
+      j.image = layer_i == 0 ? &l.fd : &l.fi;
+      j.answers = layer_i == 0 ? &qd_ : &qi_;
+      j.box = l.box;
+    }
   }
 
   // Reflection level k: its box (its tint's non-zero pixels grown by 6 sigma_s), filtered there.
-  void filter_reflection_level(int k, Level& l) {
-    const AmSettings& am = p_.reflection_am;
+  void plan_reflection_level(int k, Level& l, std::deque<LayerJob>& jobs) {
     l.box = nonzero_box(f_.layer(layer::at_level(k, layer::kTint)), int(std::ceil(6.0 * p_.am.sigma_s)));
     stats_.counters["level" + std::to_string(k) + "_filtered_fraction"] = double(l.box.w) * l.box.h / double(N_);
     if (l.box.empty()) {
@@ -372,24 +415,32 @@ class Pipeline {
     }
     const PixelBox& b = l.box;
     l.median = median_depth(f_.layer(layer::at_level(k, layer::kDepth)), b);
-    const Pooled zb = crop(l.z, 1, b), nb = crop(l.n, 3, b);
-    l.zn = normalized(zb, b.w, b.h, l.median);
+    l.zb = crop(l.z, 1, b), l.nb = crop(l.n, 3, b);
+    l.zn = normalized(l.zb, b.w, b.h, l.median);
     const Image& d = f_.layer(layer::at_level(k, layer::kDirect));
     const Image& i = f_.layer(layer::at_level(k, layer::kIndirect));
-    const Pooled db = crop(l.d, 3, b), ib = crop(l.i, 3, b);
+    auto job = [&](Pooled src, ConstImageView host, Pooled* image) {
+      LayerJob& j = jobs.emplace_back();
+      j.owned_src = std::move(src);
+      j.src = &j.owned_src;
+      j.host = host;
+      j.w = b.w, j.h = b.h, j.normal = &l.nb, j.zn = &l.zn;
+      j.sigma_nlm = p_.sigma_nlm;
+      j.am = p_.reflection_am;
+      j.image = image;
+      j.box = b;
+    };
     if (p_.reflection_sum) {
+      const Pooled db = crop(l.d, 3, b), ib = crop(l.i, 3, b);
       Pooled sum(sizeof(float) * std::size_t(b.w) * b.h * 3);
       run1(kernel("pp_add"), std::size_t(b.w) * b.h * 3, int(std::size_t(b.w) * b.h * 3), *db, *ib, *sum);
       // The CPU path hashes the crop of D + I; the host has D and I: their crop of D stands in.
-      Filtered fs = filter_layer(sum, d.cview().crop(b.x, b.y, b.w, b.h), b.w, b.h, nb, l.zn, p_.sigma_nlm, am, nullptr, 1);
-      l.fd = paste(fs.image, 3, b);
+      job(std::move(sum), d.cview().crop(b.x, b.y, b.w, b.h), &l.fd);
       l.fi = zeros(sizeof(float) * N_ * 3);
       return;
     }
-    Filtered fd = filter_layer(db, d.cview().crop(b.x, b.y, b.w, b.h), b.w, b.h, nb, l.zn, p_.sigma_nlm, am, nullptr, 1);
-    Filtered fi = filter_layer(ib, i.cview().crop(b.x, b.y, b.w, b.h), b.w, b.h, nb, l.zn, p_.sigma_nlm, am, nullptr, 1);
-    l.fd = paste(fd.image, 3, b);
-    l.fi = paste(fi.image, 3, b);
+    job(crop(l.d, 3, b), d.cview().crop(b.x, b.y, b.w, b.h), &l.fd);
+    job(crop(l.i, 3, b), i.cview().crop(b.x, b.y, b.w, b.h), &l.fi);
   }
 
   // Level k's surface tint (layer k + 1's) smoothed on level k's box with its normal and depth.
@@ -400,9 +451,9 @@ class Pipeline {
     const PixelBox& b = l.box;
     const bool whole = b.w == W_ && b.h == H_;
     const std::size_t n = std::size_t(b.w) * b.h;
-    Pooled tb = whole ? Pooled() : crop(next.tint, 3, b), nb = whole ? Pooled() : crop(l.n, 3, b);
+    Pooled tb = whole ? Pooled() : crop(next.tint, 3, b);
     const Pooled& tint = whole ? next.tint : tb;
-    const Pooled& normal = whole ? l.n : nb;
+    const Pooled& normal = whole ? l.n : l.nb;
     // The edge pixels keep their own tint (proposed.cpp's edge mask), when the frame has them.
     const bool keep = f_.edges && !f_.edges->pixels.empty();
     Pooled mask;
