@@ -54,4 +54,13 @@ std::size_t count_non_finite(ConstImageView v) {
   return n;
 }
 
+double relative_rms(const float* a, const float* b, std::size_t n) {
+  double d = 0, r = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    d += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
+    r += double(b[i]) * b[i];
+  }
+  return r > 0 ? std::sqrt(d / r) : std::sqrt(d);
+}
+
 }  // namespace dnb

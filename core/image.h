@@ -120,4 +120,9 @@ Image to_image(ConstImageView v);
 // Counts samples that are NaN or infinite.
 std::size_t count_non_finite(ConstImageView v);
 
+// How far a is from b: sqrt(sum (a - b)^2 / sum b^2) over n values (sqrt(sum (a - b)^2) where b
+// is all zero), in double. The OpenCL paths' agreement measure (tests, bench/device/).
+double relative_rms(const float* a, const float* b, std::size_t n);
+inline double relative_rms(const Image& a, const Image& b) { return relative_rms(a.data(), b.data(), b.size()); }
+
 }  // namespace dnb

@@ -1,7 +1,26 @@
 #include "denoisers/proposed_opencl.h"
 
+#include <random>
+#include <string>
+
 #include "core/env.h"
 #include "core/errors.h"
+
+namespace dnb {
+AovFrame with_rounding_noise(const AovFrame& frame, int levels, float eps, std::uint64_t seed) {
+  AovFrame g = frame;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int k = 0; k <= levels; ++k)
+    for (const char* base : {layer::kDirect, layer::kIndirect}) {
+      const std::string name = layer::at_level(k, base);
+      if (!g.has(name)) continue;
+      Image& im = g.layer(name);
+      for (std::size_t i = 0; i < im.size(); ++i) im.data()[i] *= 1.0f + eps * u(rng);
+    }
+  return g;
+}
+}  // namespace dnb
 
 #ifndef DNB_WITH_OPENCL
 

@@ -12,6 +12,8 @@
 // sensitivity to its input's rounding (tests/denoisers/proposed_opencl_test.cpp).
 #pragma once
 
+#include <cstdint>
+
 #include "core/aov_frame.h"
 #include "denoisers/am/adaptive_manifold.h"
 #include "denoisers/method.h"
@@ -38,5 +40,10 @@ struct ProposedDevicePlan {
 // The filtered frame (the layers of the split F = (D + I) T + R + E at every level planned).
 // Throws WorkError when OpenCL fails.
 Image proposed_opencl(const AovFrame& frame, const ProposedDevicePlan& plan, MethodStats& stats);
+
+// The agreement yardstick's input: the frame with its D and I layers (levels 0 .. levels, those it
+// has) multiplied by 1 + eps u, u uniform in [-1, 1] from std::mt19937_64(seed); eps 1e-7 is about
+// one float ulp. How far the filter moves on it is its own sensitivity to rounding.
+AovFrame with_rounding_noise(const AovFrame& frame, int levels, float eps, std::uint64_t seed);
 
 }  // namespace dnb

@@ -28,31 +28,19 @@
 #include <tbb/info.h>
 
 #include "core/errors.h"
+#include "device_common.h"
 #include "denoisers/am/adaptive_manifold.h"
 #include "denoisers/am/opencl.h"
 #include "denoisers/am/capture.h"
+
+using namespace dnb::device_tool;
+using dnb::relative_rms;
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-// sqrt(sum (a - b)^2 / sum b^2); 0 for two empty arrays.
-double relative_rms(const float* a, const float* b, std::size_t n) {
-  double d = 0, r = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    d += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
-    r += double(b[i]) * b[i];
-  }
-  return r > 0 ? std::sqrt(d / r) : std::sqrt(d);
-}
 
 // Pixels whose values differ by more than 1% of the reference's RMS value (in any channel): few
 // and large when the two paths split a tree node's cluster differently (a pixel whose projection
@@ -72,32 +60,6 @@ std::size_t pixels_off(const dnb::Image& a, const dnb::Image& b) {
   return n;
 }
 
-// A JSON string literal of s (quotes, backslashes and control characters escaped).
-std::string json_string(const std::string& s) {
-  std::string r = "\"";
-  for (const unsigned char ch : s) {
-    if (ch == '"' || ch == '\\') {
-      r += '\\';
-      r += char(ch);
-    } else if (ch < 0x20) {
-      char b[8];
-      std::snprintf(b, sizeof b, "\\u%04x", ch);
-      r += b;
-    } else {
-      r += char(ch);
-    }
-  }
-  return r + "\"";
-}
-
-// A JSON number, or null for NaN and infinities (which JSON cannot hold).
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  char b[32];
-  std::snprintf(b, sizeof b, "%.9g", v);
-  return b;
-}
-
 struct Result {
   std::string file;
   int w = 0, h = 0, c = 0, d = 0;
@@ -109,29 +71,13 @@ struct Result {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int repeat = 10;
-  double perturb = 0;
-  std::string json;
-  std::vector<std::string> files;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--repeat" && i + 1 < argc) {
-      repeat = std::atoi(argv[++i]);
-    } else if (a == "--perturb" && i + 1 < argc) {
-      perturb = std::atof(argv[++i]);
-    } else if (a == "--json" && i + 1 < argc) {
-      json = argv[++i];
-    } else if (a == "-h" || a == "--help" || a.rfind("--", 0) == 0) {
-      std::fprintf(stderr, "usage: %s [--repeat N] [--json OUT] [--perturb EPS] CAPTURE.bin...\n", argv[0]);
-      return a == "-h" || a == "--help" ? 0 : 2;
-    } else {
-      files.push_back(a);
-    }
-  }
-  if (files.empty() || repeat < 1) {
-    std::fprintf(stderr, "usage: %s [--repeat N >= 1] [--json OUT] [--perturb EPS] CAPTURE.bin...\n", argv[0]);
-    return 2;
-  }
+  const Args args =
+      parse_args(argc, argv, 0.0, "[--repeat N >= 1] [--json OUT] [--perturb EPS] CAPTURE.bin...");
+  if (!args.ok) return args.help ? 0 : 2;
+  const int repeat = args.repeat;
+  const double perturb = args.perturb;
+  const std::string& json = args.json;
+  const std::vector<std::string>& files = args.files;
   std::string why;
   if (!dnb::am_opencl_available(&why)) {
     std::fprintf(stderr, "am_device: %s\n", why.c_str());

@@ -21,7 +21,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -29,35 +28,12 @@
 #include "denoisers/am/opencl.h"
 #include "denoisers/proposed_capture.h"
 #include "denoisers/proposed_opencl.h"
+#include "device_common.h"
 
 namespace {
 
 using namespace dnb;
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-double rel_rms(const Image& a, const Image& b) {
-  double num = 0, den = 0;
-  for (std::size_t k = 0; k < a.size(); ++k) {
-    const double d = double(a.data()[k]) - b.data()[k];
-    num += d * d;
-    den += double(b.data()[k]) * b.data()[k];
-  }
-  return std::sqrt(num / std::max(den, 1e-300));
-}
-
-std::string json_string(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    if (static_cast<unsigned char>(c) >= 0x20) o += c;
-  }
-  return o + "\"";
-}
+using namespace dnb::device_tool;
 
 double run_ms(const AovFrame& f, const ProposedDevicePlan& p, Image* out) {
   MethodStats stats;
@@ -71,28 +47,15 @@ double run_ms(const AovFrame& f, const ProposedDevicePlan& p, Image* out) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int repeat = 10;
-  double perturb = 1e-7;
-  std::string json, file;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--repeat" && i + 1 < argc) {
-      repeat = std::atoi(argv[++i]);
-    } else if (a == "--perturb" && i + 1 < argc) {
-      perturb = std::atof(argv[++i]);
-    } else if (a == "--json" && i + 1 < argc) {
-      json = argv[++i];
-    } else if (file.empty() && !a.empty() && a[0] != '-') {
-      file = a;
-    } else {
-      file.clear();
-      break;
-    }
-  }
-  if (file.empty() || repeat < 1 || !(perturb > 0 && perturb < 1)) {
+  const Args args = parse_args(argc, argv, 1e-7, "[--repeat N >= 1] [--json OUT] [--perturb EPS in (0, 1)] CAPTURE.bin");
+  if (!args.ok) return args.help ? 0 : 2;
+  if (args.files.size() != 1 || !(args.perturb > 0 && args.perturb < 1)) {
     std::fprintf(stderr, "usage: %s [--repeat N >= 1] [--json OUT] [--perturb EPS in (0, 1)] CAPTURE.bin\n", argv[0]);
     return 2;
   }
+  const int repeat = args.repeat;
+  const double perturb = args.perturb;
+  const std::string &json = args.json, &file = args.files[0];
   try {
     std::string why;
     if (!am_opencl_available(&why)) {
@@ -107,22 +70,12 @@ int main(int argc, char** argv) {
     const double first = run_ms(f, c.plan, &out);
     std::vector<double> t;
     for (int k = 0; k < repeat; ++k) t.push_back(run_ms(f, c.plan, nullptr));
-    const double vs_cpu = rel_rms(out, c.cpu_output);
+    const double vs_cpu = relative_rms(out, c.cpu_output);
     double own = 0;
     for (unsigned r = 1; r <= 3; ++r) {
-      AovFrame g = f;
-      std::mt19937_64 rng(r);
-      std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-      for (int k = 0; k <= c.plan.levels; ++k)
-        for (const char* base : {layer::kDirect, layer::kIndirect}) {
-          const std::string name = layer::at_level(k, base);
-          if (!g.has(name)) continue;
-          Image& im = g.layer(name);
-          for (std::size_t i = 0; i < im.size(); ++i) im.data()[i] *= 1.0f + float(perturb) * u(rng);
-        }
       Image moved;
-      run_ms(g, c.plan, &moved);
-      own = std::max(own, rel_rms(moved, out));
+      run_ms(with_rounding_noise(f, c.plan.levels, float(perturb), r), c.plan, &moved);
+      own = std::max(own, relative_rms(moved, out));
     }
     const std::size_t edges = f.edges ? f.edges->size() : 0;
     std::printf("%s: %dx%d, %d reflection levels, %zu edge pixels: first run %.1f ms, median %.2f ms, min %.2f ms over %d; "

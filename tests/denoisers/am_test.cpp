@@ -25,15 +25,6 @@ std::string sci(double v) {
   return b;
 }
 
-double rel_rms(const Image& a, const Image& b) {
-  double num = 0, den = 0;
-  for (std::size_t k = 0; k < a.size(); ++k) {
-    const double d = double(a.data()[k]) - b.data()[k];
-    num += d * d;
-    den += double(b.data()[k]) * b.data()[k];
-  }
-  return std::sqrt(num / std::max(den, 1e-300));
-}
 
 // A smooth 3-channel image with a step and noise, and an 8-channel guide built from it
 // (the image itself, its square, and two smooth ramps), the benchmark's kind of input.
@@ -81,7 +72,7 @@ double compare(const Image& src, const Image& guide, double sigma_s, int tree_he
   AmSettings s;
   s.sigma_s = sigma_s;
   s.tree_height = tree_height;
-  return rel_rms(am_filter(src.cview(), guide.cview(), s), opencv_am(src, guide, s));
+  return relative_rms(am_filter(src.cview(), guide.cview(), s), opencv_am(src, guide, s));
 }
 
 TEST(AdaptiveManifold, AgreesWithOpenCv) {
@@ -97,7 +88,7 @@ TEST(AdaptiveManifold, AgreesWithOpenCv) {
   EXPECT_LT(coarse, 5e-2);
   // And both actually filtered: far from the noisy input.
   AmSettings s;
-  EXPECT_GT(rel_rms(am_filter(in.src.cview(), in.guide.cview(), s), in.src), 2 * coarse);
+  EXPECT_GT(relative_rms(am_filter(in.src.cview(), in.guide.cview(), s), in.src), 2 * coarse);
 }
 
 TEST(AdaptiveManifold, MethodsAgreeOnAFrame) {
@@ -105,7 +96,7 @@ TEST(AdaptiveManifold, MethodsAgreeOnAFrame) {
   for (const char* sigma_s : {"8", "16"}) {
     auto am = MethodRegistry::global().create("am", {{"sigma_s", sigma_s}});
     auto amcv = MethodRegistry::global().create("am_opencv", {{"sigma_s", sigma_s}});
-    const double d = rel_rms(run_method(*am, {.frame = &f}).image, run_method(*amcv, {.frame = &f}).image);
+    const double d = relative_rms(run_method(*am, {.frame = &f}).image, run_method(*amcv, {.frame = &f}).image);
     RecordProperty(std::string("rel_rms_color_sigma_s_") + sigma_s, sci(d));
     EXPECT_LT(d, sigma_s[0] == '8' ? 5e-3 : 5e-2) << "sigma_s " << sigma_s;
   }
@@ -208,8 +199,8 @@ TEST(AdaptiveManifold, PowerIterationConverges) {
   const Image b = am_filter(in.src.cview(), in.guide.cview(), s);
   s.pca_iterations = 40;
   const Image c = am_filter(in.src.cview(), in.guide.cview(), s);
-  EXPECT_GT(rel_rms(a, b), 0.0);
-  EXPECT_LT(rel_rms(b, c), 0.1 * rel_rms(a, b) + 1e-7);
+  EXPECT_GT(relative_rms(a, b), 0.0);
+  EXPECT_LT(relative_rms(b, c), 0.1 * relative_rms(a, b) + 1e-7);
 }
 
 // Same input, same output, bit for bit, whatever the thread count: one thread against four

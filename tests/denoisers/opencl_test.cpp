@@ -15,6 +15,7 @@
 #include "denoisers/am/adaptive_manifold.h"
 #include "denoisers/am/opencl.h"
 #include "denoisers/method.h"
+#include "opencl_test_util.h"
 
 namespace dnb {
 namespace {
@@ -26,14 +27,6 @@ std::string sci(double v) {
   return b;
 }
 
-double rel_rms(const float* a, const float* b, std::size_t n) {
-  double num = 0, den = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    num += (double(a[k]) - b[k]) * (double(a[k]) - b[k]);
-    den += double(b[k]) * b[k];
-  }
-  return std::sqrt(num / std::max(den, 1e-300));
-}
 
 // A w x h test input: a 3-channel source, `level`(x, y, c) plus Gaussian noise of 0.05, and a
 // guide of `dims` channels, `wave`(x, y, c) plus Gaussian noise of 0.02.
@@ -53,17 +46,9 @@ AmCase noisy_case(int w, int h, int dims, unsigned seed, Level level, Wave wave)
   return r;
 }
 
-bool have_opencl() {
-  std::string why;
-  if (am_opencl_available(&why)) return true;
-#ifdef DNB_WITH_OPENCL
-  ADD_FAILURE() << "built with OpenCL but no device: " << why;  // CI has PoCL
-#endif
-  return false;
-}
 
 TEST(OpenCl, MatchesCpuPath) {
-  if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
+  if (!test::have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   const int w = 150, h = 101;  // not multiples of the reduced grid
   auto [src, guide] = noisy_case(
       w, h, 7, 4, [&](int x, int, int c) { return (x < w / 3 ? 0.3f : 0.8f) + 0.05f * c; },
@@ -89,11 +74,11 @@ TEST(OpenCl, MatchesCpuPath) {
       const Image cpu = am_filter(src.cview(), guide.cview(), s, queries, &qc);
       const Image gpu = am_filter_opencl(src.cview(), guide.cview(), s, queries, &qg);
       ::unsetenv("DENOISEBENCH_OPENCL_LANES");
-      const double d = rel_rms(gpu.data(), cpu.data(), cpu.size());
+      const double d = relative_rms(gpu.data(), cpu.data(), cpu.size());
       RecordProperty("rel_rms_sigma_s_" + std::to_string(int(sigma_s)) + (adjust ? "_adjust" : "") + "_lanes" + lanes, sci(d));
       EXPECT_LE(d, 1e-4) << "sigma_s " << sigma_s << " adjust " << adjust << " lanes " << lanes;
       ASSERT_EQ(qc.size(), qg.size());
-      EXPECT_LE(rel_rms(qg.data(), qc.data(), qc.size()), 1e-4);
+      EXPECT_LE(relative_rms(qg.data(), qc.data(), qc.size()), 1e-4);
     }
 }
 
@@ -104,7 +89,7 @@ TEST(OpenCl, MatchesCpuPath) {
 // 16 leave partial blocks at the 150 x 101 image's edges), and queries in runs at one pixel, a
 // pixel visited twice, against the CPU path at the same 1e-4.
 TEST(OpenCl, GroupsBlockSumsAndQueryRunsMatchCpuPath) {
-  if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
+  if (!test::have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   const int w = 150, h = 101;
   const auto [src, guide] = noisy_case(
       w, h, 5, 11, [&](int, int y, int c) { return (y < h / 2 ? 0.4f : 0.9f) + 0.05f * c; },
@@ -124,13 +109,13 @@ TEST(OpenCl, GroupsBlockSumsAndQueryRunsMatchCpuPath) {
     std::vector<float> qc, qg;
     const Image cpu = am_filter(src.cview(), guide.cview(), s, queries, &qc);
     const Image gpu = am_filter_opencl(src.cview(), guide.cview(), s, queries, &qg);
-    const double d = rel_rms(gpu.data(), cpu.data(), cpu.size());
+    const double d = relative_rms(gpu.data(), cpu.data(), cpu.size());
     RecordProperty("rel_rms_height5_df" + std::to_string(df), sci(d));
     EXPECT_LE(d, 1e-4) << "df " << df;
     ASSERT_EQ(qc.size(), qg.size());
-    EXPECT_LE(rel_rms(qg.data(), qc.data(), qc.size()), 1e-4) << "df " << df;
+    EXPECT_LE(relative_rms(qg.data(), qc.data(), qc.size()), 1e-4) << "df " << df;
     // Queries at one pixel with different guides get answers of their own, not their run's.
-    EXPECT_GT(rel_rms(qg.data(), qg.data() + 4 * 3, 3), 0.0) << "queries with different guides must differ";
+    EXPECT_GT(relative_rms(qg.data(), qg.data() + 4 * 3, 3), 0.0) << "queries with different guides must differ";
   }
 }
 
@@ -138,7 +123,7 @@ TEST(OpenCl, GroupsBlockSumsAndQueryRunsMatchCpuPath) {
 // OpenCL path uploads such rows through a copy and contiguous ones straight from the caller's
 // memory, then makes planes on the device; both must read the same pixels as the CPU path.
 TEST(OpenCl, CroppedViewsMatchCpuPath) {
-  if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
+  if (!test::have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   const int w = 120, h = 90;
   const auto [src, guide] = noisy_case(
       w, h, 6, 17, [&](int x, int y, int c) { return (x + y < w ? 0.3f : 0.75f) + 0.04f * c; },
@@ -152,15 +137,15 @@ TEST(OpenCl, CroppedViewsMatchCpuPath) {
   const Image from_crop = am_filter_opencl(s_view, g_view, s);
   const Image from_copy = am_filter_opencl(s_copy.cview(), g_copy.cview(), s);
   ASSERT_EQ(from_crop.size(), cpu.size());
-  EXPECT_LE(rel_rms(from_crop.data(), cpu.data(), cpu.size()), 1e-4);
-  EXPECT_LE(rel_rms(from_copy.data(), cpu.data(), cpu.size()), 1e-4);
-  EXPECT_EQ(rel_rms(from_crop.data(), from_copy.data(), cpu.size()), 0.0) << "the same pixels, the same kernels";
+  EXPECT_LE(relative_rms(from_crop.data(), cpu.data(), cpu.size()), 1e-4);
+  EXPECT_LE(relative_rms(from_copy.data(), cpu.data(), cpu.size()), 1e-4);
+  EXPECT_EQ(relative_rms(from_crop.data(), from_copy.data(), cpu.size()), 0.0) << "the same pixels, the same kernels";
 }
 
 // The whole method with device=opencl matches device=cpu (edge queries and a reflection level
 // included, through the synthetic frames of the proposed tests' kind).
 TEST(OpenCl, ProposedMatchesCpu) {
-  if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
+  if (!test::have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   AovFrame f(80, 60);
   for (int k = 0; k <= 1; ++k)
     for (const char* base : {layer::kDirect, layer::kIndirect, layer::kAlbedo, layer::kReflection, layer::kEmission, layer::kNormal})
@@ -203,7 +188,7 @@ TEST(OpenCl, ProposedMatchesCpu) {
   const Image a = run_method(*cpu, {.frame = &f}).image;
   const MethodResult b = run_method(*gpu, {.frame = &f});
   EXPECT_EQ(b.stats.counters.at("device_pipeline"), 0);
-  const double d = rel_rms(b.image.data(), a.data(), a.size());
+  const double d = relative_rms(b.image.data(), a.data(), a.size());
   RecordProperty("rel_rms_proposed", sci(d));
   EXPECT_LE(d, 1e-4);
 }

@@ -14,45 +14,16 @@
 #include "core/errors.h"
 #include "denoisers/am/opencl.h"
 #include "denoisers/method.h"
+#include "denoisers/proposed_opencl.h"
+#include "opencl_test_util.h"
 #include "tracer/render.h"
 #include "tracer/scene_loader.h"
 
 namespace dnb {
 namespace {
 
-double rel_rms(const Image& a, const Image& b) {
-  double num = 0, den = 0;
-  for (std::size_t k = 0; k < a.size(); ++k) {
-    const double d = double(a.data()[k]) - b.data()[k];
-    num += d * d;
-    den += double(b.data()[k]) * b.data()[k];
-  }
-  return std::sqrt(num / std::max(den, 1e-300));
-}
 
-// The frame with its illumination layers, every level's, moved by about one ulp.
-AovFrame perturbed(const AovFrame& f, unsigned seed) {
-  AovFrame g = f;
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  for (int k = 0; k <= f.meta.reflection_levels; ++k)
-    for (const char* base : {layer::kDirect, layer::kIndirect}) {
-      const std::string name = layer::at_level(k, base);
-      if (!g.has(name)) continue;
-      Image& im = g.layer(name);
-      for (std::size_t i = 0; i < im.size(); ++i) im.data()[i] *= 1.0f + 1e-7f * u(rng);
-    }
-  return g;
-}
 
-bool have_opencl() {
-  std::string why;
-  if (am_opencl_available(&why)) return true;
-#ifdef DNB_WITH_OPENCL
-  ADD_FAILURE() << "built with OpenCL but no device: " << why;  // CI has PoCL
-#endif
-  return false;
-}
 
 // The scenes of configs/scenes/ rendered small (64x48, 32 spp, two reflection levels: every
 // layer proposed reads), those that need ../shared/scenes where it is found.
@@ -83,7 +54,7 @@ std::vector<std::pair<std::string, AovFrame>> scene_frames() {
 // is in it: fireflies, NLM space, guide, edge sub-pixels, both reflection levels and their tints,
 // the composition and the detail guard.
 TEST(ProposedOpenCl, WholeFilterOnTheDeviceIsTheCpuPathToRoundingWithOneManifold) {
-  if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
+  if (!test::have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   ASSERT_EQ(setenv("DENOISEBENCH_OPENCL_CPU_SEEDS", "1", 1), 0);
   auto cpu = MethodRegistry::global().create("proposed", {{"tree_height", "1"}});
   auto gpu = MethodRegistry::global().create("proposed", {{"tree_height", "1"}, {"device", "opencl"}});
@@ -96,7 +67,7 @@ TEST(ProposedOpenCl, WholeFilterOnTheDeviceIsTheCpuPathToRoundingWithOneManifold
     EXPECT_EQ(b.stats.counters.at("detail_guard_used"), 1) << name;
     EXPECT_EQ(b.stats.counters.at("edge_pixels"), a.stats.counters.at("edge_pixels")) << name;
     EXPECT_EQ(b.stats.counters.at("reflection_levels_filtered"), 2) << name;
-    const double d = rel_rms(b.image, a.image);
+    const double d = relative_rms(b.image, a.image);
     std::printf("%-24s one manifold: device vs cpu %.3g\n", name.c_str(), d);
     EXPECT_LE(d, 1e-6) << name;
     ++scenes;
@@ -115,7 +86,7 @@ TEST(ProposedOpenCl, WholeFilterOnTheDeviceIsTheCpuPathToRoundingWithOneManifold
 // vs CPU 0.17-1.6%, the yardstick 0.27-1.6%, scene by scene within 1.5x of each other. The bound:
 // 2x the yardstick (one seed change against the largest of three), or 1e-4 where it is below.
 TEST(ProposedOpenCl, WholeFilterOnTheDeviceMatchesCpuPathWithinItsRoundingSensitivity) {
-  if (!have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
+  if (!test::have_opencl()) GTEST_SKIP() << "no OpenCL in this build";
   auto cpu = MethodRegistry::global().create("proposed");
   auto gpu = MethodRegistry::global().create("proposed", {{"device", "opencl"}});
   int scenes = 0;
@@ -126,10 +97,10 @@ TEST(ProposedOpenCl, WholeFilterOnTheDeviceMatchesCpuPathWithinItsRoundingSensit
     for (std::size_t k = 0; k < b.image.size(); ++k) ASSERT_TRUE(std::isfinite(b.image.data()[k])) << name << " at " << k;
     double own = 0;
     for (unsigned r = 1; r <= 3; ++r) {
-      const AovFrame g = perturbed(f, r);
-      own = std::max(own, rel_rms(run_method(*cpu, {.frame = &g}).image, a.image));
+      const AovFrame g = with_rounding_noise(f, f.meta.reflection_levels, 1e-7f, r);
+      own = std::max(own, relative_rms(run_method(*cpu, {.frame = &g}).image, a.image));
     }
-    const double d = rel_rms(b.image, a.image);
+    const double d = relative_rms(b.image, a.image);
     std::printf("%-24s device vs cpu %.3g, cpu vs cpu at one ulp %.3g\n", name.c_str(), d, own);
     EXPECT_LE(d, std::max(2.0 * own, 1e-4)) << name << ": the CPU path itself moves by " << own;
     ++scenes;
