@@ -88,32 +88,48 @@ inline int pp_border(int v, int n, int reflect) {
   return clamp(v, 0, n - 1);
 }
 
-// The weighted patches of the PCA's sample pixels (one work-item per sample; P = (2R + 1)^2).
+// The weighted patches of the PCA's sample pixels, planar: tap j of sample r at j * count + r, so
+// that the sums below read rows (work-item (r, j): neighbours in r write neighbouring values).
 __kernel void pp_patches(int count, int W, int H, int R, int reflect, __global const int* picks, __global const float* y,
                          __global const float* weight, __global real* patches) {
-  const int r = get_global_id(0);
-  if (r >= count) return;
-  const int side = 2 * R + 1, P = side * side, p = picks[r], cx = p % W, cy = p / W;
-  for (int dy = 0; dy < side; ++dy)
-    for (int dx = 0; dx < side; ++dx) {
-      const int xx = pp_border(cx + dx - R, W, reflect), yy = pp_border(cy + dy - R, H, reflect);
-      patches[(size_t)r * P + dy * side + dx] = (real)(weight[dy * side + dx] * y[(size_t)yy * W + xx]);
-    }
+  const int r = get_global_id(0), j = get_global_id(1), side = 2 * R + 1;
+  if (r >= count || j >= side * side) return;
+  const int p = picks[r], cx = p % W, cy = p / W, dy = j / side, dx = j % side;
+  const int xx = pp_border(cx + dx - R, W, reflect), yy = pp_border(cy + dy - R, H, reflect);
+  patches[(size_t)j * count + r] = (real)(weight[j] * y[(size_t)yy * W + xx]);
 }
 
-// Their mean and covariance, scaled by 1 / count (cv::calcCovarMatrix's COVAR_NORMAL | COVAR_ROWS
-// | COVAR_SCALE): work-item (a, b), b >= a, writes both entries and, on the diagonal, the mean.
-__kernel void pp_patch_cov(int count, int P, __global const real* patches, __global real* mean, __global real* cov) {
+// The sum of a row of n reals, in 8 lanes then across them (the order is fixed).
+inline real pp_row_sum(__global const real* x, int n) {
+  real l[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int r = 0;
+  for (; r + 8 <= n; r += 8)
+    for (int k = 0; k < 8; ++k) l[k] += x[r + k];
+  real s = ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]));
+  for (; r < n; ++r) s += x[r];
+  return s;
+}
+
+// The patches' mean (one work-item per tap) and covariance scaled by 1 / count (work-item (a, b),
+// b >= a, writes both entries), cv::calcCovarMatrix's COVAR_NORMAL | COVAR_ROWS | COVAR_SCALE.
+__kernel void pp_patch_mean(int count, int P, __global const real* patches, __global real* mean) {
+  const int a = get_global_id(0);
+  if (a < P) mean[a] = pp_row_sum(patches + (size_t)a * count, count) / (real)count;
+}
+__kernel void pp_patch_cov(int count, int P, __global const real* patches, __global const real* mean, __global real* cov) {
   const int a = get_global_id(0), b = get_global_id(1);
   if (a >= P || b >= P || b < a) return;
-  real ma = 0, mb = 0;
-  for (int r = 0; r < count; ++r) ma += patches[(size_t)r * P + a], mb += patches[(size_t)r * P + b];
-  ma /= (real)count, mb /= (real)count;
-  real s = 0;
-  for (int r = 0; r < count; ++r) s += (patches[(size_t)r * P + a] - ma) * (patches[(size_t)r * P + b] - mb);
+  __global const real* xa = patches + (size_t)a * count;
+  __global const real* xb = patches + (size_t)b * count;
+  const real ma = mean[a], mb = mean[b];
+  real l[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int r = 0;
+  for (; r + 8 <= count; r += 8)
+    for (int k = 0; k < 8; ++k) l[k] += (xa[r + k] - ma) * (xb[r + k] - mb);
+  real s = ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]));
+  for (; r < count; ++r) s += (xa[r] - ma) * (xb[r] - mb);
   s /= (real)count;
   cov[a * P + b] = s, cov[b * P + a] = s;
-  if (a == b) mean[a] = ma;
 }
 
 // y padded by R on every side under nlm_space's border, for pp_project8; the buffer has 8 floats of
@@ -309,6 +325,10 @@ __kernel void pp_guard_rel(int count, __global const float* out, __global const 
   const float o = pp_finite0(out[k]);
   work[k] = max(pp_finite0(v[k]), 0.0f) / (o * o + e[0]);
 }
+// The 5x5 median by a selection network of 99 compare-exchanges (min and max, no branches, so that
+// PoCL vectorises it across work-items; the network is Devillard's opt_med25, checked on all 2^25
+// 0-1 inputs, which by the 0-1 principle makes it the median of any 25 values).
+#define PP_SORT(a, b) { const float lo = min(v[a], v[b]); v[b] = max(v[a], v[b]); v[a] = lo; }
 __kernel void pp_median5(int W, int H, __global const float* in, __global float* out) {
   const int x = get_global_id(0), y = get_global_id(1), c = get_global_id(2);
   if (x >= W || y >= H) return;
@@ -317,14 +337,26 @@ __kernel void pp_median5(int W, int H, __global const float* in, __global float*
   int k = 0;
   for (int dy = -2; dy <= 2; ++dy)
     for (int dx = -2; dx <= 2; ++dx) v[k++] = in[plane + (size_t)clamp(y + dy, 0, H - 1) * W + clamp(x + dx, 0, W - 1)];
-  for (int a = 1; a < 25; ++a) {  // insertion sort: 25 values
-    const float t = v[a];
-    int b = a - 1;
-    while (b >= 0 && v[b] > t) v[b + 1] = v[b], --b;
-    v[b + 1] = t;
-  }
+  PP_SORT(0, 1); PP_SORT(3, 4); PP_SORT(2, 4); PP_SORT(2, 3); PP_SORT(6, 7); PP_SORT(5, 7);
+  PP_SORT(5, 6); PP_SORT(9, 10); PP_SORT(8, 10); PP_SORT(8, 9); PP_SORT(12, 13); PP_SORT(11, 13);
+  PP_SORT(11, 12); PP_SORT(15, 16); PP_SORT(14, 16); PP_SORT(14, 15); PP_SORT(18, 19); PP_SORT(17, 19);
+  PP_SORT(17, 18); PP_SORT(21, 22); PP_SORT(20, 22); PP_SORT(20, 21); PP_SORT(23, 24); PP_SORT(2, 5);
+  PP_SORT(3, 6); PP_SORT(0, 6); PP_SORT(0, 3); PP_SORT(4, 7); PP_SORT(1, 7); PP_SORT(1, 4);
+  PP_SORT(11, 14); PP_SORT(8, 14); PP_SORT(8, 11); PP_SORT(12, 15); PP_SORT(9, 15); PP_SORT(9, 12);
+  PP_SORT(13, 16); PP_SORT(10, 16); PP_SORT(10, 13); PP_SORT(20, 23); PP_SORT(17, 23); PP_SORT(17, 20);
+  PP_SORT(21, 24); PP_SORT(18, 24); PP_SORT(18, 21); PP_SORT(19, 22); PP_SORT(8, 17); PP_SORT(9, 18);
+  PP_SORT(0, 18); PP_SORT(0, 9); PP_SORT(10, 19); PP_SORT(1, 19); PP_SORT(1, 10); PP_SORT(11, 20);
+  PP_SORT(2, 20); PP_SORT(2, 11); PP_SORT(12, 21); PP_SORT(3, 21); PP_SORT(3, 12); PP_SORT(13, 22);
+  PP_SORT(4, 22); PP_SORT(4, 13); PP_SORT(14, 23); PP_SORT(5, 23); PP_SORT(5, 14); PP_SORT(15, 24);
+  PP_SORT(6, 24); PP_SORT(6, 15); PP_SORT(7, 16); PP_SORT(7, 19); PP_SORT(13, 21); PP_SORT(15, 23);
+  PP_SORT(7, 13); PP_SORT(7, 15); PP_SORT(1, 9); PP_SORT(3, 11); PP_SORT(5, 17); PP_SORT(11, 17);
+  PP_SORT(9, 17); PP_SORT(4, 10); PP_SORT(6, 12); PP_SORT(7, 14); PP_SORT(4, 6); PP_SORT(4, 7);
+  PP_SORT(12, 14); PP_SORT(10, 14); PP_SORT(6, 7); PP_SORT(10, 12); PP_SORT(6, 10); PP_SORT(6, 17);
+  PP_SORT(12, 17); PP_SORT(7, 17); PP_SORT(7, 10); PP_SORT(12, 18); PP_SORT(7, 12); PP_SORT(10, 18);
+  PP_SORT(12, 20); PP_SORT(10, 20); PP_SORT(10, 12);
   out[plane + (size_t)y * W + x] = v[12];
 }
+#undef PP_SORT
 __kernel void pp_guard_sd(int count, __global const float* out, __global const float* v, __global const float* x,
                           __global const float* med, __global const float* e, __global float* sd, __global float* work) {
   const int k = get_global_id(0);

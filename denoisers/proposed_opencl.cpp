@@ -315,7 +315,8 @@ class Pipeline {
     Pooled pk = upload(std::move(picks)), wt = upload(nlm_patch_weights(p_.nlm));
     Pooled patches(real * std::size_t(count) * P);
     j.mean = Pooled(real * P), j.cov = Pooled(real * P * P);
-    run1(kernel("pp_patches"), std::size_t(count), count, w, h, R, reflect, *pk, *j.y, *wt, *patches);
+    run2(kernel("pp_patches"), count, P, 1, count, w, h, R, reflect, *pk, *j.y, *wt, *patches);
+    run1(kernel("pp_patch_mean"), std::size_t(P), count, P, *patches, *j.mean);
     run2(kernel("pp_patch_cov"), P, P, 1, count, P, *patches, *j.mean, *j.cov);
     if (fp64_) {
       j.mean_host.resize(std::size_t(P)), j.cov_host.resize(std::size_t(P) * P);
