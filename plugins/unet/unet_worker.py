@@ -35,7 +35,7 @@ def denoise(frame, params, state):
     def net(layers):
         return unet_model.denoise_planes(state["model"], unet_model.prepare(layers))
 
-    return guarded(frame, net(frame), net, unet_model.LAYERS, int(params.get("cross_validation", 2)),
+    return guarded(frame, net(frame), net, unet_model.LAYERS, int(params.get("cross_validation", 5)),
                    float(params.get("noise_clamp", 1.5)))
 
 
