@@ -46,18 +46,23 @@ Image compose(const Image& l, const AovFrame& frame, const Image& r) {
   return out;
 }
 
+float median_depth(const Image& z, const PixelBox& b) {
+  std::vector<float> valid;
+  valid.reserve(std::size_t(b.w) * b.h);
+  for (int y = b.y; y < b.y + b.h; ++y)
+    for (int x = b.x; x < b.x + b.w; ++x) {
+      const float v = z.at(x, y, 0);
+      if (std::isfinite(v) && v > 0) valid.push_back(v);
+    }
+  if (valid.empty()) return 1.0f;
+  auto mid = valid.begin() + std::ptrdiff_t(valid.size() / 2);
+  std::nth_element(valid.begin(), mid, valid.end());
+  return *mid;
+}
+
 Image normalized_depth(const AovFrame& frame, int level) {
   const Image& z = frame.layer(layer::at_level(level, layer::kDepth));
-  std::vector<float> valid;
-  valid.reserve(z.size());
-  for (std::size_t k = 0; k < z.size(); ++k)
-    if (std::isfinite(z.data()[k]) && z.data()[k] > 0) valid.push_back(z.data()[k]);
-  float median = 1.0f;
-  if (!valid.empty()) {
-    auto mid = valid.begin() + valid.size() / 2;
-    std::nth_element(valid.begin(), mid, valid.end());
-    median = *mid;
-  }
+  const float median = median_depth(z, PixelBox{0, 0, z.width(), z.height()});
   Image out(frame.width(), frame.height(), 1);
   for (std::size_t k = 0; k < z.size(); ++k) {
     const float v = z.data()[k];

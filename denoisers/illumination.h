@@ -45,6 +45,9 @@ struct PixelBox {
   int x = 0, y = 0, w = 0, h = 0;
   bool empty() const { return w <= 0 || h <= 0; }
 };
+// The median of the positive finite depths of `depth` inside box b, 1 when there are none: the
+// divisor of normalized_depth (over a crop: proposed's reflection levels, on either device).
+float median_depth(const Image& depth, const PixelBox& b);
 // Bounding box of the pixels with a non-zero channel, grown by `margin` and clipped to the
 // image; empty when there are none.
 PixelBox nonzero_box(const Image& image, int margin);

@@ -51,21 +51,6 @@ namespace {
 
 using am_cl::Pooled;
 
-// The median of the positive finite depths of `z` inside box b (normalized_depth's, 1 when none).
-float median_depth(const Image& z, const PixelBox& b) {
-  std::vector<float> valid;
-  valid.reserve(std::size_t(b.w) * b.h);
-  for (int y = b.y; y < b.y + b.h; ++y)
-    for (int x = b.x; x < b.x + b.w; ++x) {
-      const float v = z.at(x, y, 0);
-      if (std::isfinite(v) && v > 0) valid.push_back(v);
-    }
-  if (valid.empty()) return 1.0f;
-  auto mid = valid.begin() + std::ptrdiff_t(valid.size() / 2);
-  std::nth_element(valid.begin(), mid, valid.end());
-  return *mid;
-}
-
 class Pipeline {
  public:
   Pipeline(const AovFrame& f, const ProposedDevicePlan& p, MethodStats& stats)
