@@ -373,26 +373,97 @@ def cross_validated(color, output, halves, half_outputs, variance, radius):
     the input stays. Arrays H x W x 3; radius <= 0 returns `output`."""
     if radius <= 0:
         return output
+    return _blend(color, output, halves_weight(halves, half_outputs, variance, radius))
+
+
+def halves_weight(halves, half_outputs, variance, radius):
+    """`cross_validated`'s weight, H x W x 1: the mean of each half's `cross_validated_weight`
+    against the other; `variance` is the frame's."""
     var_half = 2.0 * np.asarray(variance, np.float64)
     # Each half is judged once and is the other's yardstick once: its display image serves both.
     (xa, sa), (xb, sb) = (_display_with_noise(h, var_half) for h in halves)
     da, db = (display(o) for o in half_outputs)
-    w = 0.5 * (_weight_in_display(da, xa, xb, sb, radius) + _weight_in_display(db, xb, xa, sa, radius))
+    return 0.5 * (_weight_in_display(da, xa, xb, sb, radius) + _weight_in_display(db, xb, xa, sa, radius))
+
+
+def _blend(color, output, w):
+    """color + w (output - color), float32."""
     x = np.asarray(color, np.float64)
     return (x + w * (np.asarray(output, np.float64) - x)).astype(np.float32)
 
 
-def guarded(frame, output, denoise, layers, radius, clamp):
-    """A learned plug-in's output made safe against its input: with the frame's half buffers and
-    radius > 0, `cross_validated` (the network run again on each half through `denoise`, a
-    function of a dict of `layers`); without halves (an imported frame) or with radius <= 0,
-    `noise_clamp` at `clamp` standard deviations."""
+# The SURE guard's perturbation: tau standard deviations of the pixel's noise, with signs from a
+# fixed seed (the output is a function of the frame only). 0.5: large enough that a float32
+# network's response is not rounding, small against the noise the network removes.
+SURE_TAU = 0.5
+SURE_SEED = 20261207
+
+
+def sure_weight(color, variance, output, perturbed_output, signs, radius):
+    """How far to trust a denoiser's output over its noisy input, judged on the frame itself by
+    Stein's unbiased risk estimate (SURE; Stein 1981, as Li, Wu and Chuang's SURE-based
+    reconstruction of 2012 uses it for renderings), with the divergence estimated by one
+    perturbed run (Monte-Carlo SURE, Ramani, Blu and Unser 2008).
+
+    In the display space of Table 1 (clamp, sRGB), y = display(color) = mu + n with per-pixel
+    noise s^2 (the variance of the pixel's mean through the display's slope), g(y) =
+    display(output) and e = g(y) - y. For the output y + w e, the expected squared error over a
+    (2r + 1)^2 window W is, by Stein's lemma (E[n_i g_i(y)] = s_i^2 E[dg_i/dy_i]),
+
+        sum_W s^2 + 2 w sum_W s^2 (dg_i/dy_i - 1) + w^2 sum_W e^2,
+
+    lowest at w = sum_W s^2 (1 - dg_i/dy_i) / sum_W e^2, clipped to [0, 1]: the weight the
+    halves' cross-validation estimates at half the samples, here at the frame's own noise.
+    s_i^2 dg_i/dy_i comes from `perturbed_output`, the denoiser run on color + SURE_TAU sd signs
+    (sd the pixel's noise, signs +-1 per pixel, the same on its three channels, whose noise
+    is one path's): s_i signs_i (g_i(perturbed) - g_i(y)) / SURE_TAU, whose mean over the signs
+    is s_i^2 dg_i/dy_i (the other pixels' terms have mean zero and average out over the window).
+    Assumes each pixel's noise independent of the other pixels' (the tracer's pixels are) and
+    its variance known (the frame's estimate, averaged over the window). Returns H x W x 1."""
+    x = np.asarray(color, np.float64)
+    var = np.maximum(np.asarray(variance, np.float64), 0.0)
+    dx, s = _display_with_noise(x, var)
+    g = display(output)
+    e = g - dx
+    e = np.where(np.isfinite(e), e, 0.0)
+    t = s * signs * (display(perturbed_output) - g) / SURE_TAU
+    t = np.where(np.isfinite(t), t, 0.0)
+    num = box_mean((s * s - t).sum(axis=2), radius)
+    den2 = box_mean((e * e).sum(axis=2), radius)
+    flat = den2 <= 1e-18
+    return np.where(flat, 1.0, np.clip(num / np.where(flat, 1.0, den2), 0.0, 1.0))[:, :, None]
+
+
+def sure_perturbation(color, variance):
+    """The frame the SURE guard runs the denoiser on a second time (`sure_weight`), and its signs:
+    color + SURE_TAU sd signs, clamped at 0, float32; signs H x W x 1 of +-1 from SURE_SEED."""
+    x = np.asarray(color, np.float64)
+    sd = np.sqrt(np.maximum(np.asarray(variance, np.float64), 0.0))
+    signs = np.random.default_rng(SURE_SEED).choice(np.array([-1.0, 1.0]), size=x.shape[:2] + (1,))
+    return np.maximum(x + SURE_TAU * sd * signs, 0.0).astype(np.float32), signs
+
+
+def guarded(frame, output, denoise, layers, radius, clamp, sure=0):
+    """A learned plug-in's output made safe against its input. With radius > 0 and the frame's
+    half buffers, the halves' weight (`cross_validated`: the network run again on each half
+    through `denoise`, a function of a dict of `layers`); with sure > 0, SURE's weight over
+    windows of that radius (`sure_weight`: the network run again on the frame with its colour
+    perturbed); with both, the smaller of the two at each pixel: the output moves from the input
+    only as far as both judges say it helps. With neither (radius and sure 0, or no halves and
+    sure 0), `noise_clamp` at `clamp` standard deviations."""
+    x, var = frame["color"], frame["variance"]
+    weights = []
     if radius > 0:
         halves = [half_frame(frame, h, layers) for h in (0, 1)]
         if halves[0] is not None:
-            return cross_validated(frame["color"], output, [h["color"] for h in halves], [denoise(h) for h in halves],
-                                   frame["variance"], radius)
-    return noise_clamp(frame["color"], frame["variance"], output, clamp)
+            weights.append(halves_weight([h["color"] for h in halves], [denoise(h) for h in halves], var, radius))
+    if sure > 0:
+        perturbed, signs = sure_perturbation(x, var)
+        run_again = denoise({**{name: frame[name] for name in layers}, "color": perturbed})
+        weights.append(sure_weight(x, var, output, run_again, signs, sure))
+    if not weights:
+        return noise_clamp(x, var, output, clamp)
+    return _blend(x, output, weights[0] if len(weights) == 1 else np.minimum(weights[0], weights[1]))
 
 
 def run(fn, setup=None, info=None):

@@ -162,6 +162,33 @@ TEST(LearnedPlugins, CrossValidationKeepsWhatHelpsAndDropsWhatHarms) {
   EXPECT_EQ(r.output, "True True True\nTrue\nTrue True\n");
 }
 
+// SURE's promise on the same scene, judged on the frame alone (no halves): a denoiser that
+// returns the truth is kept, one that erases the lines is dropped, and one that doubles the
+// noise (2 F - mu: its output looks as plausible as the input, only its dependence on the
+// input's noise gives it away) gets weight 0 exactly: Stein's divergence term is 2 s^2 per
+// pixel there, so the estimated gain is -s^2 per pixel, not the +s^2 a weight from the output
+// alone would see (the output would then carry 4x the input's error). Bounds as above: over
+// seeds 0..9 the kept one measured 0.006-0.011 of the input's display mse, the dropped one
+// 0.93-0.94 (SURE weighs a wrong constant by about s^2 / (s^2 + bias^2): a small gain, not a
+// loss), the doubled noise 4.4-4.5x the input's.
+TEST(LearnedPlugins, SureKeepsWhatHelpsAndDropsWhatHarmsOnTheFrameAlone) {
+  auto r = python("import numpy as np, denoisebench_plugin as p\n"
+      "rng = np.random.default_rng(7)\n"
+      "mu = np.full((64, 64, 3), 0.2); mu[:, ::4] = 0.6; s = 0.03\n"
+      "F = mu + rng.normal(0, s, mu.shape); var = np.full(mu.shape, s * s)\n"
+      "frame = {\"color\": F, \"variance\": var}\n"
+      "def mse(x): return float(np.mean((p.display(x) - p.display(mu)) ** 2))\n"
+      "def guard(net): return p.guarded(frame, net(F), lambda f: net(f[\"color\"]), [\"color\"], 0, 0.0, sure=3)\n"
+      "good = guard(lambda c: mu); bad = guard(lambda c: np.full(mu.shape, 0.3))\n"
+      "print(mse(good) < 0.05 * mse(F), mse(bad) < 1.02 * mse(F), mse(np.full(mu.shape, 0.3)) > 10 * mse(F))\n"
+      "amp = guard(lambda c: 2 * np.asarray(c, np.float64) - mu)\n"
+      "print(np.array_equal(amp, F.astype(np.float32)), mse(2 * F - mu) > 3 * mse(F))\n"
+      "a, sa = p.sure_perturbation(F, var); b, sb = p.sure_perturbation(F, var)\n"  // a function of the frame
+      "print(np.array_equal(a, b), np.array_equal(sa, sb), abs(float(np.mean(sa))) < 0.05)");
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
+  EXPECT_EQ(r.output, "True True True\nTrue True\nTrue True True\n");
+}
+
 // A half of a tracer frame for a network that reads the split: the half's own layers, twice the
 // variance, the frame's emission, and the reflection that closes F_h = (D_h + I_h) T_h + R_h + E;
 // no half at all where the frame lacks a layer that needs (an imported frame).
