@@ -35,8 +35,8 @@ def denoise(frame, params, state):
     def net(layers):
         return kpcn_model.denoise_planes(state["model"], kpcn_model.prepare(layers))
 
-    return guarded(frame, net(frame), net, kpcn_model.LAYERS, int(params.get("cross_validation", 5)),
-                   float(params.get("noise_clamp", 3.0)))
+    return guarded(frame, net(frame), net, kpcn_model.LAYERS, int(params.get("cross_validation", 3)),
+                   float(params.get("noise_clamp", 2.0)))
 
 
 run(denoise, setup=setup, info=lambda state: state["info"])

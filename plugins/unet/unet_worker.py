@@ -35,8 +35,8 @@ def denoise(frame, params, state):
     def net(layers):
         return unet_model.denoise_planes(state["model"], unet_model.prepare(layers))
 
-    return guarded(frame, net(frame), net, unet_model.LAYERS, int(params.get("cross_validation", 5)),
-                   float(params.get("noise_clamp", 1.5)))
+    return guarded(frame, net(frame), net, unet_model.LAYERS, int(params.get("cross_validation", 2)),
+                   float(params.get("noise_clamp", 1.5)), sure=int(params.get("sure", 2)))
 
 
 run(denoise, setup=setup, info=lambda state: state["info"])
