@@ -399,7 +399,7 @@ SURE_TAU = 0.5
 SURE_SEED = 20261207
 
 
-def sure_weight(color, variance, output, perturbed_output, signs, radius):
+def sure_weight(color, variance, output, perturbed_output, signs, radius, slope_at_output=False):
     """How far to trust a denoiser's output over its noisy input, judged on the frame itself by
     Stein's unbiased risk estimate (SURE; Stein 1981, as Li, Wu and Chuang's SURE-based
     reconstruction of 2012 uses it for renderings), with the divergence estimated by one
@@ -419,11 +419,19 @@ def sure_weight(color, variance, output, perturbed_output, signs, radius):
     is one path's): s_i signs_i (g_i(perturbed) - g_i(y)) / SURE_TAU, whose mean over the signs
     is s_i^2 dg_i/dy_i (the other pixels' terms have mean zero and average out over the window).
     Assumes each pixel's noise independent of the other pixels' (the tracer's pixels are) and
-    its variance known (the frame's estimate, averaged over the window). Returns H x W x 1."""
+    its variance known (the frame's estimate, averaged over the window).
+
+    slope_at_output: the display's slope taken at the output (an estimate of the mean) instead of
+    at the noisy colour, whose slope is 0 where a firefly is clamped at 1 (the window then shows
+    SURE no noise to remove, only a large change, and the weight drops). Better together with the
+    halves' weight, worse alone (docs/method-defaults.md, "The SURE guard"), so `guarded` takes it
+    only with the halves. Returns H x W x 1."""
     x = np.asarray(color, np.float64)
     var = np.maximum(np.asarray(variance, np.float64), 0.0)
     dx, s = _display_with_noise(x, var)
     g = display(output)
+    if slope_at_output:
+        g, s = _display_with_noise(np.asarray(output, np.float64), var)
     e = g - dx
     e = np.where(np.isfinite(e), e, 0.0)
     t = s * signs * (display(perturbed_output) - g) / SURE_TAU
@@ -448,8 +456,9 @@ def guarded(frame, output, denoise, layers, radius, clamp, sure=0):
     half buffers, the halves' weight (`cross_validated`: the network run again on each half
     through `denoise`, a function of a dict of `layers`); with sure > 0, SURE's weight over
     windows of that radius (`sure_weight`: the network run again on the frame with its colour
-    perturbed); with both, the smaller of the two at each pixel: the output moves from the input
-    only as far as both judges say it helps. With neither (radius and sure 0, or no halves and
+    perturbed; with the halves too, the display's slope at the output); with both, the smaller of
+    the two at each pixel: the output moves from the input only as far as both judges say it
+    helps. With neither (radius and sure 0, or no halves and
     sure 0), `noise_clamp` at `clamp` standard deviations."""
     x, var = frame["color"], frame["variance"]
     weights = []
@@ -460,7 +469,7 @@ def guarded(frame, output, denoise, layers, radius, clamp, sure=0):
     if sure > 0:
         perturbed, signs = sure_perturbation(x, var)
         run_again = denoise({**{name: frame[name] for name in layers}, "color": perturbed})
-        weights.append(sure_weight(x, var, output, run_again, signs, sure))
+        weights.append(sure_weight(x, var, output, run_again, signs, sure, slope_at_output=bool(weights)))
     if not weights:
         return noise_clamp(x, var, output, clamp)
     return _blend(x, output, weights[0] if len(weights) == 1 else np.minimum(weights[0], weights[1]))
