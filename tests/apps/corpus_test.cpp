@@ -184,9 +184,14 @@ TEST(LearnedPlugins, SureKeepsWhatHelpsAndDropsWhatHarmsOnTheFrameAlone) {
       "amp = guard(lambda c: 2 * np.asarray(c, np.float64) - mu)\n"
       "print(np.array_equal(amp, F.astype(np.float32)), mse(2 * F - mu) > 3 * mse(F))\n"
       "a, sa = p.sure_perturbation(F, var); b, sb = p.sure_perturbation(F, var)\n"  // a function of the frame
-      "print(np.array_equal(a, b), np.array_equal(sa, sb), abs(float(np.mean(sa))) < 0.05)");
+      "print(np.array_equal(a, b), np.array_equal(sa, sb), abs(float(np.mean(sa))) < 0.05)\n"
+      // A firefly clamped at 1 in display: at the colour its slope is 0 (no noise to remove there),
+      // at the output (the truth here) it is not, so removing the firefly gets more weight.
+      "fire = F.copy(); fire[10, 10] = 30.0; vf = var.copy(); vf[10, 10] = 100.0\n"
+      "w0 = p.sure_weight(fire, vf, mu, mu, sa, 3); w1 = p.sure_weight(fire, vf, mu, mu, sa, 3, slope_at_output=True)\n"
+      "print(w1[10, 10, 0] > 2 * w0[10, 10, 0])");
   ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
-  EXPECT_EQ(r.output, "True True True\nTrue True\nTrue True True\n");
+  EXPECT_EQ(r.output, "True True True\nTrue True\nTrue True True\nTrue\n");
 }
 
 // A half of a tracer frame for a network that reads the split: the half's own layers, twice the
