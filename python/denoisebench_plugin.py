@@ -357,9 +357,15 @@ def _weight_in_display(dd, dx, dyy, dy, radius):
     num = box_mean((e * (dyy - dx)).sum(axis=2), radius)
     den2 = box_mean((e * e).sum(axis=2), radius)
     se = np.sqrt(np.maximum(box_mean((e * e * dy * dy).sum(axis=2), radius), 0.0) / n)
+    gate = np.clip((num / np.maximum(se, 1e-30) - GATE_ZERO) / (GATE_FULL - GATE_ZERO), 0.0, 1.0)
+    return _window_weight(num, den2, gate)
+
+
+def _window_weight(num, den2, gate=1.0):
+    """The least-squares weight num / den2 of a window's change, clipped to [0, 1] and scaled by
+    `gate`; 1 where the window shows no change in display (den2 ~ 0). H x W x 1."""
     flat = den2 <= 1e-18
     w = np.clip(num / np.where(flat, 1.0, den2), 0.0, 1.0)
-    gate = np.clip((num / np.maximum(se, 1e-30) - GATE_ZERO) / (GATE_FULL - GATE_ZERO), 0.0, 1.0)
     return np.where(flat, 1.0, w * gate)[:, :, None]
 
 
@@ -424,22 +430,19 @@ def sure_weight(color, variance, output, perturbed_output, signs, radius, slope_
     slope_at_output: the display's slope taken at the output (an estimate of the mean) instead of
     at the noisy colour, whose slope is 0 where a firefly is clamped at 1 (the window then shows
     SURE no noise to remove, only a large change, and the weight drops). Better together with the
-    halves' weight, worse alone (docs/method-defaults.md, "The SURE guard"), so `guarded` takes it
+    halves' weight, worse alone (docs/method-defaults.md, "The SURE guard"), so `guard_weight` takes it
     only with the halves. Returns H x W x 1."""
-    x = np.asarray(color, np.float64)
     var = np.maximum(np.asarray(variance, np.float64), 0.0)
-    dx, s = _display_with_noise(x, var)
-    g = display(output)
+    dx, s = _display_with_noise(color, var)
     if slope_at_output:
-        g, s = _display_with_noise(np.asarray(output, np.float64), var)
+        g, s = _display_with_noise(output, var)
+    else:
+        g = display(output)
     e = g - dx
     e = np.where(np.isfinite(e), e, 0.0)
     t = s * signs * (display(perturbed_output) - g) / SURE_TAU
     t = np.where(np.isfinite(t), t, 0.0)
-    num = box_mean((s * s - t).sum(axis=2), radius)
-    den2 = box_mean((e * e).sum(axis=2), radius)
-    flat = den2 <= 1e-18
-    return np.where(flat, 1.0, np.clip(num / np.where(flat, 1.0, den2), 0.0, 1.0))[:, :, None]
+    return _window_weight(box_mean((s * s - t).sum(axis=2), radius), box_mean((e * e).sum(axis=2), radius))
 
 
 def sure_perturbation(color, variance):
@@ -451,6 +454,24 @@ def sure_perturbation(color, variance):
     return np.maximum(x + SURE_TAU * sd * signs, 0.0).astype(np.float32), signs
 
 
+def guard_weight(color, variance, output, radius=0, halves=None, half_outputs=None, sure=0, perturbed_output=None,
+                 signs=None):
+    """The weight `guarded` blends by, from the network's runs already made: the halves' (radius >
+    0 and `halves` given, with the network's `half_outputs` on them), SURE's (sure > 0, from its
+    `perturbed_output` on `sure_perturbation`'s frame and `signs`; with the halves' weight there
+    too, the display's slope at the output), the smaller of the two where both are. None where
+    neither applies. H x W x 1."""
+    weights = []
+    if radius > 0 and halves is not None:
+        weights.append(halves_weight(halves, half_outputs, variance, radius))
+    if sure > 0:
+        weights.append(sure_weight(color, variance, output, perturbed_output, signs, sure,
+                                   slope_at_output=bool(weights)))
+    if not weights:
+        return None
+    return weights[0] if len(weights) == 1 else np.minimum(weights[0], weights[1])
+
+
 def guarded(frame, output, denoise, layers, radius, clamp, sure=0):
     """A learned plug-in's output made safe against its input. With radius > 0 and the frame's
     half buffers, the halves' weight (`cross_validated`: the network run again on each half
@@ -458,21 +479,20 @@ def guarded(frame, output, denoise, layers, radius, clamp, sure=0):
     windows of that radius (`sure_weight`: the network run again on the frame with its colour
     perturbed; with the halves too, the display's slope at the output); with both, the smaller of
     the two at each pixel: the output moves from the input only as far as both judges say it
-    helps. With neither (radius and sure 0, or no halves and
-    sure 0), `noise_clamp` at `clamp` standard deviations."""
+    helps (`guard_weight`). With neither (radius and sure 0, or no halves and sure 0),
+    `noise_clamp` at `clamp` standard deviations."""
     x, var = frame["color"], frame["variance"]
-    weights = []
+    halves = half_colors = half_outputs = None
     if radius > 0:
         halves = [half_frame(frame, h, layers) for h in (0, 1)]
         if halves[0] is not None:
-            weights.append(halves_weight([h["color"] for h in halves], [denoise(h) for h in halves], var, radius))
+            half_colors, half_outputs = [h["color"] for h in halves], [denoise(h) for h in halves]
+    perturbed_output = signs = None
     if sure > 0:
         perturbed, signs = sure_perturbation(x, var)
-        run_again = denoise({**{name: frame[name] for name in layers}, "color": perturbed})
-        weights.append(sure_weight(x, var, output, run_again, signs, sure, slope_at_output=bool(weights)))
-    if not weights:
-        return noise_clamp(x, var, output, clamp)
-    return _blend(x, output, weights[0] if len(weights) == 1 else np.minimum(weights[0], weights[1]))
+        perturbed_output = denoise({**{name: frame[name] for name in layers}, "color": perturbed})
+    w = guard_weight(x, var, output, radius, half_colors, half_outputs, sure, perturbed_output, signs)
+    return noise_clamp(x, var, output, clamp) if w is None else _blend(x, output, w)
 
 
 def run(fn, setup=None, info=None):

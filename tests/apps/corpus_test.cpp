@@ -137,6 +137,14 @@ TEST(LearnedPlugins, NoiseClampBoundsTheChangeByTheNoise) {
   EXPECT_EQ(r.output, "True\nTrue True\nTrue\n");
 }
 
+// The guards' scene with a known answer, in Python: the truth mu (thin bright lines every 4
+// columns on grey), the noise's standard deviation s, and the display-space mse against mu.
+const std::string kThinLines =
+    "import numpy as np, denoisebench_plugin as p\n"
+    "rng = np.random.default_rng(7)\n"
+    "mu = np.full((64, 64, 3), 0.2); mu[:, ::4] = 0.6; s = 0.03\n"
+    "def mse(x): return float(np.mean((p.display(x) - p.display(mu)) ** 2))\n";
+
 // The guard's promise on a scene with a known answer: thin bright lines every 4 columns, two
 // halves with independent Gaussian noise. A denoiser that returns the truth is kept (w ~ 1); one
 // that erases the lines (their local mean, 40x the input's error) is dropped (w ~ 0), so the
@@ -144,12 +152,9 @@ TEST(LearnedPlugins, NoiseClampBoundsTheChangeByTheNoise) {
 // of the input's display mse (the weight's estimate is off by ~1/sqrt(147 values) per window),
 // the dropped one 0.979-1.0007 (the weight of a harmful change is estimated about 0, with noise).
 TEST(LearnedPlugins, CrossValidationKeepsWhatHelpsAndDropsWhatHarms) {
-  auto r = python("import numpy as np, denoisebench_plugin as p\n"
-      "rng = np.random.default_rng(7)\n"
-      "mu = np.full((64, 64, 3), 0.2); mu[:, ::4] = 0.6; s = 0.03\n"
+  auto r = python(kThinLines +
       "A = mu + rng.normal(0, s, mu.shape); B = mu + rng.normal(0, s, mu.shape)\n"
       "F = (A + B) / 2; var = np.full(mu.shape, s * s / 2)\n"
-      "def mse(x): return float(np.mean((p.display(x) - p.display(mu)) ** 2))\n"
       "blur = np.full(mu.shape, 0.3)\n"
       "good = p.cross_validated(F, mu, [A, B], [mu, mu], var, 3)\n"
       "bad = p.cross_validated(F, blur, [A, B], [blur, blur], var, 3)\n"
@@ -172,12 +177,9 @@ TEST(LearnedPlugins, CrossValidationKeepsWhatHelpsAndDropsWhatHarms) {
 // 0.93-0.94 (SURE weighs a wrong constant by about s^2 / (s^2 + bias^2): a small gain, not a
 // loss), the doubled noise 4.4-4.5x the input's.
 TEST(LearnedPlugins, SureKeepsWhatHelpsAndDropsWhatHarmsOnTheFrameAlone) {
-  auto r = python("import numpy as np, denoisebench_plugin as p\n"
-      "rng = np.random.default_rng(7)\n"
-      "mu = np.full((64, 64, 3), 0.2); mu[:, ::4] = 0.6; s = 0.03\n"
+  auto r = python(kThinLines +
       "F = mu + rng.normal(0, s, mu.shape); var = np.full(mu.shape, s * s)\n"
       "frame = {\"color\": F, \"variance\": var}\n"
-      "def mse(x): return float(np.mean((p.display(x) - p.display(mu)) ** 2))\n"
       "def guard(net): return p.guarded(frame, net(F), lambda f: net(f[\"color\"]), [\"color\"], 0, 0.0, sure=3)\n"
       "good = guard(lambda c: mu); bad = guard(lambda c: np.full(mu.shape, 0.3))\n"
       "print(mse(good) < 0.05 * mse(F), mse(bad) < 1.02 * mse(F), mse(np.full(mu.shape, 0.3)) > 10 * mse(F))\n"
