@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "core/errors.h"
+#include "tracer/integrator.h"
 #include "tracer/scene.h"
 
 namespace fs = std::filesystem;
@@ -252,7 +253,12 @@ std::string export_mitsuba(const Scene& s, const MitsubaExportSettings& e, const
   std::string xml = "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n";
   xml += "<!-- written by denoisebench export-mitsuba (tracer/mitsuba_export.h) -->\n";
   xml += "<scene version=\"3.0.0\">\n";
-  xml += fmt::format("  <integrator type=\"path\"><integer name=\"max_depth\" value=\"{}\"/></integrator>\n", e.max_depth);
+  // Russian roulette from the same vertex as the tracer's (mitsuba_export.h, "integrator"):
+  // Mitsuba's default (5) would make it trace more of each path than the tracer does.
+  xml += fmt::format(
+      "  <integrator type=\"path\"><integer name=\"max_depth\" value=\"{}\"/>"
+      "<integer name=\"rr_depth\" value=\"{}\"/></integrator>\n",
+      e.max_depth, rt::PathTracer::Options{}.rr_depth);
   xml += sensor_xml(s, e);
   if (s.sky.enabled && !is_black(s.sky.color))
     xml += fmt::format("  <emitter type=\"constant\">{}</emitter>\n", rgb("radiance", s.sky.color));

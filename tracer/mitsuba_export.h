@@ -34,7 +34,17 @@
 //   emitter         an `area` emitter on the shape (front face only, as the tracer's)
 //   constant sky    a `constant` emitter
 //   integrator      path with the same max_depth (segments, camera ray included: both count
-//                   the same way; Russian roulette differs, unbiased in both)
+//                   the same way) and rr_depth = the tracer's (PathTracer::Options::rr_depth, 3):
+//                   both then play Russian roulette first on the way to vertex 4, with the same
+//                   probability min(0.95, max component of the path's throughput); Mitsuba
+//                   decides before tracing that segment, the tracer after (it traces the
+//                   segment and counts its emission, then stops before the vertex's light sample
+//                   and bounce), so the tracer does a little more work per path, never less.
+//                   (Mitsuba multiplies that probability by eta^2 after refractions, the
+//                   tracer does not: both unbiased). With Mitsuba's default rr_depth (5) it
+//                   traced more of each path than the tracer, and the speed case
+//                   (bench/mitsuba_bench.cpp) flattered the tracer: Mitsuba renders it 8%
+//                   faster at 3 than at 5 (2026-12-07, 512x384, 64 spp)
 //
 // Known model differences (not refused; tests/tracer/mitsuba_agreement_test.cpp bounds each one
 // by quadrature and adds the bound to its tolerance):

@@ -53,6 +53,7 @@
 #include "core/json_file.h"
 #include "test_util.h"
 #include "tracer/bsdf.h"
+#include "tracer/integrator.h"
 #include "tracer/mitsuba_export.h"
 #include "tracer/render.h"
 #include "tracer/scene.h"
@@ -472,6 +473,9 @@ TEST(MitsubaExport, WritesOneShapePerMeshAndMaterialAndNeverIntoAFullFolder) {
   const std::string xml = test::slurp(xml_path);
   EXPECT_NE(xml.find("<scene version=\"3.0.0\">"), std::string::npos);
   EXPECT_NE(xml.find("<integer name=\"max_depth\" value=\"3\"/>"), std::string::npos);
+  // Roulette from the tracer's vertex, not Mitsuba's default 5 (a speed comparison's equal work).
+  EXPECT_NE(xml.find(fmt::format("<integer name=\"rr_depth\" value=\"{}\"/>", rt::PathTracer::Options{}.rr_depth)),
+            std::string::npos);
   EXPECT_NE(xml.find("<bsdf type=\"dielectric\" id="), std::string::npos) << "glass is not wrapped in twosided";
   std::size_t shapes = 0;
   for (std::size_t p = xml.find("<shape"); p != std::string::npos; p = xml.find("<shape", p + 1)) ++shapes;
