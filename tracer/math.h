@@ -194,11 +194,15 @@ inline float u32_to_unit(std::uint32_t x) { return float(x >> 8) * (1.0f / 16777
 // direction, Russian roulette). The film and the first kSequenceVertices vertices come from the
 // scrambled sequences; deeper vertices, whose stratification gains little, from independent
 // hashed numbers (a fifth of the cost per number), as every renderer's sampler pads high
-// dimensions.
+// dimensions. The roulette pair of the sequence vertices (slots kRoulette and the spare 7) is
+// hashed too: the tracer plays roulette only after PathTracer::Options::rr_depth (3) vertices,
+// so scrambling it cost SampleTable::prepare two of its nine pairs for numbers no render read
+// (a path that did read one would still get a uniform number, unstratified).
 namespace dims {
 enum : int {
   kFilmDims = 2,
   kLightChoice = 0, kLobe = 1, kLightU = 2, kLightV = 3, kBsdfU = 4, kBsdfV = 5, kRoulette = 6,
+  kSequenceSlots = 6,  // the slots of a sequence vertex from the scrambled sequence: 0 .. 5
   kVertexDims = 8,
   kSequenceVertices = 2,
   kSequenceDims = kFilmDims + kVertexDims * kSequenceVertices,
@@ -210,6 +214,8 @@ enum : int {
   kTime = kLensU + 2,
 };
 }  // namespace dims
+static_assert(dims::kSequenceSlots % 2 == 0 && dims::kRoulette >= dims::kSequenceSlots,
+              "a pair of dimensions is scrambled or hashed as a whole; roulette is hashed");
 
 // The random numbers of one sample. Two modes:
 //  - independent (the constructor): every number a hash of (seed, key, sample, dimension in call
@@ -293,9 +299,15 @@ class Sampler {
   //                      shift of the points, which the coordinates' own scrambles absorb)
   //   x = nested_uniform_scramble(sobol_dim0(j), s2) = R(LK(j, s2))
   //   y = nested_uniform_scramble(sobol_dim1(j), s3) = R(LK(sobol_dim1_reversed(j), s3)).
-  // Dimensions from kSequenceDims on: hashed from (the sample's key, dimension).
+  // Dimensions from kSequenceDims on, and the roulette pair of the sequence vertices
+  // (is_hashed): hashed from (the sample's key, dimension).
+  static constexpr bool is_hashed(std::uint32_t d) {
+    return d >= std::uint32_t(dims::kSequenceDims) ||
+           (d >= std::uint32_t(dims::kFilmDims) &&
+            (d - std::uint32_t(dims::kFilmDims)) % std::uint32_t(dims::kVertexDims) >= std::uint32_t(dims::kSequenceSlots));
+  }
   float dimension_value(std::uint32_t d) {
-    if (d >= std::uint32_t(dims::kSequenceDims)) {
+    if (is_hashed(d)) {
       const std::uint64_t h = mix64(sample_key_ + std::uint64_t(d) * 0xd1b54a32d192ed03ULL);
       return float(h >> 40) * (1.0f / 16777216.0f);
     }

@@ -28,6 +28,7 @@ void SampleTable::prepare(std::uint64_t seed, std::uint64_t pixel, std::uint64_t
   alignas(32) std::uint64_t lane_key[G];
   for (int l = 0; l < G; ++l) lane_key[l] = group_key_[(begin + std::uint64_t(l)) % G];
   for (int pair = 0; pair < dims::kSequenceDims / 2; ++pair) {
+    if (Sampler::is_hashed(std::uint32_t(2 * pair))) continue;  // the roulette pairs: never read from here
     // The lanes' scrambles for this pair (a loop of 64-bit hashes the compiler vectorises too).
     alignas(32) std::uint32_t s1[G], s2[G], s3[G], shift0[G];
     for (int l = 0; l < G; ++l) {
