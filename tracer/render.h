@@ -24,7 +24,9 @@ class Scene;  // tracer/scene.h
 //    layers from the groups (render.cpp's top); 484ede7 only.
 // 6: the same, with hashed numbers past the second vertex and a cheaper index shuffle (the same
 //    distribution, other bits; tracer/math.h's Sampler).
-inline constexpr const char* kTracerVersion = "dnb-tracer-6";
+// 7: the same, with Embree's kernels capped at AVX2 (Scene::kEmbreeConfig): other bits on
+//    AVX-512 machines, the same images on AVX2 and AVX-512 machines (docs/speed.md).
+inline constexpr const char* kTracerVersion = "dnb-tracer-7";
 // Bumped whenever a frame gains or loses layers while the images of the layers it had stay the
 // same (part of the frame cache key, not the references'). "halves-1": the half buffers
 // half0.* and half1.* (core/aov_frame.h). "gloss-trans-1": also R split as Cycles splits it,

@@ -74,8 +74,15 @@ Vec3 Sky::radiance(Vec3 dir) const {
 
 }  // namespace rt
 
+// Embree's device, its kernels capped at AVX2 (Scene::kEmbreeConfig). Embree picks its traversal and
+// triangle kernels by the processor at run time, and its AVX-512 kernels compute hits that differ
+// from the AVX2 kernels' in the last bits, so without a cap an AVX-512 machine rendered other
+// images than an AVX2 machine from the same seed (docs/cluster.md). Capped, both run the same
+// kernels. The cap also costs nothing here: on this project's AMD EPYC (Zen 4) development
+// machine the AVX2 kernels made whole renders 3-6% faster than the AVX-512 ones (2026-12-07,
+// docs/speed.md). Machines below AVX2 still get their own (SSE/AVX) kernels.
 Scene::Scene() {
-  device_ = rtcNewDevice(nullptr);
+  device_ = rtcNewDevice(kEmbreeConfig);
   if (!device_) throw WorkError(fmt::format("cannot create an Embree device (error {})", int(rtcGetDeviceError(nullptr))));
 }
 

@@ -269,6 +269,9 @@ struct SphereLight {
 
 class Scene {
  public:
+  // The configuration of every Scene's Embree device: the kernels capped at AVX2, so that AVX2
+  // and AVX-512 machines compute the same hits (scene.cpp, Scene::Scene; part of tracer 7).
+  static constexpr const char* kEmbreeConfig = "max_isa=avx2";
   Scene();
   ~Scene();
   Scene(const Scene&) = delete;

@@ -218,12 +218,14 @@ TEST(Cutout, ShadowRaysAndPacketsPassThroughTheHoles) {
   ASSERT_TRUE(scene->intersect(rt::Ray{Vec3(-0.5f, -0.5f, 5), Vec3(0, 0, -1)}, hit));
   EXPECT_NEAR(hit.t, 5.0f, 1e-5f);
   // Shadow rays, one by one and as packets (16 and a remainder), agree on every ray: a grid of
-  // 7 x 7 points across the four cells, cell centres and points near the edges.
+  // 7 x 7 points across the four cells, some 0.05 from a cell edge, none on one (a ray along an
+  // edge meets the texture's u = 0.5 within rounding, and which side it lands on is Embree's
+  // last bit: it changed with Embree's kernels).
   std::vector<rt::Ray> rays;
   std::vector<std::uint8_t> expected;
   for (int j = 0; j < 7; ++j)
     for (int i = 0; i < 7; ++i) {
-      const float X = -1.8f + 0.6f * i, Y = -1.8f + 0.6f * j;
+      const float X = -1.75f + 0.6f * i, Y = -1.75f + 0.6f * j;
       rays.push_back(rt::Ray{Vec3(X, Y, -1), Vec3(0, 0, 1), 10});
       const int cx = int(std::floor(X + 2)), cy = int(std::floor(Y + 2));
       expected.push_back((cx + cy) % 2 == 0 ? 1 : 0);
