@@ -10,8 +10,9 @@
 //
 // Two spp: 4, and 64, nearer the harness's own frames (256-spp inputs, 4096-spp references),
 // where the tracer's fixed cost per pixel (allocating and finishing about 127 AOV channels, the
-// edge set) weighs less: 2026-12-07, 2 cores, one session: tracer/mitsuba 0.65 at 4 spp and
-// 0.80 at 64 (Mitsuba 5.12 M and 5.31 M paths/s; the tracer 3.34 M and 4.23 M).
+// edge set) weighs less. Both play Russian roulette from the same vertex (the export's rr_depth).
+// 2026-12-07, tracer 7, 2 cores, one session: tracer/mitsuba 0.67 at 4 spp and 0.76 at 64
+// (Mitsuba 5.80 M and 6.07 M paths/s; the tracer 3.90 M and 4.62 M; docs/speed.md).
 //
 // Counters: mitsuba_paths/s, tracer_paths/s and tracer/mitsuba (their ratio). The llvm variant
 // needs Debian's libLLVM (libllvm15, scripts/setup): DRJIT_LIBLLVM_PATH is set to it here unless

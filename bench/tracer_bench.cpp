@@ -14,7 +14,8 @@
 // process (start-up, BVH build and writing its image add about 0.1 s to a run of a few
 // seconds); it reports no ray count, so only its paths per second are given. BM_EmbreeTutorial
 // times our tracer on mcguire-cornell-box in the same case and reports the ratio,
-// tracer/embree (2026-12-07, 2 cores: 0.98 at 4 spp, 1.14 at 16).
+// tracer/embree, against the faster of the tutorial's two runs (Embree's default kernels, and
+// capped at AVX2 as the tracer's are) (2026-12-07, tracer 7, 2 cores: 1.03 at 4 spp, 1.21 at 16).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
