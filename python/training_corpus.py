@@ -18,7 +18,9 @@ Scenes are functions of (seed, index) only: the same seed gives the same files. 
 rendered by `denoisebench render` at each input spp and `denoisebench reference` (another
 seed) and kept under WORK/frames/ by a name that holds the scene's file hash, the size, the spp
 and the seed, so a second build renders nothing it has, and a killed build resumes where it
-stopped (the harness writes each EXR whole or not at all).
+stopped (the harness writes each EXR whole or not at all). A kept frame counts only when the
+tracer version it names (denoisebench:tracer_version) is the binary's (a 1x1 probe render
+tells): after a tracer change every frame is rendered again, never mixed with the old ones.
 
 The manifest (build()'s return value, written by the trainers) records per scene its file's
 SHA-256, the tracer's content hash of the loaded scene (the frame's
@@ -29,6 +31,7 @@ mesh file is one an evaluation scene reads.
 import hashlib
 import os
 import subprocess
+import tempfile
 import sys
 import time
 import tomllib
@@ -327,6 +330,19 @@ def scene_content_hash(frame_path):
     return str(frame_attribute(frame_path, "denoisebench:extra:scene_hash"))
 
 
+def tracer_version(binary, scene_path, env):
+    """The tracer version `binary` renders with: the attribute of a 1x1, 1-spp probe frame."""
+    fd, probe = tempfile.mkstemp(suffix=".exr", prefix="dnb-corpus-probe-")
+    os.close(fd)
+    try:
+        _run([binary, "render", scene_path, "--spp", "1", "--size", "1x1", "-o", probe], env)
+        return str(frame_attribute(probe, "denoisebench:tracer_version"))
+    finally:
+        for p in (probe, probe[:-4] + ".edges.exr"):
+            if os.path.exists(p):
+                os.remove(p)
+
+
 def build(binary, work, seed, count, size, input_spp, ref_spp, log=print):
     """Generates `count` scenes from `seed` under WORK/scenes, renders what is missing under
     WORK/frames, and returns the manifest: {"scenes": [...], "samples": [...]} where each sample
@@ -342,23 +358,31 @@ def build(binary, work, seed, count, size, input_spp, ref_spp, log=print):
                 "reference_seed": REFERENCE_SEED, "scenes_folder_found": bool(scenes_folder), "scenes": [], "samples": []}
     rng = np.random.default_rng(seed)
     render_seconds = 0.0
+    tracer = None  # the binary's tracer version, from a probe of the first scene
+
+    def kept(frame):
+        return os.path.exists(frame) and str(frame_attribute(frame, "denoisebench:tracer_version")) == tracer
+
     for i in range(count):
         text, meshes = procedural_scene(rng, i, tex_dir, scenes_folder)
         name = f"corpus-{seed}-{i}"
         path = os.path.join(scene_dir, name + ".toml")
         if not os.path.exists(path) or open(path).read() != text:
             write_atomic(path, text.encode())
+        if tracer is None:
+            tracer = tracer_version(binary, path, env)
+            manifest["tracer_version"] = tracer
         file_hash = sha256_file(path)
         tag = file_hash[:12]
         ref = os.path.join(frames, f"{name}-{tag}-ref{ref_spp}-{size}.exr")
         t0 = time.time()
-        if not os.path.exists(ref):
+        if not kept(ref):
             log(f"training_corpus: {name}: reference ({ref_spp} spp, {size})")
             _run([binary, "reference", path, "--spp", str(ref_spp), "--size", size, "--seed", str(REFERENCE_SEED),
                   "--block-spp", str(min(256, ref_spp)), "--no-checkpoint", "-o", ref], env)
         for spp in input_spp:
             frame = os.path.join(frames, f"{name}-{tag}-s{spp}-{size}-seed{seed}.exr")
-            if not os.path.exists(frame):
+            if not kept(frame):
                 log(f"training_corpus: {name}: input ({spp} spp)")
                 _run([binary, "render", path, "--spp", str(spp), "--size", size, "--seed", str(seed), "-o", frame], env)
             manifest["samples"].append({"scene": name, "spp": spp, "frame": frame, "reference": ref})

@@ -105,6 +105,37 @@ TEST(Corpus, ScenesAreFunctionsOfTheSeedAndCoverEveryMaterial) {
   EXPECT_EQ(r.output, "True True\nall\n");
 }
 
+// The corpus cache (training_corpus.build): a second build renders nothing it has; a kept frame
+// of another tracer version (as after a tracer change) is rendered again, and only that frame.
+TEST(Corpus, ABuildKeepsItsFramesButRendersThoseOfAnotherTracerAgain) {
+  test::TempDir dir;
+  const std::string code = "import training_corpus as c\n"
+                           "m = c.build(\"" + test::binary().string() + "\", \"" + dir.file("work") +
+                           "\", 7, 1, \"8x6\", [1], 4, log=lambda s: print(\"LOG\", s))\n"
+                           "print(\"VERSION\", m[\"tracer_version\"])";
+  auto r = python(code);
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
+  EXPECT_THAT(r.output, ::testing::HasSubstr("reference (4 spp, 8x6)"));
+  EXPECT_THAT(r.output, ::testing::HasSubstr("input (1 spp)"));
+  EXPECT_THAT(r.output, ::testing::HasSubstr("VERSION dnb-tracer-"));
+  r = python(code);
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
+  EXPECT_EQ(r.output.find("LOG"), std::string::npos) << "a second build rendered again:\n" << r.output;
+  std::string input;
+  for (const auto& e : fs::directory_iterator(dir.file("work/frames")))
+    if (e.path().filename().string().ends_with("-s1-8x6-seed7.exr")) input = e.path().string();
+  ASSERT_FALSE(input.empty());
+  AovFrame f = read_frame(input);
+  const std::string current = f.meta.tracer_version;
+  f.meta.tracer_version = "dnb-tracer-0";  // what an older tracer wrote
+  write_frame(f, input);
+  r = python(code);
+  ASSERT_EQ(r.exit_code, 0) << r.output << r.errors;
+  EXPECT_THAT(r.output, ::testing::HasSubstr("input (1 spp)"));
+  EXPECT_EQ(r.output.find("reference ("), std::string::npos) << "the reference was current:\n" << r.output;
+  EXPECT_EQ(read_frame(input).meta.tracer_version, current);
+}
+
 // The relative loss: 1 (up to its epsilon) for an output equal to the noisy input, 0 for the
 // reference itself, above 1 for an output worse than the input.
 TEST(Corpus, RelativeLossIsTheErrorOverTheInputs) {
