@@ -101,16 +101,15 @@ void BM_EmbreeTutorial(benchmark::State& state) {
   for (auto _ : state) {
     std::vector<double> tutorial[2], tracer;
     for (int k = -1; k < kRepeats; ++k) {  // k = -1: the warm-ups
-      dnb::Stopwatch clock;
       for (int c = 0; c < 2; ++c) {
-        clock = dnb::Stopwatch();
+        dnb::Stopwatch clock;
         if (std::system(cmds[c].c_str()) != 0) {
           state.SkipWithError("pathtracer failed");
           return;
         }
         if (k >= 0) tutorial[c].push_back(clock.seconds());
       }
-      clock = dnb::Stopwatch();
+      dnb::Stopwatch clock;
       dnb::AovFrame f = dnb::render_frame(*scene, s);
       if (k >= 0) tracer.push_back(clock.seconds());
       benchmark::DoNotOptimize(f);

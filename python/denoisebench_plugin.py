@@ -379,7 +379,7 @@ def cross_validated(color, output, halves, half_outputs, variance, radius):
     the input stays. Arrays H x W x 3; radius <= 0 returns `output`."""
     if radius <= 0:
         return output
-    return _blend(color, output, halves_weight(halves, half_outputs, variance, radius))
+    return blend(color, output, halves_weight(halves, half_outputs, variance, radius))
 
 
 def halves_weight(halves, half_outputs, variance, radius):
@@ -392,8 +392,8 @@ def halves_weight(halves, half_outputs, variance, radius):
     return 0.5 * (_weight_in_display(da, xa, xb, sb, radius) + _weight_in_display(db, xb, xa, sa, radius))
 
 
-def _blend(color, output, w):
-    """color + w (output - color), float32."""
+def blend(color, output, w):
+    """color + w (output - color), float32: how every guard applies its weight w (H x W x 1)."""
     x = np.asarray(color, np.float64)
     return (x + w * (np.asarray(output, np.float64) - x)).astype(np.float32)
 
@@ -492,7 +492,7 @@ def guarded(frame, output, denoise, layers, radius, clamp, sure=0):
         perturbed, signs = sure_perturbation(x, var)
         perturbed_output = denoise({**{name: frame[name] for name in layers}, "color": perturbed})
     w = guard_weight(x, var, output, radius, half_colors, half_outputs, sure, perturbed_output, signs)
-    return noise_clamp(x, var, output, clamp) if w is None else _blend(x, output, w)
+    return noise_clamp(x, var, output, clamp) if w is None else blend(x, output, w)
 
 
 def run(fn, setup=None, info=None):
