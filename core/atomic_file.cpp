@@ -212,6 +212,40 @@ FolderLock::~FolderLock() {
   if (fd_ >= 0) ::close(fd_);  // releases the flock
 }
 
+RunLock::RunLock(const std::string& dir, bool first, const std::function<void()>& waiting) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  const std::string path = dir + "/.run.lock";
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw WorkError(fmt::format("cannot open the lock '{}': {}", path, std::strerror(errno)));
+  const auto lock = [&](int how) {
+    while (::flock(fd_, how) != 0)
+      if (errno != EINTR) {
+        const int e = errno;
+        ::close(fd_);
+        throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(e)));
+      }
+  };
+  if (first) {
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      if (errno != EWOULDBLOCK) {
+        const int e = errno;
+        ::close(fd_);
+        throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(e)));
+      }
+      if (waiting) waiting();
+      lock(LOCK_EX);
+    }
+  }
+  // From exclusive to shared: flock(2) converts in place; the other processes of this run then
+  // share it (they start after this one, behind a barrier).
+  lock(LOCK_SH);
+}
+
+RunLock::~RunLock() {
+  if (fd_ >= 0) ::close(fd_);  // releases the flock
+}
+
 void create_folder(const std::string& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);

@@ -95,6 +95,23 @@ class FolderLock {
   int fd_ = -1;
 };
 
+// The processes of one run into DIR (every MPI rank, or the one process) each hold a shared flock
+// on DIR/.run.lock for their lifetime. The run's first process (`first`, before any other of the
+// run starts) takes it exclusively before sharing it, and so waits, calling `waiting` once, until
+// every process of an earlier run into DIR has ended. Why: a SIGKILL to `mpirun` does not reach
+// its ranks (OpenMPI gives each rank a process group of its own), which run on for a moment and
+// still write the folder's spool; a run started again at once would read it under them.
+class RunLock {
+ public:
+  RunLock(const std::string& dir, bool first, const std::function<void()>& waiting = {});
+  ~RunLock();
+  RunLock(const RunLock&) = delete;
+  RunLock& operator=(const RunLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 // Creates `dir` and its parents where missing (an output folder); WorkError "cannot create
 // folder 'DIR': REASON" (the system's) otherwise, e.g. when a file holds one of the names.
 void create_folder(const std::string& dir);

@@ -55,14 +55,23 @@ ResultsDocument run_experiment(const ExperimentConfig& c, const RunOptions& opt,
   std::optional<ResultsStore> store;
   std::optional<Progress> progress;
   std::optional<CellContext> context;
+  std::optional<RunLock> run_lock;
   if (root) {
     create_folder(opt.out_dir + "/images");
     if (distributed) create_folder(spool_dir(opt.out_dir));
     store.emplace(opt.out_dir, results_header(c));
+    // After the folder's lock (one first process at a time): every process of an earlier run
+    // into the folder has ended, the ranks of a killed mpirun included (core/atomic_file.h).
+    run_lock.emplace(opt.out_dir, true, [&] {
+      spdlog::warn("results folder '{}': processes of an earlier run into it are still running (the ranks of a killed "
+                   "mpirun run on for a moment); waiting for them to end",
+                   opt.out_dir);
+    });
     progress.emplace("experiment " + c.name, cell_count(c), "cells", 0.0);
     context = CellContext{opt.out_dir, &*store, &*progress};
   }
   mpi::barrier();  // the spool folder exists before any rank writes into it
+  if (!root) run_lock.emplace(opt.out_dir, false);
   auto run_plans = [&](ScenePlans& sp) {
     if (distributed)
       run_scene_distributed(sp, opt, root ? &*context : nullptr);

@@ -11,6 +11,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <map>
 #include <filesystem>
 #include <memory>
 #include <regex>
@@ -162,8 +164,39 @@ TEST(RunMpi, TwoRanksWriteTheFolderOfOneProcess) {
   expect_same_folder(dir.path() / "one", dir.path() / "two");
 }
 
+// The processes descended from `root` (from /proc's parent links), nearest first.
+std::vector<pid_t> descendants(pid_t root) {
+  std::map<pid_t, std::vector<pid_t>> children;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator("/proc", ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.empty() || !std::all_of(name.begin(), name.end(), ::isdigit)) continue;
+    // /proc/PID/stat: "PID (COMM) STATE PPID ...", COMM may hold spaces and parentheses.
+    const std::string stat = slurp(e.path() / "stat");
+    const auto close = stat.rfind(')');
+    if (close == std::string::npos) continue;
+    char state = 0;
+    int ppid = 0;
+    if (std::sscanf(stat.c_str() + close + 1, " %c %d", &state, &ppid) == 2) children[ppid].push_back(std::stoi(name));
+  }
+  std::vector<pid_t> out{root};
+  for (std::size_t i = 0; i < out.size(); ++i)
+    for (pid_t c : children[out[i]]) out.push_back(c);
+  out.erase(out.begin());
+  return out;
+}
+
+// Whether `pid` still runs (a zombie has ended: it writes nothing).
+bool running(pid_t pid) {
+  const std::string stat = slurp(fs::path("/proc") / std::to_string(pid) / "stat");
+  const auto close = stat.rfind(')');
+  return close != std::string::npos && stat.size() > close + 2 && stat[close + 2] != 'Z' && stat[close + 2] != 'X';
+}
+
 // Starts `mpirun -np 2 ... run` in a process group of its own, waits until a rank has spooled
-// `cells` cells, and kills the whole job with SIGKILL. False if it finished first.
+// `cells` cells, and kills the whole job with SIGKILL, as a crash or a node's loss would: its
+// ranks too, which OpenMPI puts in process groups of their own (a SIGKILL to mpirun alone leaves
+// them running on for a moment), and waits until every one has ended. False if it finished first.
 bool start_and_kill(const test::TempDir& dir, const std::string& out, int cells) {
   const std::string cmd = "cd '" + dir.path().string() + "' && exec '" + mpirun() + "' --oversubscribe -np 2 " +
                           test::binary().string() + " run ranks.toml -o " + out + " --cache-dir cache-" + out +
@@ -185,8 +218,14 @@ bool start_and_kill(const test::TempDir& dir, const std::string& out, int cells)
     for (const auto& e : fs::directory_iterator(spool, ec))
       spooled += e.path().extension() == ".json" && e.path().filename().string()[0] != '.';
     if (spooled >= cells) {
+      ::kill(pid, SIGSTOP);  // mpirun, so that it neither starts nor reaps anything meanwhile
+      const std::vector<pid_t> job = descendants(pid);
+      for (pid_t p : job) ::kill(p, SIGKILL);
       ::kill(-pid, SIGKILL);
       killed = true;
+      for (pid_t p : job)
+        for (int w = 0; w < 2000 && running(p); ++w) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      for (pid_t p : job) EXPECT_FALSE(running(p)) << "process " << p << " of the killed job still runs";
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }

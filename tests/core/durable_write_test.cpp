@@ -7,6 +7,7 @@
 
 #include <sys/mount.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -194,6 +195,43 @@ TEST(DurableWrite, AFrameIsNeverPairedWithAnotherRendersEdgeFile) {
     EXPECT_THAT(e.what(), HasSubstr("a.edges.exr"));
     EXPECT_THAT(e.what(), HasSubstr("not the one written with this frame"));
   }
+}
+
+
+// RunLock (experiment/runner.cpp): the first process of a run waits until every process of the
+// last run into the folder has ended, a non-first one among them (the rank a killed mpirun leaves
+// running), and only once: the processes of one run share the lock.
+TEST(RunLock, TheFirstProcessOfARunWaitsUntilEveryProcessOfTheLastOneHasEnded) {
+  test::TempDir dir;
+  int ready[2];
+  ASSERT_EQ(::pipe(ready), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {  // a rank of the earlier run: holds the lock until it ends, 300 ms on
+    ::close(ready[0]);
+    new RunLock(dir.path().string(), false);  // released by the process's end, as a killed rank's
+    (void)!::write(ready[1], "x", 1);
+    ::usleep(300000);
+    test::write(dir.file("ended"), "the last thing the earlier run's process does");
+    ::_exit(0);
+  }
+  ::close(ready[1]);
+  char c = 0;
+  ASSERT_EQ(::read(ready[0], &c, 1), 1);
+  ::close(ready[0]);
+  int waited = 0;
+  {
+    RunLock first(dir.path().string(), true, [&] { ++waited; });
+    // It returned: the child's last act is done, not merely its sleep begun.
+    EXPECT_TRUE(fs::exists(dir.path() / "ended")) << "the lock was granted while the earlier run's process lived";
+    EXPECT_EQ(waited, 1);
+    // This run's other processes share it at once; a third run's first process would wait.
+    RunLock other(dir.path().string(), false);
+  }
+  ::waitpid(child, nullptr, 0);
+  // Nobody holds it now: granted without waiting.
+  RunLock again(dir.path().string(), true, [&] { ++waited; });
+  EXPECT_EQ(waited, 1);
 }
 
 }  // namespace
