@@ -114,10 +114,15 @@ std::vector<Case> cases() {
                   "[[objects]]\ntype = \"box\"\nmaterial = \"metal\"\nsize = [0.8, 0.8, 0.8]\nrotate = [0, 30, 0]\n"
                   "translate = [-0.2, 0.4, 0]\n"),
        6, Bias::kNone},
+      // The glass box stands 5 mm above the floor. Resting on it (y = 0.3), its bottom face and the
+      // floor were one plane, and a ray inside the glass met one or the other by each renderer's
+      // tie-break: the tracer was 12% brighter than Mitsuba in a band of pixels whose refracted
+      // rays reach the bottom (1.5x at path depth 3; sky-lit paths only; none with the box alone
+      // or lifted), which put the block at 4.9-5.2 sigma depending on the build.
       {"SmoothDielectric",
        room_scene("[materials.glass]\ntype = \"dielectric\"\nior = 1.5\ntransmittance = [0.9, 0.95, 1.0]\n",
                   "[[objects]]\ntype = \"box\"\nmaterial = \"glass\"\nsize = [0.8, 0.6, 0.8]\nrotate = [0, 25, 0]\n"
-                  "translate = [-0.1, 0.3, 0.2]\n"),
+                  "translate = [-0.1, 0.305, 0.2]\n"),
        8, Bias::kNone},
       {"RoughDielectric",
        floor_scene("type = \"dielectric\"\nior = 1.5\nroughness = 0.3\ntransmittance = [0.8, 0.9, 1.0]"), 4,
