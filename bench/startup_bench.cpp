@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -43,8 +44,8 @@ double spawn_seconds(const std::vector<std::string>& args) {
   posix_spawn_file_actions_destroy(&fa);
   if (err != 0) throw std::runtime_error("cannot start " + args[0]);
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
-  }
+  while (::waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) throw std::runtime_error("cannot wait for " + args[0]);
   const double t = bench::wall_seconds() - t0;
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) throw std::runtime_error(args[0] + " failed");
   return t;

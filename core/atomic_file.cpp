@@ -186,21 +186,43 @@ std::size_t remove_stale_temporaries(const std::string& dir) {
   return removed;
 }
 
-FolderLock::FolderLock(const std::string& dir, const std::function<void(const std::string&)>& waiting) {
+namespace {
+
+// DIR/NAME opened for flock (the folder and the file created where missing).
+int open_lock_file(const std::string& dir, const char* name, std::string& path) {
   std::error_code ec;
   fs::create_directories(dir, ec);
-  const std::string path = dir + "/.lock";
-  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw WorkError(fmt::format("cannot open the lock '{}': {}", path, std::strerror(errno)));
-  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-    if (errno != EWOULDBLOCK) throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(errno)));
+  path = dir + "/" + name;
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) throw WorkError(fmt::format("cannot open the lock '{}': {}", path, std::strerror(errno)));
+  return fd;
+}
+
+// flock(fd, how); false when `how` holds LOCK_NB and another process holds the lock. Closes
+// `fd` before throwing (a constructor that throws runs no destructor).
+bool lock_file(int fd, int how, const std::string& path) {
+  while (::flock(fd, how) != 0) {
+    if (errno == EINTR) continue;
+    if ((how & LOCK_NB) && errno == EWOULDBLOCK) return false;
+    const int e = errno;
+    ::close(fd);
+    throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(e)));
+  }
+  return true;
+}
+
+}  // namespace
+
+FolderLock::FolderLock(const std::string& dir, const std::function<void(const std::string&)>& waiting) {
+  std::string path;
+  fd_ = open_lock_file(dir, ".lock", path);
+  if (!lock_file(fd_, LOCK_EX | LOCK_NB, path)) {
     if (waiting) {
       char buf[64] = {};
       const ssize_t n = ::pread(fd_, buf, sizeof buf - 1, 0);
       waiting(n > 0 ? std::string(buf, std::size_t(n)) : std::string("another process"));
     }
-    while (::flock(fd_, LOCK_EX) != 0)
-      if (errno != EINTR) throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(errno)));
+    lock_file(fd_, LOCK_EX, path);
   }
   const std::string me = fmt::format("process {}", ::getpid());
   if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, me.data(), me.size(), 0) != ssize_t(me.size())) {
@@ -213,33 +235,15 @@ FolderLock::~FolderLock() {
 }
 
 RunLock::RunLock(const std::string& dir, bool first, const std::function<void()>& waiting) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  const std::string path = dir + "/.run.lock";
-  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw WorkError(fmt::format("cannot open the lock '{}': {}", path, std::strerror(errno)));
-  const auto lock = [&](int how) {
-    while (::flock(fd_, how) != 0)
-      if (errno != EINTR) {
-        const int e = errno;
-        ::close(fd_);
-        throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(e)));
-      }
-  };
-  if (first) {
-    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      if (errno != EWOULDBLOCK) {
-        const int e = errno;
-        ::close(fd_);
-        throw WorkError(fmt::format("cannot lock '{}': {}", path, std::strerror(e)));
-      }
-      if (waiting) waiting();
-      lock(LOCK_EX);
-    }
+  std::string path;
+  fd_ = open_lock_file(dir, ".run.lock", path);
+  if (first && !lock_file(fd_, LOCK_EX | LOCK_NB, path)) {
+    if (waiting) waiting();
+    lock_file(fd_, LOCK_EX, path);
   }
   // From exclusive to shared: flock(2) converts in place; the other processes of this run then
   // share it (they start after this one, behind a barrier).
-  lock(LOCK_SH);
+  lock_file(fd_, LOCK_SH, path);
 }
 
 RunLock::~RunLock() {

@@ -31,8 +31,8 @@ mesh file is one an evaluation scene reads.
 import hashlib
 import os
 import subprocess
-import tempfile
 import sys
+import tempfile
 import time
 import tomllib
 
