@@ -13,7 +13,9 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <optional>
+#include <set>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -26,6 +28,7 @@
 #include "tracer/gltf_import.h"
 #include "tracer/obj_import.h"
 #include "tracer/scene.h"
+#include "tracer/scene_check.h"
 #include "tracer/shapes.h"
 #include "tracer/texture.h"
 
@@ -724,6 +727,30 @@ std::vector<std::string> builtin_scene_names() {
   return names;
 }
 
+namespace {
+
+// Faces whose image is the ray tracer's tie-break (tracer/scene_check.h): warned, not refused,
+// since imported collections have them (a decal on a wall) and render all the same. Once per
+// scene content in a process: a run loads a scene several times (checking the config, planning,
+// rendering), and a sequence once per frame; the first load of a sequence is checked (its static
+// geometry is what stands still in every frame).
+void warn_coplanar_overlaps(const Scene& scene) {
+  static std::mutex mutex;
+  static std::set<std::string> checked;
+  {
+    std::lock_guard lock(mutex);
+    if (!checked.insert(scene.content_hash).second) return;
+  }
+  const std::vector<CoplanarOverlap> overlaps = find_coplanar_overlaps(scene);
+  constexpr std::size_t kShown = 5;
+  for (std::size_t i = 0; i < std::min(overlaps.size(), kShown); ++i) spdlog::warn("{}", describe(scene, overlaps[i]));
+  if (overlaps.size() > kShown)
+    spdlog::warn("scene '{}': {} more pairs of meshes with overlapping coplanar faces", scene.name,
+                 overlaps.size() - kShown);
+}
+
+}  // namespace
+
 std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const SceneLoadOptions& options) {
   fs::path path;
   std::string name;
@@ -754,6 +781,7 @@ std::shared_ptr<const Scene> load_scene(const std::string& name_or_path, const S
   for (const auto& w : loader.warnings()) spdlog::warn("{}", w);
   scene->commit();
   scene->content_hash = scene_content_hash(*scene);  // once: the OBJ files can be large
+  warn_coplanar_overlaps(*scene);
   return scene;
 }
 

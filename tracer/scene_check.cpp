@@ -1,0 +1,353 @@
+// find_coplanar_overlaps (tracer/scene_check.h). Triangles go into buckets by their plane
+// (canonical unit normal and offset, quantised), and into a neighbouring bucket too when they lie
+// within the tolerance of its border, so that any two triangles close enough to be compared share
+// a bucket. Inside a bucket a sweep over the bounding boxes' x finds the candidates; a candidate
+// pair whose materials make the tie-break matter is tested exactly: every corner of each within
+// the offset of the other's plane, and the area of their intersection in that plane (Boost.Geometry).
+#include "tracer/scene_check.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <tuple>
+#include <unordered_map>
+#include <unordered_set>
+
+// Boost 1.74's rescale policy trips GCC 12's -Wmaybe-uninitialized (a false positive in the header).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <boost/geometry/algorithms/area.hpp>
+#include <boost/geometry/algorithms/correct.hpp>
+#include <boost/geometry/algorithms/intersection.hpp>
+#include <boost/geometry/geometries/multi_polygon.hpp>
+#include <boost/geometry/geometries/point_xy.hpp>
+#include <boost/geometry/geometries/polygon.hpp>
+#pragma GCC diagnostic pop
+#include <fmt/format.h>
+
+namespace dnb {
+namespace {
+
+namespace bg = boost::geometry;
+using Point2 = bg::model::d2::point_xy<double>;
+using Polygon2 = bg::model::polygon<Point2>;
+using D3 = std::array<double, 3>;
+
+D3 d3(rt::Vec3 v) { return {v.x, v.y, v.z}; }
+D3 sub(const D3& a, const D3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double dot(const D3& a, const D3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+D3 cross(const D3& a, const D3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+D3 scaled(const D3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
+double norm(const D3& a) { return std::sqrt(dot(a, a)); }
+
+// Parallel within this angle (radians; also the largest difference of one normal component).
+constexpr double kNormalTolerance = 1e-3;
+// A direction no axis-aligned or regularly tessellated face is perpendicular to: normals are
+// turned to its side, so that a face and its reverse (a glass box's bottom facing down, the
+// floor facing up) share a bucket. A normal within kNormalTolerance of perpendicular to it is
+// bucketed both ways.
+const D3 kSide = [] {
+  const D3 g{0.3713907, 0.5570860, 0.7427814};
+  return scaled(g, 1.0 / norm(g));
+}();
+// Overlaps smaller than this share of the smaller triangle are rounding at a shared edge.
+constexpr double kMinAreaShare = 1e-3;
+// Nor is an overlap under (this x the ray offset)^2 (1 mm^2 in a scene in metres) reported: the
+// slivers where a sphere's tessellation meets itself at its poles (1e-10 m^2) are no surface a
+// ray would meet in a frame's worth of samples.
+constexpr double kMinAreaOffsets = 10;
+
+struct Tri {
+  unsigned mesh, material;
+  bool transmissive;
+  D3 p[3];
+  D3 n;         // unit normal, on kSide's side
+  double d;     // dot(n, p[0])
+  double area;
+  double offset;  // SurfaceHit::offset at the triangle's farthest corner
+  D3 lo, hi;    // bounding box
+};
+
+struct Key {
+  std::int64_t c[4];
+  bool operator==(const Key& o) const { return std::equal(c, c + 4, o.c); }
+};
+struct KeyHash {
+  std::size_t operator()(const Key& k) const {
+    std::uint64_t h = 0x9e3779b97f4a7c15ULL;
+    for (std::int64_t v : k.c) h = (h ^ std::uint64_t(v)) * 0x100000001b3ULL;
+    return std::size_t(h ^ (h >> 29));
+  }
+};
+
+// Whether which of the two a ray meets can change the image: their materials differ, or one is
+// transmissive (a ray inside the glass meets its face and the floor at once). Whether a ray can
+// get there at all is reachable()'s question.
+bool tie_break_matters(const Tri& a, const Tri& b) { return a.material != b.material || a.transmissive || b.transmissive; }
+
+// The area of the intersection of triangles a and b, which lie in one plane, and points inside its
+// largest piece to probe (its centre, and each corner a quarter of the way to the centre).
+double overlap_area(const Tri& a, const Tri& b, std::vector<D3>& probes) {
+  // An orthonormal frame of a's plane, about a's first corner (small coordinates: precision).
+  const D3 helper = std::fabs(a.n[0]) < 0.9 ? D3{1, 0, 0} : D3{0, 1, 0};
+  D3 u = cross(a.n, helper);
+  u = scaled(u, 1.0 / norm(u));
+  const D3 v = cross(a.n, u);
+  auto polygon = [&](const Tri& t) {
+    Polygon2 poly;
+    for (int k = 0; k <= 3; ++k) {
+      const D3 q = sub(t.p[k % 3], a.p[0]);
+      bg::append(poly.outer(), Point2(dot(q, u), dot(q, v)));
+    }
+    bg::correct(poly);
+    return poly;
+  };
+  bg::model::multi_polygon<Polygon2> out;
+  try {
+    bg::intersection(polygon(a), polygon(b), out);
+  } catch (const std::exception&) {  // degenerate input Boost refuses: no overlap to report
+    return 0;
+  }
+  const double area = bg::area(out);
+  probes.clear();
+  if (area > 0) {
+    const Polygon2& big = *std::max_element(out.begin(), out.end(), [](const Polygon2& x, const Polygon2& y) {
+      return bg::area(x) < bg::area(y);
+    });
+    // The intersection of two triangles is convex: the mean of its corners is inside it.
+    double cx = 0, cy = 0;
+    const std::size_t corners = big.outer().size() - 1;  // a closed ring repeats its first corner
+    for (std::size_t k = 0; k < corners; ++k) {
+      cx += big.outer()[k].x() / double(corners);
+      cy += big.outer()[k].y() / double(corners);
+    }
+    auto at = [&](double x, double y) {
+      return D3{a.p[0][0] + x * u[0] + y * v[0], a.p[0][1] + x * u[1] + y * v[1], a.p[0][2] + x * u[2] + y * v[2]};
+    };
+    probes.push_back(at(cx, cy));
+    for (std::size_t k = 0; k < corners; ++k)
+      probes.push_back(at(0.75 * big.outer()[k].x() + 0.25 * cx, 0.75 * big.outer()[k].y() + 0.25 * cy));
+  }
+  return area;
+}
+
+bool coplanar(const Tri& a, const Tri& b, double tol_d) {
+  for (int i = 0; i < 3; ++i)
+    if (std::fabs(a.n[i] - b.n[i]) > kNormalTolerance) return false;
+  if (std::fabs(a.d - b.d) > tol_d) return false;
+  for (int k = 0; k < 3; ++k) {
+    if (std::fabs(dot(a.n, b.p[k]) - a.d) > a.offset) return false;
+    if (std::fabs(dot(b.n, a.p[k]) - b.d) > b.offset) return false;
+  }
+  return true;
+}
+
+
+// Whether a ray can reach the segment's end from its start: opaque surfaces block it, glass does
+// not (a ray refracts through it; the direction's change does not matter for this question).
+bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
+  rt::Vec3 d = to - from;
+  float dist = rt::length(d);
+  if (!(dist > 0)) return true;
+  d = d / dist;
+  rt::Ray ray{from, d, dist};
+  for (int crossings = 0; crossings < 32; ++crossings) {
+    rt::SurfaceHit hit;
+    if (!scene.intersect(ray, hit)) return true;
+    if (hit.material->type != rt::MaterialType::kDielectric) return false;
+    ray.origin = hit.spawn_origin(d);
+    ray.tmax = rt::length(to - ray.origin);
+  }
+  return false;
+}
+
+// The first opaque surface along a ray (passing through glass), or false.
+bool first_opaque(const Scene& scene, rt::Ray ray, rt::SurfaceHit& hit) {
+  for (int crossings = 0; crossings < 32; ++crossings) {
+    if (!scene.intersect(ray, hit)) return false;
+    if (hit.material->type != rt::MaterialType::kDielectric) return true;
+    ray.origin = hit.spawn_origin(ray.dir);
+  }
+  return false;
+}
+
+// Whether the camera's rays can get to point p from side `side` (a unit normal) of the plane
+// there, in at most two straight segments: p, just off the plane on that side, seen from the eye,
+// or a surface that p sees over that side's hemisphere seen from the eye. Just off a face of a
+// closed solid on its inside (a box's bottom on the floor) nothing is seen from the eye, nor under
+// a floor or outside a building's walls. Deterministic: 64 fixed directions (a Fibonacci spiral).
+bool reachable(const Scene& scene, const D3& p, const D3& side, double offset) {
+  const rt::Vec3 s{float(side[0]), float(side[1]), float(side[2])};
+  const rt::Vec3 q = rt::Vec3(float(p[0]), float(p[1]), float(p[2])) + s * float(4 * offset);
+  const rt::Vec3 eye = scene.camera.eye;
+  if (clear_path(scene, q, eye)) return true;
+  const rt::Vec3 t = rt::normalize(std::fabs(s.x) < 0.9f ? rt::cross(s, rt::Vec3(1, 0, 0)) : rt::cross(s, rt::Vec3(0, 1, 0)));
+  const rt::Vec3 b = rt::cross(s, t);
+  constexpr int kDirections = 64;
+  const float golden = rt::kPi * (3.0f - std::sqrt(5.0f));
+  for (int k = 0; k < kDirections; ++k) {
+    const float z = 1.0f - (float(k) + 0.5f) / kDirections;  // cosine to the side's normal
+    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = golden * float(k);
+    const rt::Vec3 dir = rt::normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + s * z);
+    rt::SurfaceHit hit;
+    if (!first_opaque(scene, rt::Ray{q, dir}, hit)) continue;  // the sky: camera rays do not come back from it
+    if (clear_path(scene, hit.spawn_origin(-dir), eye)) return true;
+  }
+  return false;
+}
+}  // namespace
+
+std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene) {
+  std::vector<Tri> tris;
+  double radius = 0;  // the largest coordinate's magnitude
+  for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
+    const rt::Mesh& m = scene.meshes[mi];
+    for (std::size_t t = 0; t < m.triangles(); ++t) {
+      Tri tri;
+      tri.mesh = unsigned(mi);
+      tri.material = m.material[t];
+      tri.transmissive = scene.materials[tri.material].type == rt::MaterialType::kDielectric;
+      double mag = 0;
+      for (int k = 0; k < 3; ++k) {
+        tri.p[k] = d3(m.positions[3 * t + k]);
+        for (double c : tri.p[k]) mag = std::max(mag, std::fabs(c));
+      }
+      const D3 c = cross(sub(tri.p[1], tri.p[0]), sub(tri.p[2], tri.p[0]));
+      const double len = norm(c);
+      tri.area = 0.5 * len;
+      if (!(len > 0) || !std::isfinite(len)) continue;  // degenerate: no face to meet
+      tri.n = scaled(c, 1.0 / len);
+      if (dot(tri.n, kSide) < 0) tri.n = scaled(tri.n, -1);
+      tri.d = dot(tri.n, tri.p[0]);
+      // The ray offset of the scene's hits (Scene::fill_hit): two faces closer than it are one
+      // place to a ray that leaves either.
+      tri.offset = 1e-4 * std::max(1.0, mag);
+      for (int i = 0; i < 3; ++i) {
+        tri.lo[i] = std::min({tri.p[0][i], tri.p[1][i], tri.p[2][i]}) - tri.offset;
+        tri.hi[i] = std::max({tri.p[0][i], tri.p[1][i], tri.p[2][i]}) + tri.offset;
+      }
+      radius = std::max(radius, mag);
+      tris.push_back(tri);
+    }
+  }
+  // Two faces within the tolerances of coplanar() differ in d = dot(n, p) by at most the
+  // offset plus the normals' difference times the distance from the origin.
+  const double tol_d = 1e-4 * std::max(1.0, radius) + 2 * kNormalTolerance * std::sqrt(3.0) * radius;
+  const double cell_n = 0.02, cell_d = 4 * tol_d;
+
+  // Buckets: every triangle into each cell whose key is within the tolerances of its own, per
+  // coordinate (at most 2^4 cells, almost always one).
+  std::unordered_map<Key, std::vector<std::uint32_t>, KeyHash> buckets;
+  for (std::uint32_t i = 0; i < tris.size(); ++i) {
+    const Tri& t = tris[i];
+    for (int sign : {1, -1}) {
+      if (sign < 0 && std::fabs(dot(t.n, kSide)) > kNormalTolerance) break;
+      const double x[4] = {sign * t.n[0], sign * t.n[1], sign * t.n[2], sign * t.d};
+      std::vector<std::int64_t> options[4];
+      for (int c = 0; c < 4; ++c) {
+        const double cell = c < 3 ? cell_n : cell_d, tol = c < 3 ? kNormalTolerance : tol_d;
+        const auto k = std::int64_t(std::floor(x[c] / cell));
+        options[c].push_back(k);
+        if (x[c] - double(k) * cell < tol) options[c].push_back(k - 1);
+        if (double(k + 1) * cell - x[c] < tol) options[c].push_back(k + 1);
+      }
+      for (std::int64_t a : options[0])
+        for (std::int64_t b : options[1])
+          for (std::int64_t c : options[2])
+            for (std::int64_t e : options[3]) buckets[Key{{a, b, c, e}}].push_back(i);
+    }
+  }
+
+  // A reversed copy of a triangle (bucketed both ways) compares with its reverse's normal.
+  auto aligned = [&](std::uint32_t i, const Tri& other) {
+    Tri t = tris[i];
+    if (dot(t.n, other.n) < 0) {
+      t.n = scaled(t.n, -1);
+      t.d = -t.d;
+    }
+    return t;
+  };
+
+  // The overlapping pairs, per pair of (mesh, material).
+  struct Candidate {
+    double area;
+    std::vector<D3> probes;
+    D3 n;
+    double offset;
+  };
+  using GroupId = std::tuple<unsigned, unsigned, unsigned, unsigned>;
+  std::map<GroupId, std::vector<Candidate>> groups;
+  std::unordered_set<std::uint64_t> seen;
+  for (auto& [key, ids] : buckets) {
+    if (ids.size() < 2) continue;
+    std::sort(ids.begin(), ids.end(), [&](std::uint32_t a, std::uint32_t b) { return tris[a].lo[0] < tris[b].lo[0]; });
+    for (std::size_t x = 0; x < ids.size(); ++x) {
+      const Tri& a = tris[ids[x]];
+      for (std::size_t y = x + 1; y < ids.size() && tris[ids[y]].lo[0] <= a.hi[0]; ++y) {
+        if (ids[x] == ids[y]) continue;
+        const Tri& b0 = tris[ids[y]];
+        if (!tie_break_matters(a, b0)) continue;
+        if (b0.lo[1] > a.hi[1] || b0.hi[1] < a.lo[1] || b0.lo[2] > a.hi[2] || b0.hi[2] < a.lo[2]) continue;
+        const std::uint32_t i = std::min(ids[x], ids[y]), j = std::max(ids[x], ids[y]);
+        if (!seen.insert(std::uint64_t(i) << 32 | j).second) continue;
+        const Tri ta = tris[i], tb = aligned(j, tris[i]);
+        if (!coplanar(ta, tb, tol_d)) continue;
+        Candidate c;
+        c.area = overlap_area(ta, tb, c.probes);
+        const double tiny = kMinAreaOffsets * std::max(ta.offset, tb.offset);
+        if (!(c.area > kMinAreaShare * std::min(ta.area, tb.area)) || !(c.area > tiny * tiny)) continue;
+        c.n = ta.n;
+        c.offset = std::max(ta.offset, tb.offset);
+        GroupId id{ta.mesh, ta.material, tb.mesh, tb.material};
+        if (std::make_pair(tb.mesh, tb.material) < std::make_pair(ta.mesh, ta.material))
+          id = GroupId{tb.mesh, tb.material, ta.mesh, ta.material};
+        groups[id].push_back(std::move(c));
+      }
+    }
+  }
+
+  // A group is reported when a camera ray can get to one of its overlaps, from either side;
+  // its largest overlaps are probed (a handful: the question is the group's, and each probe
+  // traces up to 130 rays).
+  constexpr std::size_t kProbedPairs = 8;
+  std::vector<CoplanarOverlap> out;
+  for (auto& [id, cands] : groups) {
+    std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) { return a.area > b.area; });
+    CoplanarOverlap o;
+    std::tie(o.mesh_a, o.material_a, o.mesh_b, o.material_b) = id;
+    bool hit = false;
+    for (std::size_t k = 0; k < cands.size(); ++k) {
+      o.area += cands[k].area;
+      for (std::size_t q = 0; !hit && k < kProbedPairs && q < cands[k].probes.size(); ++q) {
+        const D3& p = cands[k].probes[q];
+        hit = reachable(scene, p, cands[k].n, cands[k].offset) ||
+              reachable(scene, p, scaled(cands[k].n, -1), cands[k].offset);
+        if (hit) o.where = rt::Vec3(float(p[0]), float(p[1]), float(p[2]));
+      }
+    }
+    o.pairs = cands.size();
+    if (hit) out.push_back(o);
+  }
+  std::sort(out.begin(), out.end(), [](const CoplanarOverlap& a, const CoplanarOverlap& b) { return a.area > b.area; });
+  return out;
+}
+
+std::string describe(const Scene& scene, const CoplanarOverlap& o) {
+  auto mesh = [&](unsigned m) { return scene.meshes[m].name.empty() ? fmt::format("#{}", m) : scene.meshes[m].name; };
+  auto material = [&](unsigned m) { return scene.materials[m].name; };
+  const std::string what = o.mesh_a == o.mesh_b ? fmt::format("mesh '{}'", mesh(o.mesh_a))
+                                                : fmt::format("meshes '{}' and '{}'", mesh(o.mesh_a), mesh(o.mesh_b));
+  return fmt::format(
+      "scene '{}': {} {} faces of materials '{}' and '{}' in one plane that overlap ({} triangle pair{}, area "
+      "{:.3g}, e.g. at ({:.4g}, {:.4g}, {:.4g})): which surface a ray meets there is the ray tracer's tie-break, so "
+      "images there depend on its kernels and disagree with other renderers; move one off the other (a few "
+      "millimetres in a scene in metres)",
+      scene.name, what, o.mesh_a == o.mesh_b ? "has" : "have", material(o.material_a), material(o.material_b), o.pairs, o.pairs == 1 ? "" : "s", o.area,
+      o.where.x, o.where.y, o.where.z);
+}
+
+}  // namespace dnb
