@@ -26,6 +26,9 @@
 #include <boost/geometry/geometries/polygon.hpp>
 #pragma GCC diagnostic pop
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "core/timer.h"
 
 namespace dnb {
 namespace {
@@ -87,7 +90,10 @@ struct KeyHash {
 // Whether which of the two a ray meets can change the image: their materials differ, or one is
 // transmissive (a ray inside the glass meets its face and the floor at once). Whether a ray can
 // get there at all is reachable()'s question.
-bool tie_break_matters(const Tri& a, const Tri& b) { return a.material != b.material || a.transmissive || b.transmissive; }
+template <typename T>
+bool tie_break_matters(const T& a, const T& b) {
+  return a.material != b.material || a.transmissive || b.transmissive;
+}
 
 // The area of the intersection of triangles a and b, which lie in one plane, and points inside its
 // largest piece to probe (its centre, and each corner a quarter of the way to the centre).
@@ -97,18 +103,43 @@ double overlap_area(const Tri& a, const Tri& b, std::vector<D3>& probes) {
   D3 u = cross(a.n, helper);
   u = scaled(u, 1.0 / norm(u));
   const D3 v = cross(a.n, u);
-  auto polygon = [&](const Tri& t) {
-    Polygon2 poly;
-    for (int k = 0; k <= 3; ++k) {
-      const D3 q = sub(t.p[k % 3], a.p[0]);
-      bg::append(poly.outer(), Point2(dot(q, u), dot(q, v)));
+  double xy[2][3][2];  // the corners of a and b in that frame
+  for (int t = 0; t < 2; ++t)
+    for (int k = 0; k < 3; ++k) {
+      const D3 q = sub((t == 0 ? a : b).p[k], a.p[0]);
+      xy[t][k][0] = dot(q, u);
+      xy[t][k][1] = dot(q, v);
     }
+  // Most pairs that reach here are neighbours of one mesh that share an edge or a corner: an
+  // edge's normal separates them (the separating axis theorem), and Boost need not be asked.
+  double size = 0;
+  for (auto& tri : xy)
+    for (auto& c : tri) size = std::max({size, std::fabs(c[0]), std::fabs(c[1])});
+  for (int t = 0; t < 2; ++t)
+    for (int k = 0; k < 3; ++k) {
+      const double* p0 = xy[t][k];
+      const double* p1 = xy[t][(k + 1) % 3];
+      const double nx = p1[1] - p0[1], ny = p0[0] - p1[0];
+      double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+      for (int w = 0; w < 2; ++w)
+        for (const auto& c : xy[w]) {
+          const double d = c[0] * nx + c[1] * ny;
+          lo[w] = std::min(lo[w], d);
+          hi[w] = std::max(hi[w], d);
+        }
+      // Touching within rounding (1e-9 of the pair's size along a unit axis) is no overlap.
+      const double touch = 1e-9 * size * std::hypot(nx, ny);
+      if (std::min(hi[0], hi[1]) - std::max(lo[0], lo[1]) <= touch) return 0;
+    }
+  auto polygon = [&](int t) {
+    Polygon2 poly;
+    for (int k = 0; k <= 3; ++k) bg::append(poly.outer(), Point2(xy[t][k % 3][0], xy[t][k % 3][1]));
     bg::correct(poly);
     return poly;
   };
   bg::model::multi_polygon<Polygon2> out;
   try {
-    bg::intersection(polygon(a), polygon(b), out);
+    bg::intersection(polygon(0), polygon(1), out);
   } catch (const std::exception&) {  // degenerate input Boost refuses: no overlap to report
     return 0;
   }
@@ -201,7 +232,8 @@ bool reachable(const Scene& scene, const D3& p, const D3& side, double offset) {
 }
 }  // namespace
 
-std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene) {
+std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete, CoplanarCheckLimits limits) {
+  const Stopwatch clock;
   std::vector<Tri> tris;
   double radius = 0;  // the largest coordinate's magnitude
   for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
@@ -282,17 +314,36 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene) {
   using GroupId = std::tuple<unsigned, unsigned, unsigned, unsigned>;
   std::map<GroupId, std::vector<Candidate>> groups;
   std::unordered_set<std::uint64_t> seen;
+  std::uint64_t comparisons = 0;
+  bool within_limits = true;
+  // What the sweep reads of a triangle, contiguous (the triangles themselves are 160 bytes each:
+  // reading them in the sweep's inner loop was mostly cache misses).
+  struct Box {
+    double lo[3], hi[3];
+    std::uint32_t id, material;
+    bool transmissive;
+  };
+  std::vector<Box> boxes;
   for (auto& [key, ids] : buckets) {
-    if (ids.size() < 2) continue;
-    std::sort(ids.begin(), ids.end(), [&](std::uint32_t a, std::uint32_t b) { return tris[a].lo[0] < tris[b].lo[0]; });
-    for (std::size_t x = 0; x < ids.size(); ++x) {
-      const Tri& a = tris[ids[x]];
-      for (std::size_t y = x + 1; y < ids.size() && tris[ids[y]].lo[0] <= a.hi[0]; ++y) {
-        if (ids[x] == ids[y]) continue;
-        const Tri& b0 = tris[ids[y]];
-        if (!tie_break_matters(a, b0)) continue;
-        if (b0.lo[1] > a.hi[1] || b0.hi[1] < a.lo[1] || b0.lo[2] > a.hi[2] || b0.hi[2] < a.lo[2]) continue;
-        const std::uint32_t i = std::min(ids[x], ids[y]), j = std::max(ids[x], ids[y]);
+    if (ids.size() < 2 || !within_limits) continue;
+    boxes.clear();
+    for (std::uint32_t id : ids) {
+      const Tri& t = tris[id];
+      boxes.push_back(Box{{t.lo[0], t.lo[1], t.lo[2]}, {t.hi[0], t.hi[1], t.hi[2]}, id, t.material, t.transmissive});
+    }
+    std::sort(boxes.begin(), boxes.end(), [](const Box& a, const Box& b) { return a.lo[0] < b.lo[0]; });
+    for (std::size_t x = 0; x < boxes.size() && within_limits; ++x) {
+      const Box& a = boxes[x];
+      for (std::size_t y = x + 1; y < boxes.size() && boxes[y].lo[0] <= a.hi[0]; ++y) {
+        if (++comparisons > limits.comparisons || seen.size() >= limits.exact_tests) {
+          within_limits = false;
+          break;
+        }
+        const Box& b = boxes[y];
+        if (a.id == b.id) continue;
+        if (!tie_break_matters(a, b)) continue;
+        if (b.lo[1] > a.hi[1] || b.hi[1] < a.lo[1] || b.lo[2] > a.hi[2] || b.hi[2] < a.lo[2]) continue;
+        const std::uint32_t i = std::min(a.id, b.id), j = std::max(a.id, b.id);
         if (!seen.insert(std::uint64_t(i) << 32 | j).second) continue;
         const Tri ta = tris[i], tb = aligned(j, tris[i]);
         if (!coplanar(ta, tb, tol_d)) continue;
@@ -333,6 +384,11 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene) {
     if (hit) out.push_back(o);
   }
   std::sort(out.begin(), out.end(), [](const CoplanarOverlap& a, const CoplanarOverlap& b) { return a.area > b.area; });
+  if (complete) *complete = within_limits;
+  spdlog::debug("scene '{}': coplanar faces checked: {} triangles, {} comparisons, {} exact tests, {} overlapping "
+                "groups, {} reachable{}, {:.3f} s",
+                scene.name, tris.size(), comparisons, seen.size(), groups.size(), out.size(),
+                within_limits ? "" : " (stopped at the work limit)", clock.seconds());
   return out;
 }
 

@@ -11,6 +11,7 @@
 // have none (tests/tracer/scene_check_test.cpp).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -28,10 +29,20 @@ struct CoplanarOverlap {
 };
 
 // Every pair of (mesh, material) with overlapping coplanar faces, the largest overlap first.
-// Static geometry at time 0 (a moving mesh's first time step). Runs in O(n log n) for n
-// triangles: triangles are bucketed by their plane, and only triangles in one bucket whose
-// bounding boxes meet are compared.
-std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene);
+// Geometry at time 0 (a moving mesh's first time step). Triangles are bucketed by their plane,
+// and only triangles in one bucket whose bounding boxes meet are compared: about n log n for n
+// triangles, unless many faces are stacked in one place; then the check stops at its work limit
+// (scene_check.cpp) with what it found, and sets *complete to false (else true).
+// Work limits. Faces stacked in one place (a quad's `repeat` copies with no offset, two such
+// objects of different materials) make the pairs quadratic in their number; the check stops at
+// these. The project's largest scene, mcguire-conference (331,000 triangles), needs 4.0 M
+// comparisons and 31,000 exact tests (`--log-level debug` prints them), in about 0.15 s.
+struct CoplanarCheckLimits {
+  std::uint64_t comparisons = 50'000'000;  // bounding boxes and materials: a few ns each
+  std::size_t exact_tests = 100'000;       // planes and a Boost.Geometry intersection: ~15 us each
+};
+std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete = nullptr,
+                                                    CoplanarCheckLimits limits = {});
 
 // One line for a user: the meshes, materials, area, a point, and what to do.
 std::string describe(const Scene& scene, const CoplanarOverlap& o);

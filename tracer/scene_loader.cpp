@@ -741,12 +741,17 @@ void warn_coplanar_overlaps(const Scene& scene) {
     std::lock_guard lock(mutex);
     if (!checked.insert(scene.content_hash).second) return;
   }
-  const std::vector<CoplanarOverlap> overlaps = find_coplanar_overlaps(scene);
+  bool complete = true;
+  const std::vector<CoplanarOverlap> overlaps = find_coplanar_overlaps(scene, &complete);
   constexpr std::size_t kShown = 5;
   for (std::size_t i = 0; i < std::min(overlaps.size(), kShown); ++i) spdlog::warn("{}", describe(scene, overlaps[i]));
   if (overlaps.size() > kShown)
     spdlog::warn("scene '{}': {} more pairs of meshes with overlapping coplanar faces", scene.name,
                  overlaps.size() - kShown);
+  if (!complete)
+    spdlog::warn("scene '{}': many faces are stacked in one place; the check for coplanar faces stopped at its work "
+                 "limit, and there may be more than it named",
+                 scene.name);
 }
 
 }  // namespace

@@ -109,6 +109,32 @@ TEST(CoplanarOverlaps, FacesInOneTiltedPlaneAreFound) {
   EXPECT_NEAR(found[0].area, 0.36, 1e-4);
 }
 
+TEST(CoplanarOverlaps, StackedFacesStopAtTheWorkLimitWithWhatWasFound) {
+  // 100 copies of a red quad on 100 copies of a white one, all in one place: 40,000 pairs of
+  // red and white triangles to test, more than a limit of 1000 exact tests allows.
+  const std::string stack = "[[objects]]\ntype = \"quad\"\nname = \"{}\"\nmaterial = \"{}\"\nsize = [1, 1]\n"
+                            "translate = [0, 0.5, 0]\nrepeat = 100\n";
+  test::TempDir dir;
+  auto scene = load_scene(test::write_text(
+      dir.file("s.toml"), room(fmt::format(fmt::runtime(stack), "red_stack", "red") +
+                               fmt::format(fmt::runtime(stack), "white_stack", "floor"))));
+  CoplanarCheckLimits limits;
+  limits.exact_tests = 1000;
+  bool complete = true;
+  const auto found = find_coplanar_overlaps(*scene, &complete, limits);
+  EXPECT_FALSE(complete);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_GE(found[0].pairs, 100u);  // half of the tested pairs overlap in area (the 20,000 of 40,000 below)
+  EXPECT_LE(found[0].pairs, 1000u);
+  // The default limits examine the same scene in full: each red triangle covers the white
+  // triangle of the same half of every copy (100 x 100 x 2 pairs; the other halves meet it
+  // along the diagonal only).
+  const auto all = find_coplanar_overlaps(*scene, &complete);
+  EXPECT_TRUE(complete);
+  ASSERT_EQ(all.size(), 1u);
+  EXPECT_EQ(all[0].pairs, 20000u);
+}
+
 TEST(CoplanarOverlaps, TheProjectsBuiltInScenesHaveNone) {
   // The McGuire scenes read OBJ collections from ../shared/scenes, which have such faces (their
   // warnings name them); the project's own scenes must not.
@@ -116,7 +142,9 @@ TEST(CoplanarOverlaps, TheProjectsBuiltInScenesHaveNone) {
   for (const std::string& name : builtin_scene_names()) {
     if (name.starts_with("mcguire-")) continue;
     auto scene = load_scene(name);
-    const auto found = find_coplanar_overlaps(*scene);
+    bool complete = false;
+    const auto found = find_coplanar_overlaps(*scene, &complete);
+    EXPECT_TRUE(complete) << name;
     for (const CoplanarOverlap& o : found) ADD_FAILURE() << describe(*scene, o);
     ++checked;
   }
