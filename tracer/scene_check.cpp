@@ -178,6 +178,9 @@ bool coplanar(const Tri& a, const Tri& b, double tol_d) {
 }
 
 
+// Glass faces a probe's ray passes through before it gives up (and counts the point as hidden).
+constexpr int kGlassCrossings = 8;
+
 // Whether a ray can reach the segment's end from its start: opaque surfaces block it, glass does
 // not (a ray refracts through it; the direction's change does not matter for this question).
 bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
@@ -186,7 +189,7 @@ bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
   if (!(dist > 0)) return true;
   d = d / dist;
   rt::Ray ray{from, d, dist};
-  for (int crossings = 0; crossings < 32; ++crossings) {
+  for (int crossings = 0; crossings < kGlassCrossings; ++crossings) {
     rt::SurfaceHit hit;
     if (!scene.intersect(ray, hit)) return true;
     if (hit.material->type != rt::MaterialType::kDielectric) return false;
@@ -198,7 +201,7 @@ bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
 
 // The first opaque surface along a ray (passing through glass), or false.
 bool first_opaque(const Scene& scene, rt::Ray ray, rt::SurfaceHit& hit) {
-  for (int crossings = 0; crossings < 32; ++crossings) {
+  for (int crossings = 0; crossings < kGlassCrossings; ++crossings) {
     if (!scene.intersect(ray, hit)) return false;
     if (hit.material->type != rt::MaterialType::kDielectric) return true;
     ray.origin = hit.spawn_origin(ray.dir);
@@ -361,27 +364,40 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
     }
   }
 
-  // A group is reported when a camera ray can get to one of its overlaps, from either side;
-  // its largest overlaps are probed (a handful: the question is the group's, and each probe
-  // traces up to 130 rays).
-  constexpr std::size_t kProbedPairs = 8;
-  std::vector<CoplanarOverlap> out;
+  // A group is reported when a camera ray can get to one of its overlaps, from either side.
+  // Probed: up to kProbesPerGroup points of its largest overlaps, the groups of largest area
+  // first, within the limits' probe budget (a probe traces up to 65 rays, and as many again per
+  // glass face they cross).
+  constexpr std::size_t kProbesPerGroup = 8;
+  std::vector<std::pair<GroupId, CoplanarOverlap>> order;
   for (auto& [id, cands] : groups) {
     std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) { return a.area > b.area; });
     CoplanarOverlap o;
     std::tie(o.mesh_a, o.material_a, o.mesh_b, o.material_b) = id;
+    o.pairs = cands.size();
+    for (const Candidate& c : cands) o.area += c.area;
+    order.emplace_back(id, o);
+  }
+  std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.second.area > b.second.area; });
+  std::vector<CoplanarOverlap> out;
+  std::size_t probes = 0;
+  for (auto& [id, o] : order) {
     bool hit = false;
-    for (std::size_t k = 0; k < cands.size(); ++k) {
-      o.area += cands[k].area;
-      for (std::size_t q = 0; !hit && k < kProbedPairs && q < cands[k].probes.size(); ++q) {
-        const D3& p = cands[k].probes[q];
-        hit = reachable(scene, p, cands[k].n, cands[k].offset) ||
-              reachable(scene, p, scaled(cands[k].n, -1), cands[k].offset);
+    std::size_t mine = 0;
+    for (const Candidate& c : groups[id]) {
+      for (std::size_t q = 0; !hit && q < c.probes.size() && mine < kProbesPerGroup; ++q, ++mine) {
+        if (++probes > limits.probes) {
+          within_limits = false;
+          break;
+        }
+        const D3& p = c.probes[q];
+        hit = reachable(scene, p, c.n, c.offset) || reachable(scene, p, scaled(c.n, -1), c.offset);
         if (hit) o.where = rt::Vec3(float(p[0]), float(p[1]), float(p[2]));
       }
+      if (hit || mine >= kProbesPerGroup || probes > limits.probes) break;
     }
-    o.pairs = cands.size();
     if (hit) out.push_back(o);
+    if (probes > limits.probes) break;
   }
   std::sort(out.begin(), out.end(), [](const CoplanarOverlap& a, const CoplanarOverlap& b) { return a.area > b.area; });
   if (complete) *complete = within_limits;

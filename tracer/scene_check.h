@@ -40,6 +40,7 @@ struct CoplanarOverlap {
 struct CoplanarCheckLimits {
   std::uint64_t comparisons = 50'000'000;  // bounding boxes and materials: a few ns each
   std::size_t exact_tests = 100'000;       // planes and a Boost.Geometry intersection: ~15 us each
+  std::size_t probes = 400;                // reachability probes: 65 to about 1,000 ray queries each
 };
 std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete = nullptr,
                                                     CoplanarCheckLimits limits = {});

@@ -135,6 +135,28 @@ TEST(CoplanarOverlaps, StackedFacesStopAtTheWorkLimitWithWhatWasFound) {
   EXPECT_EQ(all[0].pairs, 20000u);
 }
 
+TEST(CoplanarOverlaps, ProbesStopAtTheirBudgetLargestOverlapsFirst) {
+  // Twelve rugs of twelve materials apart on the floor, rug k of side 0.03 (k + 1): twelve
+  // groups, the largest probed first.
+  std::string extra;
+  for (int k = 0; k < 12; ++k)
+    extra += fmt::format("[materials.rug{0}]\nalbedo = [0.{0:02d}, 0.3, 0.3]\n[[objects]]\ntype = \"quad\"\n"
+                         "name = \"rug{0}\"\nmaterial = \"rug{0}\"\nsize = [{1}, {1}]\ntranslate = [{2}, 0, 0]\n",
+                         k, 0.03 * (k + 1), -2.5 + 0.45 * k);
+  test::TempDir dir;
+  auto scene = load_scene(test::write_text(dir.file("s.toml"), room(extra)));
+  bool complete = false;
+  EXPECT_EQ(find_coplanar_overlaps(*scene, &complete).size(), 12u);
+  EXPECT_TRUE(complete);
+  CoplanarCheckLimits limits;
+  limits.probes = 3;  // each rug is seen from the eye at its first probe
+  const auto found = find_coplanar_overlaps(*scene, &complete, limits);
+  EXPECT_FALSE(complete);
+  ASSERT_EQ(found.size(), 3u);
+  EXPECT_EQ(scene->meshes[found[0].mesh_b].name, "rug11");
+  EXPECT_EQ(scene->meshes[found[2].mesh_b].name, "rug9");
+}
+
 TEST(CoplanarOverlaps, TheProjectsBuiltInScenesHaveNone) {
   // The McGuire scenes read OBJ collections from ../shared/scenes, which have such faces (their
   // warnings name them); the project's own scenes must not.
