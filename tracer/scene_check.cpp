@@ -12,7 +12,6 @@
 #include <cstdint>
 #include <map>
 #include <tuple>
-#include <unordered_map>
 #include <unordered_set>
 
 // Boost 1.74's rescale policy trips GCC 12's -Wmaybe-uninitialized (a false positive in the header).
@@ -27,6 +26,7 @@
 #pragma GCC diagnostic pop
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <tbb/parallel_sort.h>
 
 #include "core/timer.h"
 
@@ -75,17 +75,22 @@ struct Tri {
   D3 lo, hi;    // bounding box
 };
 
-struct Key {
-  std::int64_t c[4];
-  bool operator==(const Key& o) const { return std::equal(c, c + 4, o.c); }
+// A bucket's entry: its key's 64-bit hash (two keys of one hash share a bucket: more
+// comparisons, the same result) and the triangle.
+struct Entry {
+  std::uint64_t key;
+  std::uint32_t id;
+  bool operator<(const Entry& o) const { return key < o.key || (key == o.key && id < o.id); }
 };
-struct KeyHash {
-  std::size_t operator()(const Key& k) const {
-    std::uint64_t h = 0x9e3779b97f4a7c15ULL;
-    for (std::int64_t v : k.c) h = (h ^ std::uint64_t(v)) * 0x100000001b3ULL;
-    return std::size_t(h ^ (h >> 29));
+std::uint64_t key_hash(const std::int64_t (&c)[4]) {
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  for (std::int64_t v : c) {
+    h ^= std::uint64_t(v);
+    h *= 0x100000001b3ULL;
+    h ^= h >> 32;
   }
-};
+  return h;
+}
 
 // Whether which of the two a ray meets can change the image: their materials differ, or one is
 // transmissive (a ray inside the glass meets its face and the floor at once). Whether a ray can
@@ -238,6 +243,7 @@ bool reachable(const Scene& scene, const D3& p, const D3& side, double offset) {
 std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete, CoplanarCheckLimits limits) {
   const Stopwatch clock;
   std::vector<Tri> tris;
+  tris.reserve(scene.triangle_count());
   double radius = 0;  // the largest coordinate's magnitude
   for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
     const rt::Mesh& m = scene.meshes[mi];
@@ -275,27 +281,32 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
   const double cell_n = 0.02, cell_d = 4 * tol_d;
 
   // Buckets: every triangle into each cell whose key is within the tolerances of its own, per
-  // coordinate (at most 2^4 cells, almost always one).
-  std::unordered_map<Key, std::vector<std::uint32_t>, KeyHash> buckets;
+  // coordinate (at most 2^4 cells, almost always one); a bucket is a run of equal keys after
+  // sorting (no allocation per bucket).
+  std::vector<Entry> entries;
+  entries.reserve(tris.size() + tris.size() / 8);
   for (std::uint32_t i = 0; i < tris.size(); ++i) {
     const Tri& t = tris[i];
     for (int sign : {1, -1}) {
       if (sign < 0 && std::fabs(dot(t.n, kSide)) > kNormalTolerance) break;
       const double x[4] = {sign * t.n[0], sign * t.n[1], sign * t.n[2], sign * t.d};
-      std::vector<std::int64_t> options[4];
+      std::int64_t options[4][3];
+      int count[4] = {};
       for (int c = 0; c < 4; ++c) {
         const double cell = c < 3 ? cell_n : cell_d, tol = c < 3 ? kNormalTolerance : tol_d;
         const auto k = std::int64_t(std::floor(x[c] / cell));
-        options[c].push_back(k);
-        if (x[c] - double(k) * cell < tol) options[c].push_back(k - 1);
-        if (double(k + 1) * cell - x[c] < tol) options[c].push_back(k + 1);
+        options[c][count[c]++] = k;
+        if (x[c] - double(k) * cell < tol) options[c][count[c]++] = k - 1;
+        if (double(k + 1) * cell - x[c] < tol) options[c][count[c]++] = k + 1;
       }
-      for (std::int64_t a : options[0])
-        for (std::int64_t b : options[1])
-          for (std::int64_t c : options[2])
-            for (std::int64_t e : options[3]) buckets[Key{{a, b, c, e}}].push_back(i);
+      for (int a = 0; a < count[0]; ++a)
+        for (int b = 0; b < count[1]; ++b)
+          for (int c = 0; c < count[2]; ++c)
+            for (int e = 0; e < count[3]; ++e)
+              entries.push_back(Entry{key_hash({options[0][a], options[1][b], options[2][c], options[3][e]}), i});
     }
   }
+  tbb::parallel_sort(entries.begin(), entries.end());  // (key, id) pairs are distinct: one order
 
   // A reversed copy of a triangle (bucketed both ways) compares with its reverse's normal.
   auto aligned = [&](std::uint32_t i, const Tri& other) {
@@ -327,10 +338,13 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
     bool transmissive;
   };
   std::vector<Box> boxes;
-  for (auto& [key, ids] : buckets) {
-    if (ids.size() < 2 || !within_limits) continue;
+  for (std::size_t first = 0, last = 0; first < entries.size() && within_limits; first = last) {
+    last = first + 1;
+    while (last < entries.size() && entries[last].key == entries[first].key) ++last;
+    if (last - first < 2) continue;
     boxes.clear();
-    for (std::uint32_t id : ids) {
+    for (std::size_t e = first; e < last; ++e) {
+      const std::uint32_t id = entries[e].id;
       const Tri& t = tris[id];
       boxes.push_back(Box{{t.lo[0], t.lo[1], t.lo[2]}, {t.hi[0], t.hi[1], t.hi[2]}, id, t.material, t.transmissive});
     }
