@@ -182,7 +182,6 @@ bool coplanar(const Tri& a, const Tri& b, double tol_d) {
   return true;
 }
 
-
 // Glass faces a probe's ray passes through before it gives up (and counts the point as hidden).
 constexpr int kGlassCrossings = 8;
 
@@ -238,6 +237,7 @@ bool reachable(const Scene& scene, const D3& p, const D3& side, double offset) {
   }
   return false;
 }
+
 }  // namespace
 
 std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete, CoplanarCheckLimits limits) {
