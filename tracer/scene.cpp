@@ -312,7 +312,7 @@ void Scene::fill_hit(const Ray& ray, const RTCRayHit& rh, SurfaceHit& hit) const
     if (mat.texture >= 0) hit.albedo *= textures[mat.texture]->eval(hit.u, hit.v);
   }
   float mag = std::max(std::max(std::fabs(hit.p.x), std::fabs(hit.p.y)), std::fabs(hit.p.z));
-  hit.offset = 1e-4f * std::max(1.0f, mag);
+  hit.offset = ray_offset(mag);
 }
 
 bool Scene::intersect(const Ray& ray, SurfaceHit& hit) const {

@@ -122,6 +122,10 @@ struct Mesh {
   Vec3 normal_at(unsigned prim, float b1, float b2, float time) const;
 };
 
+// How far off a surface rays leave it, at a point whose largest coordinate magnitude is `mag`
+// (SurfaceHit::offset): it grows with the magnitude, as the spacing of floats does.
+inline float ray_offset(float mag) { return 1e-4f * std::max(1.0f, mag); }
+
 // Everything a renderer needs at a ray's closest hit.
 struct SurfaceHit {
   float t = 0;                // distance along the (unit) ray

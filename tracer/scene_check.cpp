@@ -36,6 +36,8 @@ namespace {
 namespace bg = boost::geometry;
 using Point2 = bg::model::d2::point_xy<double>;
 using Polygon2 = bg::model::polygon<Point2>;
+// Doubles (rt::Vec3 is float): the plane and area tests compare distances of 1e-4 of the
+// coordinates, which float's rounding of products would blur.
 using D3 = std::array<double, 3>;
 
 D3 d3(rt::Vec3 v) { return {v.x, v.y, v.z}; }
@@ -71,7 +73,7 @@ struct Tri {
   D3 n;         // unit normal, on kSide's side
   double d;     // dot(n, p[0])
   double area;
-  double offset;  // SurfaceHit::offset at the triangle's farthest corner
+  double offset;  // rt::ray_offset at the triangle's farthest corner
   D3 lo, hi;    // bounding box
 };
 
@@ -185,32 +187,28 @@ bool coplanar(const Tri& a, const Tri& b, double tol_d) {
 // Glass faces a probe's ray passes through before it gives up (and counts the point as hidden).
 constexpr int kGlassCrossings = 8;
 
-// Whether a ray can reach the segment's end from its start: opaque surfaces block it, glass does
-// not (a ray refracts through it; the direction's change does not matter for this question).
-bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
-  rt::Vec3 d = to - from;
-  float dist = rt::length(d);
-  if (!(dist > 0)) return true;
-  d = d / dist;
-  rt::Ray ray{from, d, dist};
+// Where a ray ends when glass is looked through (a ray refracts through it; for these questions
+// the direction's change does not matter): at an opaque surface (`hit`), nowhere within tmax, or
+// lost after kGlassCrossings faces of glass.
+enum class Walk { kOpaque, kClear, kLost };
+Walk walk_through_glass(const Scene& scene, rt::Ray ray, rt::SurfaceHit& hit) {
   for (int crossings = 0; crossings < kGlassCrossings; ++crossings) {
-    rt::SurfaceHit hit;
-    if (!scene.intersect(ray, hit)) return true;
-    if (hit.material->type != rt::MaterialType::kDielectric) return false;
-    ray.origin = hit.spawn_origin(d);
-    ray.tmax = rt::length(to - ray.origin);
+    if (!scene.intersect(ray, hit)) return Walk::kClear;
+    if (hit.material->type != rt::MaterialType::kDielectric) return Walk::kOpaque;
+    const rt::Vec3 next = hit.spawn_origin(ray.dir);
+    ray.tmax -= rt::length(next - ray.origin);
+    ray.origin = next;
   }
-  return false;
+  return Walk::kLost;
 }
 
-// The first opaque surface along a ray (passing through glass), or false.
-bool first_opaque(const Scene& scene, rt::Ray ray, rt::SurfaceHit& hit) {
-  for (int crossings = 0; crossings < kGlassCrossings; ++crossings) {
-    if (!scene.intersect(ray, hit)) return false;
-    if (hit.material->type != rt::MaterialType::kDielectric) return true;
-    ray.origin = hit.spawn_origin(ray.dir);
-  }
-  return false;
+// Whether a ray gets from `from` to `to` past every opaque surface.
+bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
+  const rt::Vec3 d = to - from;
+  const float dist = rt::length(d);
+  if (!(dist > 0)) return true;
+  rt::SurfaceHit hit;
+  return walk_through_glass(scene, rt::Ray{from, d / dist, dist}, hit) == Walk::kClear;
 }
 
 // Whether the camera's rays can get to point p from side `side` (a unit normal) of the plane
@@ -232,7 +230,8 @@ bool reachable(const Scene& scene, const D3& p, const D3& side, double offset) {
     const float r = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = golden * float(k);
     const rt::Vec3 dir = rt::normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + s * z);
     rt::SurfaceHit hit;
-    if (!first_opaque(scene, rt::Ray{q, dir}, hit)) continue;  // the sky: camera rays do not come back from it
+    // Into the sky (or lost in glass): camera rays do not come back from there.
+    if (walk_through_glass(scene, rt::Ray{q, dir}, hit) != Walk::kOpaque) continue;
     if (clear_path(scene, hit.spawn_origin(-dir), eye)) return true;
   }
   return false;
@@ -264,9 +263,8 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
       tri.n = scaled(c, 1.0 / len);
       if (dot(tri.n, kSide) < 0) tri.n = scaled(tri.n, -1);
       tri.d = dot(tri.n, tri.p[0]);
-      // The ray offset of the scene's hits (Scene::fill_hit): two faces closer than it are one
-      // place to a ray that leaves either.
-      tri.offset = 1e-4 * std::max(1.0, mag);
+      // Two faces closer than the rays' offset are one place to a ray that leaves either.
+      tri.offset = rt::ray_offset(float(mag));
       for (int i = 0; i < 3; ++i) {
         tri.lo[i] = std::min({tri.p[0][i], tri.p[1][i], tri.p[2][i]}) - tri.offset;
         tri.hi[i] = std::max({tri.p[0][i], tri.p[1][i], tri.p[2][i]}) + tri.offset;
@@ -383,22 +381,22 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
   // first, within the limits' probe budget (a probe traces up to 65 rays, and as many again per
   // glass face they cross).
   constexpr std::size_t kProbesPerGroup = 8;
-  std::vector<std::pair<GroupId, CoplanarOverlap>> order;
+  std::vector<std::pair<CoplanarOverlap, const std::vector<Candidate>*>> order;
   for (auto& [id, cands] : groups) {
     std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) { return a.area > b.area; });
     CoplanarOverlap o;
     std::tie(o.mesh_a, o.material_a, o.mesh_b, o.material_b) = id;
     o.pairs = cands.size();
     for (const Candidate& c : cands) o.area += c.area;
-    order.emplace_back(id, o);
+    order.emplace_back(o, &cands);
   }
-  std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.second.area > b.second.area; });
+  std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first.area > b.first.area; });
   std::vector<CoplanarOverlap> out;
   std::size_t probes = 0;
-  for (auto& [id, o] : order) {
+  for (auto& [o, cands] : order) {
     bool hit = false;
     std::size_t mine = 0;
-    for (const Candidate& c : groups[id]) {
+    for (const Candidate& c : *cands) {
       for (std::size_t q = 0; !hit && q < c.probes.size() && mine < kProbesPerGroup; ++q, ++mine) {
         if (++probes > limits.probes) {
           within_limits = false;

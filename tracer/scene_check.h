@@ -25,14 +25,9 @@ struct CoplanarOverlap {
   unsigned material_a = 0, material_b = 0;
   std::size_t pairs = 0;  // triangle pairs that overlap
   double area = 0;        // their summed overlap area, in scene units squared
-  rt::Vec3 where;         // a point inside the largest overlap
+  rt::Vec3 where;         // a point of an overlap that a camera ray reaches
 };
 
-// Every pair of (mesh, material) with overlapping coplanar faces, the largest overlap first.
-// Geometry at time 0 (a moving mesh's first time step). Triangles are bucketed by their plane,
-// and only triangles in one bucket whose bounding boxes meet are compared: about n log n for n
-// triangles, unless many faces are stacked in one place; then the check stops at its work limit
-// (scene_check.cpp) with what it found, and sets *complete to false (else true).
 // Work limits. Faces stacked in one place (a quad's `repeat` copies with no offset, two such
 // objects of different materials) make the pairs quadratic in their number; the check stops at
 // these. The project's largest scene, mcguire-conference (331,000 triangles), needs 4.0 M
@@ -43,6 +38,12 @@ struct CoplanarCheckLimits {
   std::size_t exact_tests = 100'000;       // planes and a Boost.Geometry intersection: ~15 us each
   std::size_t probes = 400;                // reachability probes: 65 to about 1,000 ray queries each
 };
+
+// Every pair of (mesh, material) with overlapping coplanar faces that a camera ray can reach,
+// the largest overlap first. Geometry at time 0 (a moving mesh's first time step). Triangles
+// are bucketed by their plane, and only triangles in one bucket whose bounding boxes meet are
+// compared: about n log n for n triangles. Past a limit the check stops with what it found and
+// sets *complete to false (else true).
 std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete = nullptr,
                                                     CoplanarCheckLimits limits = {});
 

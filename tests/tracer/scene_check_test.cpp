@@ -34,25 +34,30 @@ std::string box(const std::string& name, const std::string& material, const std:
                      name, material, size, translate, rotate);
 }
 
-std::vector<CoplanarOverlap> overlaps_of(const std::string& text) {
+// A scene file of `text`, loaded, and what the check finds in it.
+struct Checked {
+  std::shared_ptr<const Scene> scene;
+  std::vector<CoplanarOverlap> found;  // with the default limits
+  bool complete = false;
+  std::string mesh(unsigned m) const { return scene->meshes.at(m).name; }
+};
+
+Checked check(const std::string& text) {
   test::TempDir dir;
-  const std::string path = test::write_text(dir.file("s.toml"), text);
-  auto scene = load_scene(path);
-  return find_coplanar_overlaps(*scene);
+  Checked c;
+  c.scene = load_scene(test::write_text(dir.file("s.toml"), text));
+  c.found = find_coplanar_overlaps(*c.scene, &c.complete);
+  return c;
 }
 
-std::string mesh_name(const std::string& text, unsigned mesh) {
-  test::TempDir dir;
-  auto scene = load_scene(test::write_text(dir.file("s.toml"), text));
-  return scene->meshes.at(mesh).name;
-}
+std::vector<CoplanarOverlap> overlaps_of(const std::string& text) { return check(text).found; }
 
 TEST(CoplanarOverlaps, AGlassBoxStandingOnTheFloorIsFoundWithItsFootprint) {
-  const std::string text = room(box("glass_box", "glass", "[0.8, 0.4, 0.5]", "[0.2, 0.2, 0.1]"));
-  const auto found = overlaps_of(text);
+  const Checked c = check(room(box("glass_box", "glass", "[0.8, 0.4, 0.5]", "[0.2, 0.2, 0.1]")));
+  const auto& found = c.found;
   ASSERT_EQ(found.size(), 1u);
-  EXPECT_EQ(mesh_name(text, found[0].mesh_a), "floor");
-  EXPECT_EQ(mesh_name(text, found[0].mesh_b), "glass_box");
+  EXPECT_EQ(c.mesh(found[0].mesh_a), "floor");
+  EXPECT_EQ(c.mesh(found[0].mesh_b), "glass_box");
   // The overlap is the box's whole bottom face, 0.8 x 0.5 (float corners: 1e-5 relative).
   EXPECT_NEAR(found[0].area, 0.8 * 0.5, 1e-5);
   EXPECT_NEAR(found[0].where.y, 0.0, 1e-6);
@@ -83,12 +88,12 @@ TEST(CoplanarOverlaps, ARugQuadOnTheFloorIsFoundUnlessItIsOfTheFloorsMaterial) {
 
 TEST(CoplanarOverlaps, TwoBoxTopsInOnePlaneAreFound) {
   // The plant's old sill: a red box reaching into a wall block, their tops both at y = 1.
-  const std::string text =
-      room(box("wall", "floor", "[2, 1, 0.3]", "[0, 0.5, -1]") + box("sill", "red", "[1, 0.04, 0.5]", "[0, 0.98, -0.85]"));
-  const auto found = overlaps_of(text);
+  const Checked c =
+      check(room(box("wall", "floor", "[2, 1, 0.3]", "[0, 0.5, -1]") + box("sill", "red", "[1, 0.04, 0.5]", "[0, 0.98, -0.85]")));
+  const auto& found = c.found;
   ASSERT_EQ(found.size(), 1u);
-  EXPECT_EQ(mesh_name(text, found[0].mesh_a), "wall");
-  EXPECT_EQ(mesh_name(text, found[0].mesh_b), "sill");
+  EXPECT_EQ(c.mesh(found[0].mesh_a), "wall");
+  EXPECT_EQ(c.mesh(found[0].mesh_b), "sill");
   EXPECT_NEAR(found[0].where.y, 1.0, 1e-5);
   EXPECT_NEAR(found[0].area, 1.0 * 0.25, 1e-5);  // the sill's top over the wall's: x -0.5 .. 0.5, z -1.1 .. -0.85
 }
@@ -114,14 +119,12 @@ TEST(CoplanarOverlaps, StackedFacesStopAtTheWorkLimitWithWhatWasFound) {
   // red and white triangles to test, more than a limit of 1000 exact tests allows.
   const std::string stack = "[[objects]]\ntype = \"quad\"\nname = \"{}\"\nmaterial = \"{}\"\nsize = [1, 1]\n"
                             "translate = [0, 0.5, 0]\nrepeat = 100\n";
-  test::TempDir dir;
-  auto scene = load_scene(test::write_text(
-      dir.file("s.toml"), room(fmt::format(fmt::runtime(stack), "red_stack", "red") +
-                               fmt::format(fmt::runtime(stack), "white_stack", "floor"))));
+  const Checked c = check(room(fmt::format(fmt::runtime(stack), "red_stack", "red") +
+                               fmt::format(fmt::runtime(stack), "white_stack", "floor")));
   CoplanarCheckLimits limits;
   limits.exact_tests = 1000;
   bool complete = true;
-  const auto found = find_coplanar_overlaps(*scene, &complete, limits);
+  const auto found = find_coplanar_overlaps(*c.scene, &complete, limits);
   EXPECT_FALSE(complete);
   ASSERT_EQ(found.size(), 1u);
   EXPECT_GE(found[0].pairs, 100u);  // half of the tested pairs overlap in area (the 20,000 of 40,000 below)
@@ -129,10 +132,9 @@ TEST(CoplanarOverlaps, StackedFacesStopAtTheWorkLimitWithWhatWasFound) {
   // The default limits examine the same scene in full: each red triangle covers the white
   // triangle of the same half of every copy (100 x 100 x 2 pairs; the other halves meet it
   // along the diagonal only).
-  const auto all = find_coplanar_overlaps(*scene, &complete);
-  EXPECT_TRUE(complete);
-  ASSERT_EQ(all.size(), 1u);
-  EXPECT_EQ(all[0].pairs, 20000u);
+  EXPECT_TRUE(c.complete);
+  ASSERT_EQ(c.found.size(), 1u);
+  EXPECT_EQ(c.found[0].pairs, 20000u);
 }
 
 TEST(CoplanarOverlaps, ProbesStopAtTheirBudgetLargestOverlapsFirst) {
@@ -143,18 +145,17 @@ TEST(CoplanarOverlaps, ProbesStopAtTheirBudgetLargestOverlapsFirst) {
     extra += fmt::format("[materials.rug{0}]\nalbedo = [0.{0:02d}, 0.3, 0.3]\n[[objects]]\ntype = \"quad\"\n"
                          "name = \"rug{0}\"\nmaterial = \"rug{0}\"\nsize = [{1}, {1}]\ntranslate = [{2}, 0, 0]\n",
                          k, 0.03 * (k + 1), -2.5 + 0.45 * k);
-  test::TempDir dir;
-  auto scene = load_scene(test::write_text(dir.file("s.toml"), room(extra)));
-  bool complete = false;
-  EXPECT_EQ(find_coplanar_overlaps(*scene, &complete).size(), 12u);
-  EXPECT_TRUE(complete);
+  const Checked c = check(room(extra));
+  EXPECT_EQ(c.found.size(), 12u);
+  EXPECT_TRUE(c.complete);
   CoplanarCheckLimits limits;
   limits.probes = 3;  // each rug is seen from the eye at its first probe
-  const auto found = find_coplanar_overlaps(*scene, &complete, limits);
+  bool complete = true;
+  const auto found = find_coplanar_overlaps(*c.scene, &complete, limits);
   EXPECT_FALSE(complete);
   ASSERT_EQ(found.size(), 3u);
-  EXPECT_EQ(scene->meshes[found[0].mesh_b].name, "rug11");
-  EXPECT_EQ(scene->meshes[found[2].mesh_b].name, "rug9");
+  EXPECT_EQ(c.mesh(found[0].mesh_b), "rug11");
+  EXPECT_EQ(c.mesh(found[2].mesh_b), "rug9");
 }
 
 TEST(CoplanarOverlaps, TheProjectsBuiltInScenesHaveNone) {
