@@ -328,8 +328,8 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
   std::unordered_set<std::uint64_t> seen;
   std::uint64_t comparisons = 0;
   bool within_limits = true;
-  // What the sweep reads of a triangle, contiguous (the triangles themselves are 160 bytes each:
-  // reading them in the sweep's inner loop was mostly cache misses).
+  // What the sweep reads of a triangle, contiguous: a Tri is about 180 bytes, and reading them in
+  // the sweep's inner loop would be mostly cache misses.
   struct Box {
     double lo[3], hi[3];
     std::uint32_t id, material;

@@ -6,9 +6,9 @@
 // that meets the glass's face and a floor in one plane leaves through whichever the traversal
 // reports first). Which one that is, is the ray tracer's tie-break: it differs between Embree's
 // kernels and between renderers, so such a scene renders differently on an AVX2 and an AVX-512
-// kernel and disagrees with Mitsuba in a band (the plant's sill and the Mitsuba test's glass box
-// were both this, docs/speed.md). load_scene warns about every one it finds; the built-in scenes
-// have none (tests/tracer/scene_check_test.cpp).
+// kernel and disagrees with Mitsuba in a band, and a new tracer version cannot pass
+// scripts/tracer_agreement on it (docs/speed.md). load_scene warns about every one it finds; the
+// built-in scenes have none (tests/tracer/scene_check_test.cpp).
 #pragma once
 
 #include <cstdint>

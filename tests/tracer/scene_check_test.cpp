@@ -87,7 +87,7 @@ TEST(CoplanarOverlaps, ARugQuadOnTheFloorIsFoundUnlessItIsOfTheFloorsMaterial) {
 }
 
 TEST(CoplanarOverlaps, TwoBoxTopsInOnePlaneAreFound) {
-  // The plant's old sill: a red box reaching into a wall block, their tops both at y = 1.
+  // A red sill reaching into a wall block, their tops both at y = 1.
   const Checked c =
       check(room(box("wall", "floor", "[2, 1, 0.3]", "[0, 0.5, -1]") + box("sill", "red", "[1, 0.04, 0.5]", "[0, 0.98, -0.85]")));
   const auto& found = c.found;
