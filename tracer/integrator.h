@@ -142,7 +142,8 @@ class PathTracer {
   // it (for stratified sets of light samples).
   Vec3 direct_white(const SurfaceHit& hit, PathContext& ctx, float u0, float u1, float u2) const;
   // The sum of n such estimates, u[i] = {u0, u1, u2} of sample i, their shadow rays traced
-  // together (Scene::occluded on n rays). Equal to summing direct_white(hit, ctx, u[i]...).
+  // together (Scene::occluded on n rays). Equal to summing direct_white(hit, ctx, u[i]...), but
+  // for a shadow ray whose blocker is exactly at its end (Scene::occluded on n rays).
   Vec3 direct_white_sum(const SurfaceHit& hit, PathContext& ctx, const std::array<float, 3>* u, int n) const;
 
  private:

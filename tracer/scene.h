@@ -308,14 +308,17 @@ class Scene {
   // intersect() for n rays at once (Embree packets of 16): found[i] = 1 and hits[i] filled when
   // rays[i] hits something, found[i] = 0 (hits[i] untouched) on a miss; the same hits as
   // intersect() one by one, bit for bit (Embree's packet and single-ray kernels run the same
-  // triangle test; tested). Not used by the integrator yet: BM_BounceRays measures what packets
-  // of one pixel's bounce rays would gain (docs/speed.md).
+  // triangle test; tested). Not used by the integrator: BM_BounceRays measures what packets gain
+  // (little under the AVX2 cap), and a wavefront integrator built on them was slower than
+  // tracing one path at a time (docs/speed.md).
   void intersect(const rt::Ray* rays, int n, rt::SurfaceHit* hits, std::uint8_t* found) const;
   // True when something blocks the segment origin + t dir, t in (0, tmax).
   bool occluded(const rt::Ray& ray) const;
   // occluded() for n rays at once (Embree packets of 16): hidden[i] = 1 when rays[i] is
   // blocked, else 0. Shadow rays from one point towards the lights are coherent, and a packet
-  // traverses them together.
+  // traverses them together. The same answers as occluded() one by one except for a ray whose
+  // blocker is exactly at tmax, which Embree's single-ray kernel counts and its packet kernel
+  // may not (seen once in a 96x72, 16-spp cornell-box render; docs/speed.md).
   void occluded(const rt::Ray* rays, int n, std::uint8_t* hidden) const;
   // Whether `dir` is inside the sun's disc. Every use of the disc asks this once per direction
   // and passes the answer on, so that a direction's radiance and its density never disagree at
