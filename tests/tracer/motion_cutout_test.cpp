@@ -119,8 +119,12 @@ TEST(MotionBlur, AClosedShutterIsOneInstantAndFramesDoNotDependOnThreads) {
   const double half_width = kTanHalf * (double(kW) / kH) * 5.0;
   for (int x = 0; x < kW; ++x) {
     const double X0 = (2.0 * x / kW - 1) * half_width, X1 = (2.0 * (x + 1) / kW - 1) * half_width;
-    if (X1 < -1 || X0 > 1) EXPECT_EQ(T.at(x, 2, 0), 0.0f) << x;       // at t = 0.5 the quad spans [-1, 1]
-    if (X0 > -1 && X1 < 1) EXPECT_EQ(T.at(x, 2, 0), 0.5f) << x;
+    if (X1 < -1 || X0 > 1) {
+      EXPECT_EQ(T.at(x, 2, 0), 0.0f) << x;  // at t = 0.5 the quad spans [-1, 1]
+    }
+    if (X0 > -1 && X1 < 1) {
+      EXPECT_EQ(T.at(x, 2, 0), 0.5f) << x;
+    }
   }
   // The same seed gives the same bits with one thread or all, with motion as without.
   const std::string moving = blur_scene("eye_end = [-1, 0, 5]", "translate_end = [2, 0, 0]\nrotate_end = [0, 0, 30]");
