@@ -165,8 +165,13 @@ Image smooth_tint(const Image& tint, const Image& normal, const Image& depth, in
           const int x0 = std::max(lo, -dx), x1 = std::min(hi + 1, w - dx);
           const std::ptrdiff_t dq = std::ptrdiff_t(yy - y) * w + dx;  // neighbour = pixel + dq
           // Branch-free (0/1 factors instead of conditions), so that it vectorises; the sums
-          // do not alias the planes (ivdep spares the run-time checks GCC gives up on).
+          // do not alias the planes (ivdep spares the run-time checks GCC gives up on; clang, which
+          // builds the fuzz targets, has its own spelling).
+#if defined(__clang__)
+#pragma clang loop vectorize(assume_safety)
+#else
 #pragma GCC ivdep
+#endif
           for (int x = x0; x < x1; ++x) {
             const std::ptrdiff_t p = std::ptrdiff_t(row) + x, q = p + dq;
             const int i = x - lo;

@@ -59,7 +59,7 @@ struct MetricInfo {
   bool pooled = false;
   // Its map lives in [0, 1] and is shown so (FLIP, 1 - SSIM); other maps up to their 99th percentile.
   bool unit_map = false;
-  std::string map_label;  // the map's colour-bar label where it is not the name (ssim: "1 - ssim")
+  std::string map_label = {};  // the map's colour-bar label where it is not the name (ssim: "1 - ssim")
   // The reference's own expected share of this metric (reference_error), or null where unknown.
   double ReferenceError::*reference_error = nullptr;
   // Keeps the last reference's filtered images between calls (FLIP's memo): a benchmark times a

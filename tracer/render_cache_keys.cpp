@@ -47,7 +47,10 @@ CacheKey frame_cache_key(const Scene& scene, const RenderSettings& s) {
 CacheKey curve_cache_key(const Scene& scene, const RenderSettings& s, const std::vector<int>& prefixes) {
   CacheKey key = render_key("curve", scene, s.width, s.height, s.spp, s.seed, s.max_depth);
   std::string list;
-  for (int p : prefixes) list += (list.empty() ? "" : ",") + std::to_string(p);
+  for (int p : prefixes) {
+    if (!list.empty()) list += ',';
+    list += std::to_string(p);
+  }
   key.add("prefixes", list).add("tracer", kTracerVersion);
   return key;
 }

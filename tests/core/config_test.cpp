@@ -69,7 +69,7 @@ TEST(Config, MissingFileIsAnInputError) {
 // missing key on line 1 of a folder (found by a hostile-user pass).
 TEST(Config, AFolderOrADeviceIsNotAConfigFile) {
   test::TempDir dir;
-  for (const std::string path : {dir.path().string(), std::string("/dev/null")}) {
+  for (const std::string& path : {dir.path().string(), std::string("/dev/null")}) {
     std::string msg = error_of([&] { ConfigFile::load(path); });
     EXPECT_NE(msg.find("'" + path + "': not a regular file"), std::string::npos) << msg;
   }

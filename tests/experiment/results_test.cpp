@@ -79,7 +79,7 @@ ResultsDocument document() {
   input.files = {{"image", "images/c/input_16.exr"}, {"frame", "frames/c/input_16.exr"},
                  {"frame_edges", "frames/c/input_16.edges.exr"}};
   d.records = {input, method_record()};
-  d.config.scene_files = {{"mine", {"/data/in.exr", "/data/ref.exr"}}};
+  d.config.scene_files = {{"mine", {"/data/in.exr", "/data/ref.exr", ""}}};
   d.skipped = {{"mine", "irradiance_cache", 16, "renders the scene itself; 'mine' is read from files"}};
   d.failures = {{"cornell-box", "plug", 16, "k2", "plug-in 'plug' (p.toml): the program exited with status 1", {"Traceback", "E"}}};
   return d;
@@ -110,7 +110,7 @@ TEST(ResultsDocument, SurvivesItsOwnFileFormatExactly) {
   EXPECT_EQ(back.failure("cornell-box", "plug", 4), nullptr);
   EXPECT_EQ(back.records[0].file("frame"), "frames/c/input_16.exr");
   EXPECT_EQ(back.records[0].file("frame_edges"), "frames/c/input_16.edges.exr");
-  EXPECT_EQ(back.config.scene_files.at("mine"), (SceneFilesEntry{"/data/in.exr", "/data/ref.exr"}));
+  EXPECT_EQ(back.config.scene_files.at("mine"), (SceneFilesEntry{"/data/in.exr", "/data/ref.exr", ""}));
   ASSERT_NE(back.skip("mine", "irradiance_cache", 16), nullptr);
   EXPECT_EQ(back.skip("mine", "irradiance_cache", 4), nullptr);
   // A version 2 file (no failures, no setup_seconds) and a version 3 one (no frames, no

@@ -97,7 +97,9 @@ TEST(CyclesImport, ComposedColourEqualsCombinedAndEveryPassMaps) {
       // R's parts are Cycles' own passes, as the tracer defines its gloss_* and trans_* layers.
       EXPECT_EQ(f.layer("gloss_direct").data()[3 * i], channel(ch, "My View Layer.GlossDir.R")[i]);
       EXPECT_EQ(f.layer("gloss_color").data()[3 * i + 1], channel(ch, "My View Layer.GlossCol.G")[i]);
-      if (transmission) EXPECT_EQ(f.layer("trans_indirect").data()[3 * i + 2], channel(ch, "My View Layer.TransInd.B")[i]);
+      if (transmission) {
+        EXPECT_EQ(f.layer("trans_indirect").data()[3 * i + 2], channel(ch, "My View Layer.TransInd.B")[i]);
+      }
     }
     EXPECT_EQ(f.has("trans_color"), transmission);
     // (D + I) * T + R + E equals Combined to float rounding: R holds gloss and transmission. The

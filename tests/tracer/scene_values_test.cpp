@@ -211,7 +211,7 @@ TEST(SceneValues, FuzzAFileNameTooLongForTheSystemIsAnInputError) {
 TEST(SceneValues, AFolderOrADeviceIsNotASceneFile) {
   test::TempDir dir;
   fs::create_directory(dir.file("s.toml"));
-  for (const std::string path : {dir.file("s.toml"), std::string("/dev/null")}) {
+  for (const std::string& path : {dir.file("s.toml"), std::string("/dev/null")}) {
     const std::string msg = error_of([&] { load_scene(path); });
     EXPECT_NE(msg.find("scene '" + path + "': exists but is not a regular file"), std::string::npos) << msg;
   }
