@@ -194,7 +194,7 @@ constexpr int kGlassCrossings = 8;
 // the direction's change does not matter): at an opaque surface (`hit`), nowhere within tmax, or
 // lost after kGlassCrossings faces of glass.
 enum class Walk { kOpaque, kClear, kLost };
-Walk walk_through_glass(const Scene& scene, rt::Ray ray, rt::SurfaceHit& hit) {
+Walk walk_through_glass(const Scene& scene, rt::Ray ray, rt::SurfaceHit& hit) {  // at ray.time
   for (int crossings = 0; crossings < kGlassCrossings; ++crossings) {
     if (!scene.intersect(ray, hit)) return Walk::kClear;
     if (hit.material->type != rt::MaterialType::kDielectric) return Walk::kOpaque;
@@ -205,13 +205,13 @@ Walk walk_through_glass(const Scene& scene, rt::Ray ray, rt::SurfaceHit& hit) {
   return Walk::kLost;
 }
 
-// Whether a ray gets from `from` to `to` past every opaque surface.
-bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
+// Whether a ray at `time` gets from `from` to `to` past every opaque surface.
+bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to, float time) {
   const rt::Vec3 d = to - from;
   const float dist = rt::length(d);
   if (!(dist > 0)) return true;
   rt::SurfaceHit hit;
-  return walk_through_glass(scene, rt::Ray{from, d / dist, dist}, hit) == Walk::kClear;
+  return walk_through_glass(scene, rt::Ray{from, d / dist, dist, time}, hit) == Walk::kClear;
 }
 
 // Whether the camera's rays can get to point p from side `side` (a unit normal) of the plane
@@ -219,11 +219,12 @@ bool clear_path(const Scene& scene, rt::Vec3 from, rt::Vec3 to) {
 // or a surface that p sees over that side's hemisphere seen from the eye. Just off a face of a
 // closed solid on its inside (a box's bottom on the floor) nothing is seen from the eye, nor under
 // a floor or outside a building's walls. Deterministic: 64 fixed directions (a Fibonacci spiral).
-bool reachable(const Scene& scene, const D3& p, const D3& side, double offset) {
+// Every ray at `time` (where the moving geometry is).
+bool reachable(const Scene& scene, const D3& p, const D3& side, double offset, float time) {
   const rt::Vec3 s{float(side[0]), float(side[1]), float(side[2])};
   const rt::Vec3 q = rt::Vec3(float(p[0]), float(p[1]), float(p[2])) + s * float(4 * offset);
   const rt::Vec3 eye = scene.camera.eye;
-  if (clear_path(scene, q, eye)) return true;
+  if (clear_path(scene, q, eye, time)) return true;
   const rt::Vec3 t = rt::normalize(std::fabs(s.x) < 0.9f ? rt::cross(s, rt::Vec3(1, 0, 0)) : rt::cross(s, rt::Vec3(0, 1, 0)));
   const rt::Vec3 b = rt::cross(s, t);
   constexpr int kDirections = 64;
@@ -234,21 +235,25 @@ bool reachable(const Scene& scene, const D3& p, const D3& side, double offset) {
     const rt::Vec3 dir = rt::normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + s * z);
     rt::SurfaceHit hit;
     // Into the sky (or lost in glass): camera rays do not come back from there.
-    if (walk_through_glass(scene, rt::Ray{q, dir}, hit) != Walk::kOpaque) continue;
-    if (clear_path(scene, hit.spawn_origin(-dir), eye)) return true;
+    if (walk_through_glass(scene, rt::Ray{q, dir, 1e30f, time}, hit) != Walk::kOpaque) continue;
+    if (clear_path(scene, hit.spawn_origin(-dir), eye, time)) return true;
   }
   return false;
 }
 
 }  // namespace
 
-std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete, CoplanarCheckLimits limits) {
+std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete, CoplanarCheckLimits limits,
+                                                    ShutterEnd end) {
   const Stopwatch clock;
+  const bool close = end == ShutterEnd::kClose;
+  const float time = close ? 1.0f : 0.0f;
   std::vector<Tri> tris;
   tris.reserve(scene.triangle_count());
   double radius = 0;  // the largest coordinate's magnitude
   for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
     const rt::Mesh& m = scene.meshes[mi];
+    const std::vector<rt::Vec3>& positions = close && m.moving() ? m.later_positions.back() : m.positions;
     for (std::size_t t = 0; t < m.triangles(); ++t) {
       Tri tri;
       tri.mesh = unsigned(mi);
@@ -256,7 +261,7 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
       tri.transmissive = scene.materials[tri.material].type == rt::MaterialType::kDielectric;
       double mag = 0;
       for (int k = 0; k < 3; ++k) {
-        tri.p[k] = d3(m.positions[3 * t + k]);
+        tri.p[k] = d3(positions[3 * t + k]);
         for (double c : tri.p[k]) mag = std::max(mag, std::fabs(c));
       }
       const D3 c = cross(sub(tri.p[1], tri.p[0]), sub(tri.p[2], tri.p[0]));
@@ -388,6 +393,7 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
   for (auto& [id, cands] : groups) {
     std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) { return a.area > b.area; });
     CoplanarOverlap o;
+    o.at_close = close;
     std::tie(o.mesh_a, o.material_a, o.mesh_b, o.material_b) = id;
     o.pairs = cands.size();
     for (const Candidate& c : cands) o.area += c.area;
@@ -406,7 +412,7 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
           break;
         }
         const D3& p = c.probes[q];
-        hit = reachable(scene, p, c.n, c.offset) || reachable(scene, p, scaled(c.n, -1), c.offset);
+        hit = reachable(scene, p, c.n, c.offset, time) || reachable(scene, p, scaled(c.n, -1), c.offset, time);
         if (hit) o.where = rt::Vec3(float(p[0]), float(p[1]), float(p[2]));
       }
       if (hit || mine >= kProbesPerGroup || probes > limits.probes) break;
@@ -416,10 +422,28 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* co
   }
   std::sort(out.begin(), out.end(), [](const CoplanarOverlap& a, const CoplanarOverlap& b) { return a.area > b.area; });
   if (complete) *complete = within_limits;
-  spdlog::debug("scene '{}': coplanar faces checked: {} triangles, {} comparisons, {} exact tests, {} overlapping "
+  spdlog::debug("scene '{}': coplanar faces checked{}: {} triangles, {} comparisons, {} exact tests, {} overlapping "
                 "groups, {} reachable{}, {:.3f} s",
-                scene.name, tris.size(), comparisons, seen.size(), groups.size(), out.size(),
+                scene.name, close ? " where the shutter closes" : "", tris.size(), comparisons, seen.size(), groups.size(), out.size(),
                 within_limits ? "" : " (stopped at the work limit)", clock.seconds());
+  return out;
+}
+
+std::vector<CoplanarOverlap> find_coplanar_overlaps_over_shutter(const Scene& scene, bool* complete,
+                                                                 CoplanarCheckLimits limits) {
+  bool open_complete = true, close_complete = true;
+  std::vector<CoplanarOverlap> out = find_coplanar_overlaps(scene, &open_complete, limits, ShutterEnd::kOpen);
+  const bool moves = std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const rt::Mesh& m) { return m.moving(); });
+  if (moves) {
+    auto same = [](const CoplanarOverlap& a, const CoplanarOverlap& b) {
+      return a.mesh_a == b.mesh_a && a.mesh_b == b.mesh_b && a.material_a == b.material_a && a.material_b == b.material_b;
+    };
+    const std::size_t at_open = out.size();
+    for (const CoplanarOverlap& o : find_coplanar_overlaps(scene, &close_complete, limits, ShutterEnd::kClose))
+      if (std::none_of(out.begin(), out.begin() + std::ptrdiff_t(at_open), [&](const CoplanarOverlap& p) { return same(o, p); }))
+        out.push_back(o);
+  }
+  if (complete) *complete = open_complete && close_complete;
   return out;
 }
 
@@ -429,11 +453,12 @@ std::string describe(const Scene& scene, const CoplanarOverlap& o) {
   const std::string what = o.mesh_a == o.mesh_b ? fmt::format("mesh '{}'", mesh(o.mesh_a))
                                                 : fmt::format("meshes '{}' and '{}'", mesh(o.mesh_a), mesh(o.mesh_b));
   return fmt::format(
-      "scene '{}': {} {} faces of materials '{}' and '{}' in one plane that overlap ({} triangle pair{}, area "
+      "scene '{}': {} {} faces of materials '{}' and '{}' in one plane that overlap{} ({} triangle pair{}, area "
       "{:.3g}, e.g. at ({:.4g}, {:.4g}, {:.4g})): which surface a ray meets there is the ray tracer's tie-break, so "
       "images there depend on its kernels and disagree with other renderers; move one off the other (a few "
       "millimetres in a scene in metres)",
-      scene.name, what, o.mesh_a == o.mesh_b ? "has" : "have", material(o.material_a), material(o.material_b), o.pairs, o.pairs == 1 ? "" : "s", o.area,
+      scene.name, what, o.mesh_a == o.mesh_b ? "has" : "have", material(o.material_a), material(o.material_b),
+      o.at_close ? " where the shutter closes (as they move)" : "", o.pairs, o.pairs == 1 ? "" : "s", o.area,
       o.where.x, o.where.y, o.where.z);
 }
 

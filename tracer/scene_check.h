@@ -26,7 +26,14 @@ struct CoplanarOverlap {
   std::size_t pairs = 0;  // triangle pairs that overlap
   double area = 0;        // their summed overlap area, in scene units squared
   rt::Vec3 where;         // a point of an overlap that a camera ray reaches
+  bool at_close = false;  // found with the moving meshes where the shutter closes (ShutterEnd)
 };
+
+// Where moving meshes are checked (a motion-blurred scene's meshes have positions at several
+// time steps over the shutter, Mesh::later_positions): at the shutter's open (every mesh's first
+// step, time 0) or its close (every mesh's last step, time 1). In between, positions are
+// interpolated; an overlap only there is not looked for.
+enum class ShutterEnd { kOpen, kClose };
 
 // Work limits. Faces stacked in one place (a quad's `repeat` copies with no offset, two such
 // objects of different materials) make the pairs quadratic in their number; the check stops at
@@ -40,12 +47,18 @@ struct CoplanarCheckLimits {
 };
 
 // Every pair of (mesh, material) with overlapping coplanar faces that a camera ray can reach,
-// the largest overlap first. Geometry at time 0 (a moving mesh's first time step). Triangles
+// the largest overlap first, with the geometry at `end` (rays probe at its time). Triangles
 // are bucketed by their plane, and only triangles in one bucket whose bounding boxes meet are
 // compared: about n log n for n triangles. Past a limit the check stops with what it found and
 // sets *complete to false (else true).
 std::vector<CoplanarOverlap> find_coplanar_overlaps(const Scene& scene, bool* complete = nullptr,
-                                                    CoplanarCheckLimits limits = {});
+                                                    CoplanarCheckLimits limits = {},
+                                                    ShutterEnd end = ShutterEnd::kOpen);
+// Both ends where a mesh moves (the open's findings, then the close's pairs of (mesh, material)
+// not found at the open), else the open's alone. *complete: false when either check stopped at
+// its limit.
+std::vector<CoplanarOverlap> find_coplanar_overlaps_over_shutter(const Scene& scene, bool* complete = nullptr,
+                                                                 CoplanarCheckLimits limits = {});
 
 // One line for a user: the meshes, materials, area, a point, and what to do.
 std::string describe(const Scene& scene, const CoplanarOverlap& o);

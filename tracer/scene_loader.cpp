@@ -16,6 +16,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -730,21 +731,30 @@ std::vector<std::string> builtin_scene_names() {
 namespace {
 
 // Faces whose image is the ray tracer's tie-break (tracer/scene_check.h): warned, not refused,
-// since imported collections have them (a decal on a wall) and render all the same. Once per
-// scene content in a process: a run loads a scene several times (checking the config, planning,
-// rendering), and a sequence once per frame; the first load of a sequence is checked (its static
-// geometry is what stands still in every frame).
+// since imported collections have them (a decal on a wall) and render all the same. Checked once
+// per scene content and frame in a process (a run loads a scene several times: checking the
+// config, planning, rendering), at both ends of the shutter where meshes move, and every frame of
+// a sequence (its keys move the geometry); a pair of (mesh, material) is named once per scene
+// content, not again in each frame that has it.
 void warn_coplanar_overlaps(const Scene& scene) {
   static std::mutex mutex;
-  static std::set<std::string> checked;
+  static std::set<std::pair<std::string, int>> checked;
+  static std::set<std::tuple<std::string, unsigned, unsigned, unsigned, unsigned>> named;
   {
     std::lock_guard lock(mutex);
-    if (!checked.insert(scene.content_hash).second) return;
+    if (!checked.insert({scene.content_hash, scene.frame}).second) return;
   }
   bool complete = true;
-  const std::vector<CoplanarOverlap> overlaps = find_coplanar_overlaps(scene, &complete);
+  std::vector<CoplanarOverlap> overlaps = find_coplanar_overlaps_over_shutter(scene, &complete);
+  {
+    std::lock_guard lock(mutex);
+    std::erase_if(overlaps, [&](const CoplanarOverlap& o) {
+      return !named.insert({scene.content_hash, o.mesh_a, o.material_a, o.mesh_b, o.material_b}).second;
+    });
+  }
   constexpr std::size_t kShown = 5;
-  for (std::size_t i = 0; i < std::min(overlaps.size(), kShown); ++i) spdlog::warn("{}", describe(scene, overlaps[i]));
+  for (std::size_t i = 0; i < std::min(overlaps.size(), kShown); ++i)
+    spdlog::warn("{}{}", describe(scene, overlaps[i]), scene.animated() ? fmt::format(" (frame {})", scene.frame) : "");
   if (overlaps.size() > kShown)
     spdlog::warn("scene '{}': {} more pairs of meshes with overlapping coplanar faces", scene.name,
                  overlaps.size() - kShown);

@@ -19,7 +19,7 @@ class Scene;  // tracer/scene.h
 struct SceneLoadOptions {
   // Folder holding the McGuire scenes (--scenes-dir, else $DENOISEBENCH_SCENES, else
   // ../shared/scenes when present). Empty: use that search order.
-  std::string scenes_dir;
+  std::string scenes_dir = {};
   // An animated scene's frame ([animation] frames = N; docs/sequences.md): its keys evaluated
   // there. -1: frame 0 of an animated scene, and a still scene as it is (a still refuses any
   // other frame).
