@@ -166,10 +166,8 @@ Image smooth_tint(const Image& tint, const Image& normal, const Image& depth, in
           const std::ptrdiff_t dq = std::ptrdiff_t(yy - y) * w + dx;  // neighbour = pixel + dq
           // Branch-free (0/1 factors instead of conditions), so that it vectorises; the sums
           // do not alias the planes (ivdep spares the run-time checks GCC gives up on; clang, which
-          // builds the fuzz targets, has its own spelling).
-#if defined(__clang__)
-#pragma clang loop vectorize(assume_safety)
-#else
+          // builds only the fuzz targets, does without it).
+#if !defined(__clang__)
 #pragma GCC ivdep
 #endif
           for (int x = x0; x < x1; ++x) {
