@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <set>
 #include <tuple>
 #include <unordered_set>
 
@@ -435,13 +436,10 @@ std::vector<CoplanarOverlap> find_coplanar_overlaps_over_shutter(const Scene& sc
   std::vector<CoplanarOverlap> out = find_coplanar_overlaps(scene, &open_complete, limits, ShutterEnd::kOpen);
   const bool moves = std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const rt::Mesh& m) { return m.moving(); });
   if (moves) {
-    auto same = [](const CoplanarOverlap& a, const CoplanarOverlap& b) {
-      return a.mesh_a == b.mesh_a && a.mesh_b == b.mesh_b && a.material_a == b.material_a && a.material_b == b.material_b;
-    };
-    const std::size_t at_open = out.size();
+    std::set<std::tuple<unsigned, unsigned, unsigned, unsigned>> at_open;
+    for (const CoplanarOverlap& o : out) at_open.insert(o.pair());
     for (const CoplanarOverlap& o : find_coplanar_overlaps(scene, &close_complete, limits, ShutterEnd::kClose))
-      if (std::none_of(out.begin(), out.begin() + std::ptrdiff_t(at_open), [&](const CoplanarOverlap& p) { return same(o, p); }))
-        out.push_back(o);
+      if (!at_open.count(o.pair())) out.push_back(o);
   }
   if (complete) *complete = open_complete && close_complete;
   return out;

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "tracer/scene.h"
@@ -27,6 +28,9 @@ struct CoplanarOverlap {
   double area = 0;        // their summed overlap area, in scene units squared
   rt::Vec3 where;         // a point of an overlap that a camera ray reaches
   bool at_close = false;  // found with the moving meshes where the shutter closes (ShutterEnd)
+  // Which pair of (mesh, material) it is: what the shutter's two ends and a sequence's frames
+  // are merged by.
+  std::tuple<unsigned, unsigned, unsigned, unsigned> pair() const { return {mesh_a, material_a, mesh_b, material_b}; }
 };
 
 // Where moving meshes are checked (a motion-blurred scene's meshes have positions at several

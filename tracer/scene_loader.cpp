@@ -739,7 +739,7 @@ namespace {
 void warn_coplanar_overlaps(const Scene& scene) {
   static std::mutex mutex;
   static std::set<std::pair<std::string, int>> checked;
-  static std::set<std::tuple<std::string, unsigned, unsigned, unsigned, unsigned>> named;
+  static std::set<std::pair<std::string, std::tuple<unsigned, unsigned, unsigned, unsigned>>> named;
   {
     std::lock_guard lock(mutex);
     if (!checked.insert({scene.content_hash, scene.frame}).second) return;
@@ -749,7 +749,7 @@ void warn_coplanar_overlaps(const Scene& scene) {
   {
     std::lock_guard lock(mutex);
     std::erase_if(overlaps, [&](const CoplanarOverlap& o) {
-      return !named.insert({scene.content_hash, o.mesh_a, o.material_a, o.mesh_b, o.material_b}).second;
+      return !named.insert({scene.content_hash, o.pair()}).second;
     });
   }
   constexpr std::size_t kShown = 5;
