@@ -279,21 +279,42 @@ struct PassCounts {
 };
 
 // The main pass over the tile [x0, x1) x [y0, y1): every sample of every pixel, then its layers.
-void render_tile(const SampleSource& src, int spp, const FrameLayers& out, Image& depth_spread, int x0, int y0,
-                 int x1, int y1, PassCounts& counts) {
+// `other`: a PixelSampler that traces the samples instead of src's tracer (render.h).
+void render_tile(const SampleSource& src, const PixelSampler* other, int spp, const FrameLayers& out,
+                 Image& depth_spread, int x0, int y0, int x1, int y1, PassCounts& counts) {
   SampleResult r;
   SampleTable table;
   const int K = int(out.level.size()) - 1;
   std::vector<LevelSums> sums(K + 1);
+  auto add = [&](int s, const SampleResult& sr, GroupSums* groups, SpecularSums& spec) {
+    if (sample_finite(sr)) accumulate_sample(sr, K, sums.data(), groups[s % kGroups], spec);
+    else ++counts.dropped;
+  };
+  if (other) {
+    thread_local std::vector<SampleResult> batch;
+    const int per_call = std::max(1, other->batch_samples() / spp);
+    for (int y = y0; y < y1; ++y)
+      for (int xb = x0; xb < x1; xb += per_call) {
+        const int count = std::min(per_call, x1 - xb);
+        batch.resize(std::size_t(count) * std::size_t(spp));
+        counts.rays += other->trace_pixels(xb, y, count, spp, batch.data());
+        for (int p = 0; p < count; ++p) {
+          for (auto& s : sums) s = LevelSums{};
+          GroupSums groups[kGroups];
+          SpecularSums spec;
+          for (int s = 0; s < spp; ++s) add(s, batch[std::size_t(p) * std::size_t(spp) + std::size_t(s)], groups, spec);
+          store_pixel(out, xb + p, y, sums, groups, spec, depth_spread);
+        }
+      }
+    return;
+  }
   for (int y = y0; y < y1; ++y)
     for (int x = x0; x < x1; ++x) {
       for (auto& s : sums) s = LevelSums{};
       GroupSums groups[kGroups];
       SpecularSums spec;
-      counts.rays += src.trace_samples(table, x, y, 0, spp, r, [&](int s, const SampleResult& sr, float, float) {
-        if (sample_finite(sr)) accumulate_sample(sr, K, sums.data(), groups[s % kGroups], spec);
-        else ++counts.dropped;
-      });
+      counts.rays += src.trace_samples(table, x, y, 0, spp, r,
+                                       [&](int s, const SampleResult& sr, float, float) { add(s, sr, groups, spec); });
       store_pixel(out, x, y, sums, groups, spec, depth_spread);
     }
 }
@@ -326,9 +347,7 @@ void write_meta(FrameMeta& meta, const Scene& scene, const RenderSettings& setti
   meta.extra["rays"] = std::to_string(counts.rays);
 }
 
-}  // namespace
-
-AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
+AovFrame render_frame_impl(const Scene& scene, const RenderSettings& settings, const PixelSampler* main_pass) {
   check_settings(settings);
   Stopwatch clock;
   const int W = settings.width, H = settings.height, K = settings.reflection_levels;
@@ -343,7 +362,7 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   std::atomic<std::uint64_t> rays{0};
   for_each_tile(W, H, settings.threads, [&](int x0, int y0, int x1, int y1) {
     PassCounts tile;
-    render_tile(src, settings.spp, out, depth_spread, x0, y0, x1, y1, tile);
+    render_tile(src, main_pass, settings.spp, out, depth_spread, x0, y0, x1, y1, tile);
     dropped += tile.dropped;
     rays += tile.rays;
     if (settings.on_progress) settings.on_progress(std::int64_t(x1 - x0) * (y1 - y0) * settings.spp);
@@ -358,6 +377,16 @@ AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
   write_meta(frame.meta, scene, settings, PassCounts{dropped.load(), rays.load()});
   frame.meta.render_seconds = clock.seconds();
   return frame;
+}
+
+}  // namespace
+
+AovFrame render_frame(const Scene& scene, const RenderSettings& settings) {
+  return render_frame_impl(scene, settings, nullptr);
+}
+
+AovFrame render_frame(const Scene& scene, const RenderSettings& settings, const PixelSampler& main_pass) {
+  return render_frame_impl(scene, settings, &main_pass);
 }
 
 }  // namespace dnb

@@ -54,6 +54,25 @@ struct RenderSettings {
 // Renders every AOV layer of docs/design.md, "AOV frame file" (plus edge sub-pixels and reflection levels).
 AovFrame render_frame(const Scene& scene, const RenderSettings& settings);
 
+namespace rt {
+struct SampleResult;  // tracer/integrator.h
+}
+// Another integrator for render_frame's main pass, for experiments that measure one against the
+// tracer's own with everything else of a frame unchanged (the accumulation of every layer, the
+// variances, the half buffers, the edge set; docs/speed.md: bench/colour_core.h's vectorised
+// core). No command uses one. trace_pixels fills out[p * spp + s] with sample s of pixel
+// (x0 + p, y) for p < count and s < spp, and returns the rays it traced; render_frame calls it
+// from its worker threads, at most `batch_samples() / spp` pixels at a time (at least one).
+class PixelSampler {
+ public:
+  virtual ~PixelSampler() = default;
+  virtual std::uint64_t trace_pixels(int x0, int y, int count, int spp, rt::SampleResult* out) const = 0;
+  virtual int batch_samples() const { return 1024; }
+};
+// render_frame with `main_pass` tracing the main pass's samples (the edge sub-pixels are still
+// the tracer's own).
+AovFrame render_frame(const Scene& scene, const RenderSettings& settings, const PixelSampler& main_pass);
+
 // Frame `scene.frame` of an animated scene (docs/sequences.md): render_frame with the frame's
 // sample seed (tracer/animation.h's frame_seed of settings.seed), plus the motion layer
 // (motion.X/Y) against `previous`, the same scene loaded at the previous frame (null at frame 0:
