@@ -21,6 +21,7 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -30,8 +31,11 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_util.h"
+#include "colour_core.h"
 #include "core/stats.h"
 #include "core/timer.h"
+#include "core/aov_frame.h"
+#include "tracer/math.h"
 #include "tracer/mitsuba_export.h"
 #include "tracer/render.h"
 #include "tracer/scene_loader.h"
@@ -60,15 +64,17 @@ std::string find_libllvm() {
   return {};
 }
 
-void BM_Mitsuba(benchmark::State& state, const char* variant) {
-  const int spp = int(state.range(0));
+// Renders McGuire's box with Mitsuba (`variant`) at the case's size, `spp` and path length;
+// returns its paths/s (the median of kRepeats renders after a warm-up) and sets `label` to its
+// version, or returns 0 after skipping the case with the reason. `scene` receives the tracer's.
+double mitsuba_paths_per_second(benchmark::State& state, const char* variant, int spp,
+                                std::shared_ptr<const dnb::Scene>& scene, std::string& label) {
   const std::string src = DNB_BENCH_SOURCE_DIR, py = src + "/.venv/bin/python";
   std::string out;
   if (run_capture(py + " -c 'import mitsuba' 2>/dev/null", out) != 0) {
     state.SkipWithError("needs Mitsuba 3 in .venv (scripts/setup)");
-    return;
+    return 0;
   }
-  std::shared_ptr<const dnb::Scene> scene;
   const fs::path dir = fs::temp_directory_path() / ("dnb-bench-mitsuba-" + std::to_string(spp));
   try {
     scene = dnb::load_scene("mcguire-cornell-box");
@@ -76,39 +82,180 @@ void BM_Mitsuba(benchmark::State& state, const char* variant) {
     dnb::export_mitsuba(*scene, {.width = kWidth, .height = kHeight, .spp = spp, .max_depth = kPathLength}, dir.string());
   } catch (const std::exception& e) {
     state.SkipWithError(e.what());
-    return;
+    return 0;
   }
   std::string env;
   if (!std::getenv("DRJIT_LIBLLVM_PATH"))
     if (const std::string llvm = find_libllvm(); !llvm.empty()) env = "DRJIT_LIBLLVM_PATH=" + llvm + " ";
   const std::string cmd = env + py + " " + src + "/python/mitsuba_speed.py " + (dir / "scene.xml").string() +
                           " --variant " + variant + " --repeats " + std::to_string(kRepeats) + " 2>/dev/null";
+  const int rc = run_capture(cmd, out);
+  fs::remove_all(dir);
+  if (rc != 0) {
+    state.SkipWithError((std::string("Mitsuba ") + variant + " did not run (libLLVM?): " + cmd).c_str());
+    return 0;
+  }
+  const nlohmann::json j = nlohmann::json::parse(out.substr(out.find('{')));
+  label = std::string("Mitsuba ") + j.at("mitsuba").get<std::string>() + " " + variant;
+  return j.at("paths_per_second").get<double>();
+}
+
+// The median of kRepeats timings of `render` after one warm-up call.
+template <typename Fn>
+double median_seconds(Fn&& render) {
+  render();
+  std::vector<double> seconds;
+  for (int k = 0; k < kRepeats; ++k) {
+    dnb::Stopwatch clock;
+    render();
+    seconds.push_back(clock.seconds());
+  }
+  return dnb::stats::median(seconds);
+}
+
+void BM_Mitsuba(benchmark::State& state, const char* variant) {
+  const int spp = int(state.range(0));
   const dnb::RenderSettings s = dnb::bench::render_settings(kWidth, kHeight, spp, kPathLength);
   for (auto _ : state) {
-    if (run_capture(cmd, out) != 0) {
-      state.SkipWithError((std::string("Mitsuba ") + variant + " did not run (libLLVM?): " + cmd).c_str());
-      return;
-    }
-    const nlohmann::json j = nlohmann::json::parse(out.substr(out.find('{')));
-    const double mitsuba = j.at("paths_per_second").get<double>();
-    std::vector<double> seconds;
-    benchmark::DoNotOptimize(dnb::render_frame(*scene, s));  // warm-up
-    for (int k = 0; k < kRepeats; ++k) {
-      dnb::Stopwatch clock;
-      dnb::AovFrame f = dnb::render_frame(*scene, s);
-      seconds.push_back(clock.seconds());
-      benchmark::DoNotOptimize(f);
-    }
-    const double tracer = double(kWidth) * kHeight * spp / dnb::stats::median(seconds);
-    state.SetIterationTime(dnb::stats::median(seconds));
+    std::shared_ptr<const dnb::Scene> scene;
+    std::string label;
+    const double mitsuba = mitsuba_paths_per_second(state, variant, spp, scene, label);
+    if (!(mitsuba > 0)) return;
+    const double sec = median_seconds([&] { benchmark::DoNotOptimize(dnb::render_frame(*scene, s)); });
+    const double tracer = double(kWidth) * kHeight * spp / sec;
+    state.SetIterationTime(sec);
     state.counters["mitsuba_paths/s"] = mitsuba;
     state.counters["tracer_paths/s"] = tracer;
     state.counters["tracer/mitsuba"] = tracer / mitsuba;
-    state.SetLabel(std::string("Mitsuba ") + j.at("mitsuba").get<std::string>() + " " + variant);
+    state.SetLabel(label);
   }
-  fs::remove_all(dir);
+}
+
+// The mean over pixels and channels of a - b, in standard errors of that mean from the values'
+// own spread: pixels are independent, so z is close to normal where a and b have one expectation.
+// Equal constant values (no spread) give 0.
+double mean_difference_z(const std::vector<float>& a, const std::vector<float>& b) {
+  double sum = 0, sum2 = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double diff = double(a[i]) - double(b[i]);
+    sum += diff;
+    sum2 += diff * diff;
+  }
+  const double n = double(a.size()), mean = sum / n, var = (sum2 - sum * mean) / (n - 1);
+  return var > 0 ? mean / std::sqrt(var / n) : (mean == 0 ? 0.0 : 1e9);
+}
+
+// The go/no-go experiment of docs/speed.md: bench/colour_core.h's path tracer vectorised across
+// paths, on the same scene, size, spp and path length as Mitsuba and the tracer, in one session
+// (counters: each one's paths/s over Mitsuba's):
+//   core/mitsuba         colour alone, lanes of 8 under the tracer's AVX2 cap, Embree packets
+//   core_single/mitsuba  the same with every ray traced alone: what the packets give
+//   core16/mitsuba       lanes of 16 with Embree's AVX-512 kernels, uncapped as Mitsuba's are
+//                        (without AVX-512, Embree falls back to its best)
+//   core_aov/mitsuba     the core as render_frame's main pass (PixelSampler): every AOV
+//                        accumulated and stored by the tracer's code, the edge pass the tracer's
+//   core_aov_sobol/mitsuba  the same with the tracer's own random numbers (rt::Sampler)
+//   tracer/mitsuba       the tracer (render_frame)
+// and the rays per path of the core and the tracer (they must do the same work per path). The
+// checks, which skip the case as wrong when they fail:
+//   - with independent numbers, the core's colour and its frame's level-0 layers have the
+//     tracer's expectation: per layer, the mean over pixels and channels of the difference, in
+//     standard errors from the pixels' own spread (independent pixels: z close to normal);
+//     |z| > 4 fails (6e-5 per layer by chance). core_vs_tracer_worst_z is the largest |z|.
+//   - with the tracer's numbers, the core traces the tracer's paths: every colour value within
+//     1e-4 relative of the tracer's (the arithmetic differs in rounding only: vector sin and cos,
+//     products in another order); sobol_within_1e-4 is the fraction, and must be 1 but for
+//     1e-5 of the values (a rounding that flips one path's roulette or occlusion test).
+void BM_ColourCore(benchmark::State& state) {
+  const int spp = int(state.range(0));
+  const dnb::RenderSettings s = dnb::bench::render_settings(kWidth, kHeight, spp, kPathLength);
+  for (auto _ : state) {
+    std::shared_ptr<const dnb::Scene> scene;
+    std::string label;
+    const double mitsuba = mitsuba_paths_per_second(state, "llvm_ad_rgb", spp, scene, label);
+    if (!(mitsuba > 0)) return;
+    if (const std::string why = dnb::bench::ColourCore::supported(*scene); !why.empty()) {
+      state.SkipWithError(("the colour core cannot render mcguire-cornell-box: " + why).c_str());
+      return;
+    }
+    const double paths = double(kWidth) * kHeight * spp;
+    dnb::AovFrame frame;
+    const double tracer_sec = median_seconds([&] { frame = dnb::render_frame(*scene, s); });
+    const double tracer_rays = std::stod(frame.meta.extra.at("rays"));
+    dnb::bench::ColourCore::Options o;
+    o.width = kWidth;
+    o.height = kHeight;
+    o.spp = spp;
+    o.max_depth = kPathLength;
+    std::vector<float> img;
+    double core_rays = 0;
+    auto core_seconds = [&](int lanes, dnb::bench::ColourCore::Trace trace, const char* config) {
+      o.lanes = lanes;
+      o.trace = trace;
+      o.embree_config = config;
+      const dnb::bench::ColourCore core(*scene, o);
+      return median_seconds([&] { img = core.render(&core_rays); });
+    };
+    const double single_sec = core_seconds(8, dnb::bench::ColourCore::Trace::kSingleRays, dnb::Scene::kEmbreeConfig);
+    const double wide_sec = core_seconds(16, dnb::bench::ColourCore::Trace::kPackets, "max_isa=avx512");
+    const double core_sec = core_seconds(8, dnb::bench::ColourCore::Trace::kPackets, dnb::Scene::kEmbreeConfig);
+    // The core as the main pass of render_frame: every AOV accumulated, stored and checked as the
+    // tracer's own frames are; with independent numbers, then with the tracer's.
+    dnb::AovFrame core_frame, sobol_frame;
+    const dnb::bench::ColourCore aov_core(*scene, o);  // o: 8 lanes, packets, the AVX2 cap (as core_sec)
+    const double aov_sec = median_seconds([&] { core_frame = dnb::render_frame(*scene, s, aov_core); });
+    o.numbers = dnb::bench::ColourCore::Numbers::kTracer;
+    o.seed = s.seed;
+    const dnb::bench::ColourCore sobol_core(*scene, o);
+    const double sobol_sec = median_seconds([&] { sobol_frame = dnb::render_frame(*scene, s, sobol_core); });
+    // The checks: the core's colour (img: its last render) and its frame's level-0 layers
+    // against the tracer's frame.
+    const dnb::Image& tc = frame.layer(dnb::layer::kColor);
+    double z = mean_difference_z(img, std::vector<float>(tc.data(), tc.data() + tc.size()));
+    std::string worst_layer = "colour (colour-only core)";
+    for (const char* name : {dnb::layer::kColor, dnb::layer::kDirect, dnb::layer::kIndirect, dnb::layer::kAlbedo,
+                             dnb::layer::kEmission, dnb::layer::kNormal, dnb::layer::kDepth}) {
+      const dnb::Image& a = core_frame.layer(name);
+      const dnb::Image& b = frame.layer(name);
+      const double za = mean_difference_z(std::vector<float>(a.data(), a.data() + a.size()),
+                                          std::vector<float>(b.data(), b.data() + b.size()));
+      if (!(std::abs(za) <= std::abs(z))) {
+        z = za;
+        worst_layer = name;
+      }
+    }
+    const dnb::Image& sc = sobol_frame.layer(dnb::layer::kColor);
+    std::size_t close = 0;
+    for (std::size_t i = 0; i < tc.size(); ++i)
+      close += std::abs(sc.data()[i] - tc.data()[i]) <= 1e-4f * std::max(1.0f, std::abs(tc.data()[i]));
+    const double within = double(close) / double(tc.size());
+    state.SetIterationTime(core_sec);
+    state.counters["mitsuba_paths/s"] = mitsuba;
+    state.counters["core_paths/s"] = paths / core_sec;
+    state.counters["core/mitsuba"] = paths / core_sec / mitsuba;
+    state.counters["core_single/mitsuba"] = paths / single_sec / mitsuba;
+    state.counters["core16/mitsuba"] = paths / wide_sec / mitsuba;
+    state.counters["tracer/mitsuba"] = paths / tracer_sec / mitsuba;
+    state.counters["core_rays/path"] = core_rays / paths;
+    state.counters["tracer_rays/path"] = tracer_rays / paths;
+    state.counters["core_aov/mitsuba"] = paths / aov_sec / mitsuba;
+    state.counters["core_aov_sobol/mitsuba"] = paths / sobol_sec / mitsuba;
+    state.counters["sobol_within_1e-4"] = within;
+    state.counters["core_vs_tracer_worst_z"] = z;
+    state.SetLabel(label + ", worst z in " + worst_layer);
+    if (!(std::abs(z) <= 4)) {
+      state.SkipWithError(("the colour core disagrees with the tracer in " + worst_layer + ": z = " + std::to_string(z)).c_str());
+      return;
+    }
+    if (!(within >= 1 - 1e-5)) {
+      state.SkipWithError(("with the tracer's numbers, only " + std::to_string(within) +
+                           " of the core's colour values are within 1e-4 of the tracer's").c_str());
+      return;
+    }
+  }
 }
 
 BENCHMARK_CAPTURE(BM_Mitsuba, llvm, "llvm_ad_rgb")->Arg(4)->Arg(64)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
+BENCHMARK(BM_ColourCore)->Arg(4)->Arg(64)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
 
 }  // namespace
