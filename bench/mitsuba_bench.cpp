@@ -31,7 +31,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_util.h"
-#include "colour_core.h"
+#include "tracer/colour_core.h"
 #include "core/stats.h"
 #include "core/timer.h"
 #include "core/aov_frame.h"
@@ -145,7 +145,7 @@ double mean_difference_z(const std::vector<float>& a, const std::vector<float>& 
   return var > 0 ? mean / std::sqrt(var / n) : (mean == 0 ? 0.0 : 1e9);
 }
 
-// The go/no-go experiment of docs/speed.md: bench/colour_core.h's path tracer vectorised across
+// The go/no-go experiment of docs/speed.md: tracer/colour_core.h's path tracer vectorised across
 // paths, on the same scene, size, spp and path length as Mitsuba and the tracer, in one session
 // (counters: each one's paths/s over Mitsuba's):
 //   core/mitsuba         colour alone, lanes of 8 under the tracer's AVX2 cap, Embree packets
@@ -177,7 +177,7 @@ void BM_ColourCore(benchmark::State& state) {
     std::string label;
     const double mitsuba = mitsuba_paths_per_second(state, "llvm_ad_rgb", spp, scene, label);
     if (!(mitsuba > 0)) return;
-    if (const std::string why = dnb::bench::ColourCore::supported(*scene); !why.empty()) {
+    if (const std::string why = dnb::ColourCore::supported(*scene); !why.empty()) {
       state.SkipWithError(("the colour core cannot render mcguire-cornell-box: " + why).c_str());
       return;
     }
@@ -185,31 +185,31 @@ void BM_ColourCore(benchmark::State& state) {
     dnb::AovFrame frame;
     const double tracer_sec = median_seconds([&] { frame = dnb::render_frame(*scene, s); });
     const double tracer_rays = std::stod(frame.meta.extra.at("rays"));
-    dnb::bench::ColourCore::Options o;
+    dnb::ColourCore::Options o;
     o.width = kWidth;
     o.height = kHeight;
     o.spp = spp;
     o.max_depth = kPathLength;
     std::vector<float> img;
     double core_rays = 0;
-    auto core_seconds = [&](int lanes, dnb::bench::ColourCore::Trace trace, const char* config) {
+    auto core_seconds = [&](int lanes, dnb::ColourCore::Trace trace, const char* config) {
       o.lanes = lanes;
       o.trace = trace;
       o.embree_config = config;
-      const dnb::bench::ColourCore core(*scene, o);
+      const dnb::ColourCore core(*scene, o);
       return median_seconds([&] { img = core.render(&core_rays); });
     };
-    const double single_sec = core_seconds(8, dnb::bench::ColourCore::Trace::kSingleRays, dnb::Scene::kEmbreeConfig);
-    const double wide_sec = core_seconds(16, dnb::bench::ColourCore::Trace::kPackets, "max_isa=avx512");
-    const double core_sec = core_seconds(8, dnb::bench::ColourCore::Trace::kPackets, dnb::Scene::kEmbreeConfig);
+    const double single_sec = core_seconds(8, dnb::ColourCore::Trace::kSingleRays, dnb::Scene::kEmbreeConfig);
+    const double wide_sec = core_seconds(16, dnb::ColourCore::Trace::kPackets, "max_isa=avx512");
+    const double core_sec = core_seconds(8, dnb::ColourCore::Trace::kPackets, dnb::Scene::kEmbreeConfig);
     // The core as the main pass of render_frame: every AOV accumulated, stored and checked as the
     // tracer's own frames are; with independent numbers, then with the tracer's.
     dnb::AovFrame core_frame, sobol_frame;
-    const dnb::bench::ColourCore aov_core(*scene, o);  // o: 8 lanes, packets, the AVX2 cap (as core_sec)
+    const dnb::ColourCore aov_core(*scene, o);  // o: 8 lanes, packets, the AVX2 cap (as core_sec)
     const double aov_sec = median_seconds([&] { core_frame = dnb::render_frame(*scene, s, aov_core); });
-    o.numbers = dnb::bench::ColourCore::Numbers::kTracer;
+    o.numbers = dnb::ColourCore::Numbers::kTracer;
     o.seed = s.seed;
-    const dnb::bench::ColourCore sobol_core(*scene, o);
+    const dnb::ColourCore sobol_core(*scene, o);
     const double sobol_sec = median_seconds([&] { sobol_frame = dnb::render_frame(*scene, s, sobol_core); });
     // The checks: the core's colour (img: its last render) and its frame's level-0 layers
     // against the tracer's frame.

@@ -59,7 +59,7 @@ struct SampleResult;  // tracer/integrator.h
 }
 // Another integrator for render_frame's main pass, for experiments that measure one against the
 // tracer's own with everything else of a frame unchanged (the accumulation of every layer, the
-// variances, the half buffers, the edge set; docs/speed.md: bench/colour_core.h's vectorised
+// variances, the half buffers, the edge set; docs/speed.md: tracer/colour_core.h's vectorised
 // core). No command uses one. trace_pixels fills out[p * spp + s] with sample s of pixel
 // (x0 + p, y) for p < count and s < spp, and returns the rays it traced; render_frame calls it
 // from its worker threads, at most `batch_samples() / spp` pixels at a time (at least one).

@@ -2,7 +2,9 @@
 // vectorised across paths, to learn whether the tracer's speed goal against Mitsuba 3's LLVM
 // back-end (issue 52: 1.3x, with the harness's AOVs on) is within reach of a vectorised
 // integrator before one is written for every material. Not a tracer version and not used by any
-// command: only BM_ColourCore (mitsuba_bench.cpp) runs it.
+// command: BM_ColourCore (bench/mitsuba_bench.cpp) times it, tests/tracer/colour_core_test.cpp
+// checks that it traces the tracer's paths. In the tracer's library, beside the integrator it
+// is the first step of, so that those tests keep it true as the tracer changes.
 //
 // What it computes: the tracer's estimator for a scene of diffuse and emissive triangles
 // (PathTracer::decompose and trace): a path of at most `max_depth` vertices, next-event
@@ -35,7 +37,7 @@
 #include "tracer/render.h"
 #include "tracer/scene.h"
 
-namespace dnb::bench {
+namespace dnb {
 
 // As a PixelSampler (tracer/render.h), it traces render_frame's main pass in its stead: each
 // sample's level-0 layers as the tracer's decomposition defines them for a diffuse first hit
@@ -81,4 +83,4 @@ class ColourCore : public PixelSampler {
   Data* data_;
 };
 
-}  // namespace dnb::bench
+}  // namespace dnb

@@ -1,7 +1,7 @@
 // The colour-only vectorised path tracer of colour_core.h (the go/no-go experiment of
 // docs/speed.md). Written with std::experimental::simd (libstdc++'s Parallelism TS 2) so that one
 // kernel serves 8 and 16 lanes; Embree's packet entry points trace the lanes' rays.
-#include "colour_core.h"
+#include "tracer/colour_core.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
@@ -16,7 +16,7 @@
 #include "tracer/integrator.h"
 #include "tracer/math.h"
 
-namespace dnb::bench {
+namespace dnb {
 
 namespace stdx = std::experimental;
 
@@ -322,6 +322,7 @@ std::uint64_t run_lanes(const ColourCore::Data& d, const Scene& scene, const Col
   // Per lane: the ray, the throughput past the first hit (beta: white at the first hit, as the
   // tracer's D and I are), the first hit's albedo, normal and distance, and the three sums.
   F ox = 0, oy = 0, oz = 0, dx = 0, dy = 0, dz = 1, prev_pdf = 0;
+  F prev_x = 0, prev_y = 0, prev_z = 0;  // the previous vertex's point (the path's last hit)
   F beta[3] = {1, 1, 1}, a1[3] = {0, 0, 0}, n1[3] = {0, 0, 0}, t1 = 0;
   F em[3] = {0, 0, 0}, dir[3] = {0, 0, 0}, ind[3] = {0, 0, 0};
   F depth = 0;  // vertices so far (small whole numbers: exact in floats, and no mask conversions)
@@ -462,7 +463,11 @@ std::uint64_t run_lanes(const ColourCore::Data& d, const Scene& scene, const Col
       const M seen = hit && (front || gather(d.two_sided, mat) > 0) && (er + eg + eb > 0);
       if (stdx::any_of(seen)) {
         const F sel = F([&](auto k) { return seen[k] ? d.sel_over_area[std::size_t(tri[k])] : 0.0f; });
-        const F light_pdf = sel * t * t / stdx::abs(cos_o);
+        // From the previous vertex's point as PathTracer::trace keeps it (below), not the ray's
+        // origin: they differ by the offset, which shows where a light is a centimetre from a wall.
+        const F qx = px - prev_x, qy = py - prev_y, qz = pz - prev_z;
+        const F dist2 = qx * qx + qy * qy + qz * qz;
+        const F light_pdf = sel * dist2 / (stdx::abs(nx * qx + ny * qy + nz * qz) / stdx::sqrt(dist2));
         F w = power(prev_pdf, light_pdf);
         stdx::where(!(prev_pdf > 0), w) = 1.0f;
         const F wr = beta[0] * er * w, wg = beta[1] * eg * w, wb = beta[2] * eb * w;
@@ -597,10 +602,20 @@ std::uint64_t run_lanes(const ColourCore::Data& d, const Scene& scene, const Col
     stdx::where(alive, beta[0]) = beta[0] * fr;
     stdx::where(alive, beta[1]) = beta[1] * fg;
     stdx::where(alive, beta[2]) = beta[2] * fb;
-    const M ended = alive && (lz <= 1e-7f || (beta[0] * a1[0] <= 0 && beta[1] * a1[1] <= 0 && beta[2] * a1[2] <= 0));
+    // A black throughput ends the path; the first hit's albedo is not part of it (D and I are
+    // for a white surface, also on a black one), as in PathTracer::trace.
+    const M ended = alive && (lz <= 1e-7f || (beta[0] <= 0 && beta[1] <= 0 && beta[2] <= 0));
     finish(ended);
     alive = alive && !ended;
     stdx::where(alive, prev_pdf) = lz * rt::kInvPi;
+    // PathTracer::trace starts its previous point at the continuation's ray origin (the first
+    // hit's point offset off the surface) and moves it to each hit's point after: the same here.
+    stdx::where(alive, prev_x) = px;
+    stdx::where(alive, prev_y) = py;
+    stdx::where(alive, prev_z) = pz;
+    stdx::where(alive && first, prev_x) = px + nx * off;
+    stdx::where(alive && first, prev_y) = py + ny * off;
+    stdx::where(alive && first, prev_z) = pz + nz * off;
     stdx::where(alive, ox) = px + nx * off;
     stdx::where(alive, oy) = py + ny * off;
     stdx::where(alive, oz) = pz + nz * off;
@@ -702,4 +717,4 @@ std::uint64_t ColourCore::trace_pixels(int x0, int y, int count, int spp, rt::Sa
                                   std::uint64_t(y) * std::uint64_t(opt_.width) + std::uint64_t(x0), count);
 }
 
-}  // namespace dnb::bench
+}  // namespace dnb
