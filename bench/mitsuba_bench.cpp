@@ -166,8 +166,8 @@ double mean_difference_z(const std::vector<float>& a, const std::vector<float>& 
 //     1e-4 relative of the tracer's (the arithmetic differs in rounding only: vector sin and cos,
 //     products in another order); sobol_within_1e-4 is the fraction, and must be 1 but for
 //     1e-5 of the values (a rounding that flips one path's roulette or occlusion test).
-// 2026-12-07, Intel Xeon, 2 cores, tracer 7, 64 spp: core 1.24, core_single 0.92, core16 0.93,
-// core_aov 1.08, core_aov_sobol 0.98, tracer 0.64 (reports/speed/2026-12-07-vector-core.json;
+// 2026-12-07, Intel Xeon, 2 cores, tracer 7, 64 spp: core 1.23, core_single 0.91, core16 0.89,
+// core_aov 1.07, core_aov_sobol 0.94, tracer 0.66 (reports/speed/2026-12-07-vector-core-2.json;
 // docs/speed.md, "The go/no-go, built and run").
 void BM_ColourCore(benchmark::State& state) {
   const int spp = int(state.range(0));
