@@ -23,6 +23,13 @@ namespace stdx = std::experimental;
 struct ColourCore::Data {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
+  Data() = default;
+  Data(const Data&) = delete;
+  Data& operator=(const Data&) = delete;
+  ~Data() {  // also when the constructor below throws part-way
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
   std::vector<std::uint32_t> prim_base;   // per mesh: index of its first triangle among all
   std::vector<std::int32_t> material;     // per triangle
   std::vector<float> sel_over_area;       // per triangle: light selection probability / area
@@ -47,10 +54,11 @@ std::string ColourCore::supported(const Scene& scene) {
   return {};
 }
 
-ColourCore::ColourCore(const Scene& scene, const Options& options) : scene_(scene), opt_(options), data_(new Data) {
+ColourCore::ColourCore(const Scene& scene, const Options& options) : scene_(scene), opt_(options) {
   if (const std::string why = supported(scene); !why.empty())
     throw std::invalid_argument("ColourCore: " + why);
   if (opt_.lanes != 8 && opt_.lanes != 16) throw std::invalid_argument("ColourCore: lanes must be 8 or 16");
+  data_ = std::make_unique<Data>();
   Data& d = *data_;
   for (const rt::Material& m : scene.materials) {
     for (int c = 0; c < 3; ++c) {
@@ -60,6 +68,8 @@ ColourCore::ColourCore(const Scene& scene, const Options& options) : scene_(scen
     d.two_sided.push_back(m.two_sided ? 1.0f : 0.0f);
   }
   d.device = rtcNewDevice(opt_.embree_config);
+  if (!d.device)
+    throw std::invalid_argument(std::string("ColourCore: Embree refused the configuration '") + opt_.embree_config + "'");
   d.scene = rtcNewScene(d.device);
   rtcSetSceneBuildQuality(d.scene, RTC_BUILD_QUALITY_HIGH);  // as Scene::commit
   // Emitters chosen as Scene::commit chooses them: half by power, half uniformly over groups
@@ -134,11 +144,7 @@ ColourCore::ColourCore(const Scene& scene, const Options& options) : scene_(scen
   if (d.cdf.empty()) throw std::invalid_argument("ColourCore: the scene has no emissive triangle");
 }
 
-ColourCore::~ColourCore() {
-  rtcReleaseScene(data_->scene);
-  rtcReleaseDevice(data_->device);
-  delete data_;
-}
+ColourCore::~ColourCore() = default;
 
 namespace {
 

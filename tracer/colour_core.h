@@ -31,6 +31,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -80,7 +81,7 @@ class ColourCore : public PixelSampler {
  private:
   const Scene& scene_;
   Options opt_;
-  Data* data_;
+  std::unique_ptr<Data> data_;
 };
 
 }  // namespace dnb
