@@ -131,20 +131,6 @@ void BM_Mitsuba(benchmark::State& state, const char* variant) {
   }
 }
 
-// The mean over pixels and channels of a - b, in standard errors of that mean from the values'
-// own spread: pixels are independent, so z is close to normal where a and b have one expectation.
-// Equal constant values (no spread) give 0.
-double mean_difference_z(const std::vector<float>& a, const std::vector<float>& b) {
-  double sum = 0, sum2 = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    const double diff = double(a[i]) - double(b[i]);
-    sum += diff;
-    sum2 += diff * diff;
-  }
-  const double n = double(a.size()), mean = sum / n, var = (sum2 - sum * mean) / (n - 1);
-  return var > 0 ? mean / std::sqrt(var / n) : (mean == 0 ? 0.0 : 1e9);
-}
-
 // The go/no-go experiment of docs/speed.md: tracer/colour_core.h's path tracer vectorised across
 // paths, on the same scene, size, spp and path length as Mitsuba and the tracer, in one session
 // (counters: each one's paths/s over Mitsuba's):
@@ -214,14 +200,15 @@ void BM_ColourCore(benchmark::State& state) {
     // The checks: the core's colour (img: its last render) and its frame's level-0 layers
     // against the tracer's frame.
     const dnb::Image& tc = frame.layer(dnb::layer::kColor);
-    double z = mean_difference_z(img, std::vector<float>(tc.data(), tc.data() + tc.size()));
+    // Per layer: the mean difference over pixels and channels in standard errors (pixels are
+    // independent: z close to normal where both have one expectation).
+    double z = dnb::stats::paired_z(img.data(), tc.data(), tc.size());
     std::string worst_layer = "colour (colour-only core)";
     for (const char* name : {dnb::layer::kColor, dnb::layer::kDirect, dnb::layer::kIndirect, dnb::layer::kAlbedo,
                              dnb::layer::kEmission, dnb::layer::kNormal, dnb::layer::kDepth}) {
       const dnb::Image& a = core_frame.layer(name);
       const dnb::Image& b = frame.layer(name);
-      const double za = mean_difference_z(std::vector<float>(a.data(), a.data() + a.size()),
-                                          std::vector<float>(b.data(), b.data() + b.size()));
+      const double za = dnb::stats::paired_z(a.data(), b.data(), a.size());
       if (!(std::abs(za) <= std::abs(z))) {
         z = za;
         worst_layer = name;

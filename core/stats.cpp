@@ -73,6 +73,19 @@ double paired_t_test_p(const std::vector<double>& a, const std::vector<double>& 
   return 2 * boost::math::cdf(boost::math::complement(t, std::abs(tstat)));
 }
 
+double paired_z(const float* a, const float* b, std::size_t n) {
+  if (n < 2) return std::numeric_limits<double>::quiet_NaN();
+  double sum = 0, sum2 = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double d = double(a[i]) - double(b[i]);
+    sum += d;
+    sum2 += d * d;
+  }
+  const double m = sum / double(n), var = std::max(0.0, (sum2 - sum * m) / double(n - 1));
+  if (var == 0) return m == 0 ? 0.0 : std::copysign(std::numeric_limits<double>::infinity(), m);
+  return m / std::sqrt(var / double(n));
+}
+
 // Written here: neither Boost.Math nor the project's other libraries have Kendall's tau; the
 // O(n^2) pair count is plenty for tens of methods.
 KendallTau kendall_tau_b(const std::vector<double>& x, const std::vector<double>& y) {

@@ -3,6 +3,7 @@
 // the benchmarks.
 #pragma once
 
+#include <cstddef>
 #include <vector>
 
 namespace dnb::stats {
@@ -33,6 +34,13 @@ Interval t_interval(const std::vector<double>& v, double confidence = 0.95);
 // fewer than two pairs or unequal lengths; 0 when every difference is the same non-zero value
 // (no spread: the difference is certain), 1 when every difference is zero.
 double paired_t_test_p(const std::vector<double>& a, const std::vector<double>& b);
+
+// The mean of a[i] - b[i] over n independent pairs in standard errors of that mean, the error
+// from the differences' own spread: the paired t statistic, close to normal with the thousands
+// of pairs it serves (the pixels of two renders of one scene: tracer/colour_core.h's checks).
+// 0 when every difference is zero; +-infinity when all differences are one non-zero value; NaN
+// for fewer than two pairs.
+double paired_z(const float* a, const float* b, std::size_t n);
 
 // Kendall's rank correlation of paired values (x_i, y_i), tau-b (ties in either list count as
 // neither concordant nor discordant, and shrink the denominator: sqrt((n0 - tx)(n0 - ty)) with

@@ -1,5 +1,5 @@
-// The colour-only vectorised path tracer of colour_core.h (the go/no-go experiment of
-// docs/speed.md). Written with std::experimental::simd (libstdc++'s Parallelism TS 2) so that one
+// The vectorised path tracer of colour_core.h (the go/no-go experiment of docs/speed.md).
+// Written with std::experimental::simd (libstdc++'s Parallelism TS 2) so that one
 // kernel serves 8 and 16 lanes; Embree's packet entry points trace the lanes' rays.
 #include "tracer/colour_core.h"
 
@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <bit>
 #include <cmath>
 #include <experimental/simd>
 #include <stdexcept>
@@ -167,12 +166,11 @@ struct Packet<16> {
 
 // Random numbers: a counter-based generator, number c of a path being hash(hash(c * golden +
 // key_lo) ^ key_hi), with the path's 64-bit key (its seed, pixel and sample index, mixed by
-// SplitMix64) and the 32-bit integer hash "lowbias32" (Wellons' hash-prospector: two multiplies,
-// three shifts, full avalanche), written once for scalars and vectors. A first version stepped
-// one 32-bit LCG state per path (PCG32's RXS-M-XS): 50 M paths of a 1024x768, 64-spp frame in a
-// cycle of 2^32 states started some 3e5 pairs of paths on the same state and many more on
-// overlapping streams, and the means of its frames scattered more than their standard errors
-// allowed. Here every path's numbers are a hash of its own 64-bit key.
+// rt::mix64) and the 32-bit integer hash "lowbias32" (Wellons' hash-prospector: two multiplies,
+// three shifts, full avalanche), written once for scalars and vectors. Each path's numbers hang
+// on its own 64-bit key, not on a 32-bit generator state: a frame's 5e7 paths on a cycle of 2^32
+// states would start some 3e5 pairs of paths on the same state and many more on overlapping
+// streams, and its means would scatter more than their standard errors allow (measured).
 template <typename T>
 [[gnu::always_inline]] inline T lowbias32(T x) {
   x ^= x >> 16u;
@@ -190,11 +188,25 @@ template <typename T>
   return x;
 }
 
-std::uint64_t mix64(std::uint64_t x) {  // SplitMix64's finaliser
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
+constexpr std::uint64_t kGolden = 0x9e3779b97f4a7c15ull;  // SplitMix64's increment
+
+// Lane k of a packet's rays as a single ray (Trace::kSingleRays).
+template <typename PacketRay>
+RTCRay lane_ray(const PacketRay& r, int k) {
+  RTCRay one;
+  one.org_x = r.org_x[k];
+  one.org_y = r.org_y[k];
+  one.org_z = r.org_z[k];
+  one.dir_x = r.dir_x[k];
+  one.dir_y = r.dir_y[k];
+  one.dir_z = r.dir_z[k];
+  one.tnear = r.tnear[k];
+  one.tfar = r.tfar[k];
+  one.time = r.time[k];
+  one.mask = r.mask[k];
+  one.id = r.id[k];
+  one.flags = r.flags[k];
+  return one;
 }
 
 // Where a lane's random numbers come from: at(slot, depth) is each lane's number for `slot`
@@ -211,7 +223,7 @@ struct HashRandom {
   U counter = 0, lo = 0, hi = 0;
   explicit HashRandom(std::uint64_t s) : seed(s) {}
   void start(int k, std::int64_t, std::uint64_t key, float& jx, float& jy) {
-    const std::uint64_t h = mix64(mix64(key) ^ seed);
+    const std::uint64_t h = rt::mix64((rt::mix64(key + kGolden) ^ seed) + kGolden);
     std::uint32_t c = 0;
     const std::uint32_t l = std::uint32_t(h), u = std::uint32_t(h >> 32);
     jx = float(draw(c, l, u) >> 8) * 0x1p-24f;
@@ -298,11 +310,10 @@ std::uint64_t run_lanes(const ColourCore::Data& d, const Scene& scene, const Col
   // The native vector types of N lanes (fixed_size_simd's element-wise helpers were not inlined
   // by GCC 12 here and cost a fifth of the render).
   using F = stdx::simd<float, stdx::simd_abi::deduce_t<float, N>>;
-  using U = stdx::simd<std::uint32_t, stdx::simd_abi::deduce_t<std::uint32_t, N>>;
   using I = stdx::simd<std::int32_t, stdx::simd_abi::deduce_t<std::int32_t, N>>;
   using M = typename F::mask_type;
   using P = Packet<N>;
-  static_assert(F::size() == N && U::size() == N && I::size() == N);
+  static_assert(F::size() == N && I::size() == N);
   const int W = opt.width, H = opt.height;
 
   // Every lane's index is valid (0 where a lane has nothing to look up), so loads need no mask.
@@ -410,18 +421,7 @@ std::uint64_t run_lanes(const ColourCore::Data& d, const Scene& scene, const Col
       for (int k = 0; k < N; ++k) {
         if (!valid[k]) continue;
         RTCRayHit one;
-        one.ray.org_x = rh.ray.org_x[k];
-        one.ray.org_y = rh.ray.org_y[k];
-        one.ray.org_z = rh.ray.org_z[k];
-        one.ray.dir_x = rh.ray.dir_x[k];
-        one.ray.dir_y = rh.ray.dir_y[k];
-        one.ray.dir_z = rh.ray.dir_z[k];
-        one.ray.tnear = 0.0f;
-        one.ray.tfar = 1e30f;
-        one.ray.time = 0.0f;
-        one.ray.mask = ~0u;
-        one.ray.id = 0;
-        one.ray.flags = 0;
+        one.ray = lane_ray(rh.ray, k);
         one.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(d.scene, &ctx, &one);
         rh.ray.tfar[k] = one.ray.tfar;
@@ -572,19 +572,7 @@ std::uint64_t run_lanes(const ColourCore::Data& d, const Scene& scene, const Col
       } else {
         for (int k2 = 0; k2 < N; ++k2) {
           if (!valid[k2]) continue;
-          RTCRay one;
-          one.org_x = sh.org_x[k2];
-          one.org_y = sh.org_y[k2];
-          one.org_z = sh.org_z[k2];
-          one.dir_x = sh.dir_x[k2];
-          one.dir_y = sh.dir_y[k2];
-          one.dir_z = sh.dir_z[k2];
-          one.tnear = 0.0f;
-          one.tfar = sh.tfar[k2];
-          one.time = 0.0f;
-          one.mask = ~0u;
-          one.id = 0;
-          one.flags = 0;
+          RTCRay one = lane_ray(sh, k2);
           rtcOccluded1(d.scene, &ctx, &one);
           sh.tfar[k2] = one.tfar;
         }

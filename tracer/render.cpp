@@ -286,9 +286,16 @@ void render_tile(const SampleSource& src, const PixelSampler* other, int spp, co
   SampleTable table;
   const int K = int(out.level.size()) - 1;
   std::vector<LevelSums> sums(K + 1);
-  auto add = [&](int s, const SampleResult& sr, GroupSums* groups, SpecularSums& spec) {
-    if (sample_finite(sr)) accumulate_sample(sr, K, sums.data(), groups[s % kGroups], spec);
-    else ++counts.dropped;
+  // Pixel (x, y)'s layers from its samples: feed(add) calls add(s, result) for s = 0 .. spp - 1.
+  auto pixel = [&](int x, int y, auto&& feed) {
+    for (auto& s : sums) s = LevelSums{};
+    GroupSums groups[kGroups];
+    SpecularSums spec;
+    feed([&](int s, const SampleResult& sr) {
+      if (sample_finite(sr)) accumulate_sample(sr, K, sums.data(), groups[s % kGroups], spec);
+      else ++counts.dropped;
+    });
+    store_pixel(out, x, y, sums, groups, spec, depth_spread);
   };
   if (other) {
     thread_local std::vector<SampleResult> batch;
@@ -298,25 +305,20 @@ void render_tile(const SampleSource& src, const PixelSampler* other, int spp, co
         const int count = std::min(per_call, x1 - xb);
         batch.resize(std::size_t(count) * std::size_t(spp));
         counts.rays += other->trace_pixels(xb, y, count, spp, batch.data());
-        for (int p = 0; p < count; ++p) {
-          for (auto& s : sums) s = LevelSums{};
-          GroupSums groups[kGroups];
-          SpecularSums spec;
-          for (int s = 0; s < spp; ++s) add(s, batch[std::size_t(p) * std::size_t(spp) + std::size_t(s)], groups, spec);
-          store_pixel(out, xb + p, y, sums, groups, spec, depth_spread);
-        }
+        for (int p = 0; p < count; ++p)
+          pixel(xb + p, y, [&](auto&& add) {
+            const SampleResult* samples = batch.data() + std::size_t(p) * std::size_t(spp);
+            for (int s = 0; s < spp; ++s) add(s, samples[s]);
+          });
       }
     return;
   }
   for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) {
-      for (auto& s : sums) s = LevelSums{};
-      GroupSums groups[kGroups];
-      SpecularSums spec;
-      counts.rays += src.trace_samples(table, x, y, 0, spp, r,
-                                       [&](int s, const SampleResult& sr, float, float) { add(s, sr, groups, spec); });
-      store_pixel(out, x, y, sums, groups, spec, depth_spread);
-    }
+    for (int x = x0; x < x1; ++x)
+      pixel(x, y, [&](auto&& add) {
+        counts.rays += src.trace_samples(table, x, y, 0, spp, r,
+                                         [&](int s, const SampleResult& sr, float, float) { add(s, sr); });
+      });
 }
 
 // Says how many variance values were clamped to float's range (pixel_sums.h's

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "core/csv.h"
 #include "core/stats.h"
@@ -31,6 +32,17 @@ TEST(Stats, MedianMeanAndSpreads) {
   EXPECT_EQ(stats::relative_std({5}), 0);
   EXPECT_DOUBLE_EQ(stats::max_over_min_minus_one({2, 3, 2.5}), 0.5);
   EXPECT_EQ(stats::max_over_min_minus_one({0, 3}), 0);  // no relative change from zero
+}
+
+TEST(Stats, PairedZOfTheMeanDifference) {
+  // d = 1, 2, 3, 4: mean 2.5, sample variance 5/3, standard error sqrt(5/12).
+  const float a[] = {1, 2, 3, 4}, zero[] = {0, 0, 0, 0};
+  EXPECT_NEAR(stats::paired_z(a, zero, 4), 2.5 / std::sqrt(5.0 / 12.0), 1e-12);
+  EXPECT_NEAR(stats::paired_z(zero, a, 4), -2.5 / std::sqrt(5.0 / 12.0), 1e-12);
+  EXPECT_EQ(stats::paired_z(a, a, 4), 0.0);  // no difference at all
+  const float b[] = {0, 1, 2, 3};            // always 1 lower: the difference is certain
+  EXPECT_EQ(stats::paired_z(a, b, 4), std::numeric_limits<double>::infinity());
+  EXPECT_TRUE(std::isnan(stats::paired_z(a, b, 1)));
 }
 
 // Kendall's tau-b against cases worked out by hand (the Mahonian counts for n = 4 are
